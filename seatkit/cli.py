@@ -1,0 +1,224 @@
+"""The ``seatkit`` command line: parse, call the library, print.
+
+Commands live here (``build``, ``plugins``, ``templates``) and in the modules
+of :mod:`seatkit.commands`, each of which defines ``register(app)``; every
+module there is picked up automatically, in name order.
+
+A user error (:class:`~seatkit.errors.SeatkitError`) is printed as
+``seatkit: error: <message>`` on stderr with exit code 1; ``--debug`` shows
+the traceback instead. Any other exception is a bug and shows its traceback.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+import pkgutil
+import sys
+from pathlib import Path
+from typing import List, Optional
+
+import click
+import typer
+import typer.core
+
+from seatkit.errors import SeatkitError
+
+
+class _SeatkitGroup(typer.core.TyperGroup):
+    """Turns SeatkitError into one line on stderr and exit code 1."""
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except SeatkitError as e:
+            if (ctx.obj or {}).get("debug"):
+                raise
+            click.echo(f"seatkit: error: {e}", err=True)
+            ctx.exit(1)
+        except KeyboardInterrupt:
+            click.echo("seatkit: interrupted; no partial output was kept", err=True)
+            ctx.exit(130)
+
+
+app = typer.Typer(
+    cls=_SeatkitGroup,
+    name="seatkit",
+    help=(
+        "Design body-supporting furniture from a human body in a pose.\n\n"
+        "Start with:  seatkit build --template chair   (the default body, upright sitting)\n\n"
+        "Then try --pose (see 'seatkit poses'), --body, --recipe FILE.yaml, and "
+        "'seatkit templates' / 'seatkit plugins' for what is installed."
+    ),
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+
+@app.callback()
+def _main(
+    ctx: typer.Context,
+    debug: bool = typer.Option(False, "--debug", help="Show the traceback of an error."),
+    disable_plugin: List[str] = typer.Option(
+        [], "--disable-plugin", metavar="NAME", help="Do not load this plugin (repeatable)."
+    ),
+) -> None:
+    ctx.obj = {"debug": debug, "disabled": tuple(disable_plugin)}
+
+
+def plugin_manager(ctx: typer.Context):
+    """The plugin manager for this invocation (built once, honouring --disable-plugin)."""
+    from seatkit.plugins import get_plugin_manager
+
+    root = ctx.find_root()
+    obj = root.obj if root.obj is not None else {}
+    if "pm" not in obj:
+        obj["pm"] = get_plugin_manager(disabled=obj.get("disabled", ()))
+        for problem in obj["pm"].problems:
+            click.echo(f"seatkit: warning: {problem}", err=True)
+        root.obj = obj
+    return obj["pm"]
+
+
+def stderr_console():
+    """A rich console on stderr (progress, tables that are not the output)."""
+    from rich.console import Console
+
+    return Console(stderr=True)
+
+
+@app.command()
+def build(
+    ctx: typer.Context,
+    template: Optional[str] = typer.Option(None, "--template", "-t", help="Template name, e.g. chair, bench, flat-patch."),
+    recipe: Optional[Path] = typer.Option(None, "--recipe", "-r", help="Recipe YAML; flags given here override it."),
+    pose: List[str] = typer.Option([], "--pose", "-p", help="Library pose name, pose YAML or BVH (repeat in seat order)."),
+    body: List[str] = typer.Option(
+        [], "--body", "-b", help="default-male, default-female, a .npz/.glb file, or MODEL:key=value,... (repeatable)."
+    ),
+    mass: Optional[float] = typer.Option(None, "--mass", help="Body mass in kg (default 75)."),
+    frame: Optional[int] = typer.Option(None, "--frame", help="Frame of a BVH pose."),
+    refiner: List[str] = typer.Option([], "--refiner", help="Refiner to run, in order (repeatable; replaces the recipe's)."),
+    no_refiners: bool = typer.Option(False, "--no-refiners", help="Skip every refiner: export the template's cage."),
+    exporter: List[str] = typer.Option([], "--exporter", help="Exporter to run (repeatable; replaces the default set)."),
+    solver: Optional[str] = typer.Option(None, "--solver", help="Pressure solver (default qp)."),
+    lam: Optional[float] = typer.Option(None, "--lambda", help="Moment/pressure balance (default 0.013; inf = rigid)."),
+    mu: Optional[float] = typer.Option(None, "--mu", help="Friction coefficient (default 0.5)."),
+    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output folder (default seatkit-out/TEMPLATE)."),
+    seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (RANSAC); same seed, same files."),
+    level: Optional[int] = typer.Option(None, "--level", help="Subdivision level of the exported surface (1-4)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace an output folder seatkit did not write."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Print nothing but errors."),
+    as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout (for scripts)."),
+) -> None:
+    """Design a support for a body in a pose and write the cage, surface and report.
+
+    Stages: bodies -> pressure -> template -> refiners -> surface -> exporters.
+    """
+    from seatkit.pipeline import build as run_build
+    from seatkit.recipe import apply_overrides, check_recipe, load_recipe
+
+    pm = plugin_manager(ctx)
+    base, document = load_recipe(recipe)
+    merged = apply_overrides(
+        base,
+        template=template,
+        poses=pose or None,
+        bodies=body or None,
+        mass=mass,
+        frame=frame,
+        refiners=[] if no_refiners else (refiner or None),
+        exporters=exporter or None,
+        solver=solver,
+        lam=lam,
+        mu=mu,
+        output=str(out) if out is not None else None,
+        seed=seed,
+        surface_level=level,
+    )
+    check_recipe(merged, pm.registry, document=document if merged == base else None)
+
+    if quiet or as_json:
+        result = run_build(merged, pm=pm, overwrite=overwrite)
+    else:
+        console = stderr_console()
+        with console.status("building") as status:
+            result = run_build(merged, pm=pm, overwrite=overwrite, progress=lambda s: status.update(f"[bold]{s}[/]"))
+    summary = {
+        "output": result.extra.get("output"),
+        "files": result.files,
+        "timings_s": result.timings,
+        "control_mesh": {"vertices": len(result.control_mesh.vertices), "faces": len(result.control_mesh.faces)},
+        "special_cases": result.control_mesh.meta.get("special_cases", []),
+        "metrics": result.metrics,
+    }
+    if as_json:
+        click.echo(json.dumps(summary, indent=1, default=str))
+        return
+    if quiet:
+        return
+    from rich.table import Table
+
+    table = Table(title=f"seatkit build: {merged['template']} -> {summary['output']}", show_edge=False)
+    table.add_column("stage")
+    table.add_column("seconds", justify="right")
+    for stage, seconds in result.timings.items():
+        table.add_row(stage, f"{seconds:.3f}")
+    table.add_row("[bold]total[/]", f"[bold]{sum(result.timings.values()):.3f}[/]")
+    console = stderr_console()
+    console.print(table)
+    console.print(f"wrote {len(result.files)} files to {summary['output']}")
+
+
+@app.command()
+def plugins(ctx: typer.Context) -> None:
+    """List every plugin: its distribution, version and the components it registers."""
+    from rich.console import Console
+    from rich.table import Table
+
+    pm = plugin_manager(ctx)
+    registry = pm.registry  # builds components, fills infos
+    table = Table(show_edge=False)
+    for col in ("plugin", "distribution", "version", "components"):
+        table.add_column(col)
+    for name, info in sorted(pm.infos.items()):
+        comps = "; ".join(f"{kind.replace('_', ' ')}: {', '.join(names)}" for kind, names in sorted(info.components.items()))
+        label = f"{name} (built-in)" if info.builtin else name
+        table.add_row(label, info.distribution or "-", info.version or "-", comps or "-")
+    Console(width=200).print(table)
+    for problem in pm.problems:
+        click.echo(f"problem: {problem}")
+    del registry
+
+
+@app.command()
+def templates(ctx: typer.Context) -> None:
+    """List the furniture templates that can be built (seatkit build --template NAME)."""
+    pm = plugin_manager(ctx)
+    for name, component, plugin in pm.registry.items("template"):
+        click.echo(f"{name:<16} {component.description}  [{plugin}]")
+
+
+def _register_command_modules() -> None:
+    from seatkit import commands
+
+    for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
+        module = importlib.import_module(f"seatkit.commands.{info.name}")
+        register = getattr(module, "register", None)
+        if register is not None:
+            register(app)
+
+
+_register_command_modules()
+
+
+def main() -> None:
+    """Console-script entry point."""
+    app(prog_name="seatkit")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()
+    sys.exit(0)

@@ -1,0 +1,40 @@
+"""Physical constants, defaults and tolerances, each with its unit.
+
+Every number the pipeline uses as a default lives here, so that a reader can
+see at a glance which units the code works in (SI: metres, kilograms,
+newtons, pascals, radians) and a recipe or template can override it by name.
+"""
+
+from __future__ import annotations
+
+#: Standard gravity, m/s^2 (pointing along -Y, the world's down).
+GRAVITY = 9.81
+
+#: Default body mass, kg (735.75 N of weight).
+DEFAULT_BODY_MASS = 75.0
+
+#: The paper's moment/pressure balance lambda (Eq. 4), dimensionless in SI
+#: units (forces in N, areas in m^2, moments in N m).
+DEFAULT_LAMBDA = 0.013
+
+#: Coulomb friction coefficient between body and support, dimensionless.
+DEFAULT_MU = 0.5
+
+#: World up axis (+Y), body faces +Z.
+UP = (0.0, 1.0, 0.0)
+FORWARD = (0.0, 0.0, 1.0)
+
+#: Geometric tolerance for "on a plane" / "on the ground" tests, m.
+GEOMETRY_TOL = 1e-9
+
+#: Default support distance: a body vertex closer than this to the support
+#: surface is taken to be in contact, m.
+DEFAULT_SUPPORT_DISTANCE = 0.02
+
+#: Physical tolerances of the pressure solution checked after every solve.
+FORCE_TOL_RELATIVE = 1e-6  # relative error of the total reaction vs weight
+NORMAL_FORCE_TOL = 1e-9  # N: no normal force below -NORMAL_FORCE_TOL
+FRICTION_TOL = 1e-9  # N: friction pyramid slack allowed
+
+#: Default random seed of a build (RANSAC sampling).
+DEFAULT_SEED = 0

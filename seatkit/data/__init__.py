@@ -1,0 +1,1 @@
+"""Data shipped inside the package: default bodies, the pose library, joint-name maps."""

@@ -1,0 +1,67 @@
+"""seatkit's exceptions.
+
+There is one base class, :class:`SeatkitError`, that plugins may raise too.
+A ``SeatkitError`` is a *user* error: the CLI prints its message as one line
+on stderr and exits non-zero; any other exception is a bug and shows a
+traceback (with ``--debug`` a user error shows one as well).
+
+Messages name the offending file, field and value::
+
+    msg = f"{path}:{line}: faces[4].segment: unknown segment 'Thigh'; expected one of ..."
+    raise RecipeError(msg)
+"""
+
+from __future__ import annotations
+
+
+class SeatkitError(Exception):
+    """Base class of every error seatkit reports to a user."""
+
+
+class RecipeError(SeatkitError):
+    """A recipe, template or pose YAML file is malformed or names unknown things."""
+
+
+class InputError(SeatkitError):
+    """An input file (mesh, BVH, glTF, cage) is unreadable or invalid."""
+
+
+class PluginError(SeatkitError):
+    """A plugin failed to load, or two plugins registered the same component name."""
+
+
+class UnsupportedPoseError(SeatkitError):
+    """The method cannot support this pose (the paper's Section 6 limitations).
+
+    Attributes
+    ----------
+    parts : list of str
+        The body segments (or people) that cannot be supported.
+    diagnostics : dict
+        What could be supported, for saving next to the output.
+    """
+
+    def __init__(self, message: str, *, parts=(), diagnostics=None):
+        super().__init__(message)
+        self.parts = list(parts)
+        self.diagnostics = dict(diagnostics or {})
+
+
+class InfeasibleSupportError(SeatkitError):
+    """The contact set cannot hold the body in equilibrium."""
+
+
+class SolverError(SeatkitError):
+    """A numerical solver failed or returned an answer that violates its constraints."""
+
+
+class MissingExtraError(SeatkitError):
+    """An optional dependency is needed: the message names the pip extra."""
+
+    def __init__(self, package: str, extra: str):
+        super().__init__(
+            f"this feature needs the optional package '{package}': "
+            f"install it with pip install 'seatkit[{extra}]'"
+        )
+        self.package = package
+        self.extra = extra

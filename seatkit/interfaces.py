@@ -1,0 +1,211 @@
+"""The component interfaces plugins implement.
+
+A component is any object with a ``name`` (its registered name, used in
+recipes and on the command line), a one-line ``description``, and the method
+of its kind. Plugins return them from the registration hooks in
+:mod:`seatkit.hookspecs`. They are :class:`typing.Protocol` classes, so a
+plugin needs no base class; :func:`isinstance` checks the shape at
+registration time (``runtime_checkable``).
+
+Every method takes keyword-only options and returns new objects; components
+hold no per-build state, so one instance serves many builds and threads.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Mapping, Protocol, Sequence, runtime_checkable
+
+import numpy as np
+
+from seatkit.model import Body, BuildResult, ControlMesh, Pose, PressureField, RiggedBody
+
+
+@runtime_checkable
+class BodyModel(Protocol):
+    """Makes a rigged body and poses it.
+
+    ``name`` is e.g. ``default-male``, ``default-female``, ``file``, ``anny``.
+    """
+
+    name: str
+    description: str
+
+    def make_body(self, *, params: Mapping[str, Any]) -> RiggedBody:
+        """Build the rest-pose rigged body from model parameters.
+
+        Parameters
+        ----------
+        params : mapping
+            Model parameters from the recipe (``mass`` in kg for every model;
+            ``path`` for ``file``; ``height``, ``weight``, ``age``... for
+            parametric models). Unknown keys raise :class:`RecipeError`.
+
+        Returns
+        -------
+        RiggedBody
+        """
+        ...
+
+    def pose(self, rig: RiggedBody, pose: Pose, *, ground: bool = True) -> Body:
+        """Pose ``rig`` by linear blend skinning.
+
+        Parameters
+        ----------
+        rig : RiggedBody
+        pose : Pose
+        ground : bool
+            Move the body vertically so that its lowest vertex is at y = 0.
+
+        Returns
+        -------
+        Body
+        """
+        ...
+
+
+@runtime_checkable
+class PressureSolver(Protocol):
+    """Computes the reaction of a support on a body (paper Section 4)."""
+
+    name: str
+    description: str
+
+    def solve(
+        self,
+        body: Body,
+        *,
+        contact: np.ndarray | None = None,
+        lam: float | None = None,
+        mu: float | None = None,
+        exclude: Sequence[str] | None = None,
+        options: Mapping[str, Any] | None = None,
+    ) -> PressureField:
+        """Solve for the reaction forces holding ``body`` in equilibrium.
+
+        Parameters
+        ----------
+        body : Body
+        contact : (n,) bool, optional
+            Vertices that may carry a reaction; default every vertex (the
+            paper's "supported everywhere").
+        lam : float, optional
+            Moment/pressure balance; ``inf`` treats the body as rigid.
+        mu : float, optional
+            Friction coefficient.
+        exclude : sequence of str, optional
+            Named regions given zero user weight (nu); default the solver's own.
+        options : mapping, optional
+            Solver-specific settings (backend name, tolerances).
+
+        Returns
+        -------
+        PressureField
+
+        Raises
+        ------
+        InfeasibleSupportError
+            When the contact set cannot hold the body.
+        """
+        ...
+
+
+@runtime_checkable
+class SupportTemplate(Protocol):
+    """Fits a furniture cage to one or more posed bodies (paper Section 5)."""
+
+    name: str
+    description: str
+
+    def fit(
+        self,
+        bodies: Sequence[Body],
+        pressures: Sequence[PressureField],
+        *,
+        params: Mapping[str, Any] | None = None,
+        seed: int = 0,
+    ) -> ControlMesh:
+        """Fit the template.
+
+        Parameters
+        ----------
+        bodies : sequence of Body
+            The posed bodies in seat order (one for a chair).
+        pressures : sequence of PressureField
+            Each body's importance map.
+        params : mapping, optional
+            Overrides of the template's declared parameters.
+        seed : int
+            Seed of every random choice (RANSAC); same seed, same cage.
+
+        Returns
+        -------
+        ControlMesh
+
+        Raises
+        ------
+        UnsupportedPoseError
+            When a pose cannot be supported by this topology.
+        """
+        ...
+
+
+@runtime_checkable
+class Refiner(Protocol):
+    """Improves a cage after the template (paper Section 5.3, surface fit)."""
+
+    name: str
+    description: str
+
+    def refine(
+        self,
+        mesh: ControlMesh,
+        bodies: Sequence[Body],
+        pressures: Sequence[PressureField],
+        *,
+        params: Mapping[str, Any] | None = None,
+    ) -> ControlMesh:
+        """Return the refined cage (same topology)."""
+        ...
+
+
+@runtime_checkable
+class Exporter(Protocol):
+    """Writes part of a build result to files."""
+
+    name: str
+    description: str
+
+    def export(self, result: BuildResult, directory: Path) -> dict[str, Path]:
+        """Write files into ``directory`` and return them by role.
+
+        Files must be written atomically (see :func:`seatkit.io.atomic_write`).
+        """
+        ...
+
+
+@runtime_checkable
+class TemplateStep(Protocol):
+    """One named fitting step a YAML template can list under ``steps``.
+
+    The template engine calls :meth:`run` with the fitting state (planes,
+    vertices and faces fitted so far) and the step's YAML options.
+    """
+
+    name: str
+    description: str
+
+    def run(self, state: Any, *, options: Mapping[str, Any]) -> None:
+        """Advance the fitting ``state`` in place."""
+        ...
+
+
+#: Component kinds, by the registration hook that returns them.
+COMPONENT_KINDS: dict[str, type] = {
+    "body_model": BodyModel,
+    "pressure_solver": PressureSolver,
+    "template": SupportTemplate,
+    "template_step": TemplateStep,
+    "refiner": Refiner,
+    "exporter": Exporter,
+}

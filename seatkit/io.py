@@ -1,0 +1,141 @@
+"""Atomic output files and output folders.
+
+A build never leaves a half-written file that looks complete: every file is
+written to a temporary name in the same folder and renamed into place
+(:func:`os.replace` is atomic on POSIX and Windows). An output folder records
+the run that owns it in ``.seatkit-run``; :func:`prepare_output_dir` refuses to
+mix a new run into a folder that holds another run's files unless asked to
+overwrite, in which case the old files are removed first.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from seatkit.errors import SeatkitError
+
+RUN_MARKER = ".seatkit-run"
+
+
+@contextlib.contextmanager
+def atomic_write(path, mode: str = "wb"):
+    """Open a temporary file beside ``path``; rename it onto ``path`` on success.
+
+    Parameters
+    ----------
+    path : str or Path
+        Final file name.
+    mode : str
+        ``"wb"`` or ``"w"`` (text, UTF-8).
+
+    Yields
+    ------
+    file object
+        Write to it; on an exception the temporary file is deleted and
+        ``path`` is left untouched.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        encoding = None if "b" in mode else "utf-8"
+        with os.fdopen(fd, mode, encoding=encoding) as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def write_bytes_atomic(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically and return the path."""
+    with atomic_write(path, "wb") as fh:
+        fh.write(data)
+    return Path(path)
+
+
+def write_text_atomic(path, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically and return the path."""
+    return write_bytes_atomic(path, text.encode("utf-8"))
+
+
+@contextlib.contextmanager
+def atomic_path(path):
+    """Yield a temporary path beside ``path`` for writers that want a file name.
+
+    Libraries such as trimesh or usd-core write to a name, not a handle: give
+    them the yielded path; it is renamed onto ``path`` when the block ends
+    without an exception. The temporary name keeps the final suffix so that
+    format detection by extension works.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+def prepare_output_dir(directory, *, run_id: str, overwrite: bool = False) -> Path:
+    """Make ``directory`` ready for a new run's files.
+
+    An empty or missing folder is used as is. A folder that holds files of
+    another run (or unknown files) is refused with a clear error, unless
+    ``overwrite`` is set: then it is emptied first, so old and new outputs
+    are never mixed.
+
+    Raises
+    ------
+    SeatkitError
+        When the folder holds other files and ``overwrite`` is false.
+    """
+    directory = Path(directory)
+    if directory.exists() and not directory.is_dir():
+        msg = f"output path {directory} exists and is not a folder"
+        raise SeatkitError(msg)
+    if directory.is_dir() and any(directory.iterdir()):
+        if not overwrite:
+            msg = (
+                f"output folder {directory} is not empty; choose another --out "
+                "or pass --overwrite to replace its contents"
+            )
+            raise SeatkitError(msg)
+        for child in directory.iterdir():
+            if child.is_dir() and not child.is_symlink():
+                shutil.rmtree(child)
+            else:
+                child.unlink()
+    directory.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(directory / RUN_MARKER, json.dumps({"run": run_id, "complete": False}) + "\n")
+    return directory
+
+
+def mark_complete(directory, *, run_id: str, files: dict) -> None:
+    """Record that ``directory`` holds a finished run and which files it wrote."""
+    data = {"run": run_id, "complete": True, "files": {k: str(v) for k, v in files.items()}}
+    write_text_atomic(Path(directory) / RUN_MARKER, json.dumps(data, indent=1) + "\n")
+
+
+def is_complete(directory) -> bool:
+    """Whether ``directory`` holds a finished run whose listed files all exist."""
+    marker = Path(directory) / RUN_MARKER
+    try:
+        data = json.loads(marker.read_text())
+    except (OSError, ValueError):
+        return False
+    if not data.get("complete"):
+        return False
+    return all((Path(directory) / Path(p).name).exists() for p in data.get("files", {}).values())

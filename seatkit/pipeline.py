@@ -1,0 +1,274 @@
+"""One build, stage by stage, as the data flow in docs/architecture.md reads.
+
+    recipe -> bodies -> pressure -> template -> refiners -> surface -> exporters
+
+:func:`build` is a pure function of its recipe: the inputs are a mapping or a
+file, the plugin manager is built fresh unless one is passed, and the result
+(:class:`~seatkit.model.BuildResult`) holds only picklable data. Output files
+are written into a staging folder beside the target and moved into place only
+when every exporter has succeeded, so an interrupted build leaves no output
+folder that looks complete.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import platform
+import shutil
+import tempfile
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Callable, Mapping
+
+import numpy as np
+
+from seatkit.errors import SeatkitError
+from seatkit.io import RUN_MARKER, mark_complete, write_text_atomic
+from seatkit.model import Body, BuildResult
+from seatkit.recipe import check_recipe, load_recipe
+
+#: Default gap between neighbours when people are placed automatically, m.
+DEFAULT_SEAT_GAP = 0.15
+
+Progress = Callable[[str], None]
+
+
+def _noop(_stage: str) -> None:
+    return None
+
+
+class _Timer:
+    def __init__(self, progress: Progress):
+        self.timings: dict[str, float] = {}
+        self._progress = progress
+
+    @contextmanager
+    def stage(self, name: str):
+        self._progress(name)
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - start
+
+
+def recipe_id(recipe: Mapping) -> str:
+    """A short stable hash of a recipe (identifies a run's inputs)."""
+    text = json.dumps(recipe, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def make_bodies(recipe: Mapping, registry) -> list[Body]:
+    """Pose every person of the recipe and place them in seat order.
+
+    Explicit ``offset`` entries are used as given (metres). Otherwise, with
+    several people, they are placed side by side along +X, left to right in
+    seat order, their bounding boxes ``placement.gap`` apart (default
+    :data:`DEFAULT_SEAT_GAP`), the group centred on x = 0.
+    """
+    from seatkit.body import load_pose
+
+    bodies: list[Body] = []
+    for entry in recipe["bodies"]:
+        model = registry.get("body_model", entry["model"])
+        rig = model.make_body(params=entry["params"])
+        pose = load_pose(entry["pose"], frame=entry.get("frame", 0), rig=rig)
+        bodies.append(model.pose(rig, pose, ground=True))
+    offsets = [e.get("offset") for e in recipe["bodies"]]
+    if all(o is not None for o in offsets):
+        return [b.translated(o) for b, o in zip(bodies, offsets)]
+    if any(o is not None for o in offsets):
+        msg = "bodies: give an offset for every person or for none (automatic spacing)"
+        raise SeatkitError(msg)
+    if len(bodies) == 1:
+        return bodies
+    gap = float(recipe.get("placement", {}).get("gap", DEFAULT_SEAT_GAP))
+    placed, x = [], 0.0
+    for b in bodies:
+        lo, hi = b.vertices[:, 0].min(), b.vertices[:, 0].max()
+        placed.append(b.translated([x - lo, 0.0, 0.0]))
+        x += (hi - lo) + gap
+    centre = 0.5 * (placed[0].vertices[:, 0].min() + placed[-1].vertices[:, 0].max())
+    return [b.translated([-centre, 0.0, 0.0]) for b in placed]
+
+
+def _versions() -> dict:
+    import importlib.metadata as md
+
+    out = {"python": platform.python_version()}
+    for dist in ("seatkit", "numpy", "scipy", "pluggy", "qpsolvers", "piqp", "usd-core", "trimesh"):
+        try:
+            out[dist] = md.version(dist)
+        except md.PackageNotFoundError:
+            pass
+    return out
+
+
+def _jsonable(value):
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        return _jsonable(value.item())
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    return value
+
+
+def _finish_output(staging: Path, target: Path, *, overwrite: bool) -> None:
+    """Move a finished staging folder onto ``target``.
+
+    A previous seatkit run in ``target`` is replaced; a folder with other
+    files is refused unless ``overwrite``.
+    """
+    if target.exists():
+        if not target.is_dir():
+            msg = f"output path {target} exists and is not a folder"
+            raise SeatkitError(msg)
+        entries = list(target.iterdir())
+        ours = (target / RUN_MARKER).exists()
+        if entries and not ours and not overwrite:
+            msg = (
+                f"output folder {target} holds files that seatkit did not write; "
+                "choose another --out or pass --overwrite"
+            )
+            raise SeatkitError(msg)
+        trash = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
+        os.replace(target, trash / target.name)
+        os.replace(staging, target)
+        shutil.rmtree(trash, ignore_errors=True)
+    else:
+        os.replace(staging, target)
+
+
+def build(
+    recipe,
+    *,
+    pm=None,
+    progress: Progress | None = None,
+    write: bool = True,
+    overwrite: bool = False,
+) -> BuildResult:
+    """Run one build.
+
+    Parameters
+    ----------
+    recipe : mapping, path or None
+        A recipe (see :mod:`seatkit.recipe`); a mapping is validated like a
+        file. Use :func:`seatkit.recipe.apply_overrides` for flag overrides.
+    pm : SeatkitPluginManager, optional
+        The plugin manager; default a fresh one (:func:`seatkit.plugins.get_plugin_manager`).
+    progress : callable, optional
+        Called with each stage's name as it starts.
+    write : bool
+        Run the exporters into ``recipe["output"]``; without it nothing is
+        written.
+    overwrite : bool
+        Allow replacing an output folder that seatkit did not write.
+
+    Returns
+    -------
+    BuildResult
+    """
+    from seatkit.plugins import get_plugin_manager
+
+    if isinstance(recipe, Mapping) and "bodies" in recipe and "pressure" in recipe and "refiners" in recipe and all(isinstance(r, dict) for r in recipe["refiners"]):
+        # already normalised (from load_recipe/apply_overrides)
+        recipe, document = dict(recipe), None
+    else:
+        recipe, document = load_recipe(recipe)
+    pm = pm if pm is not None else get_plugin_manager()
+    registry = pm.registry
+    progress = progress or _noop
+    timer = _Timer(progress)
+
+    with timer.stage("check"):
+        check_recipe(recipe, registry, document=document)
+
+    with timer.stage("bodies"):
+        bodies = make_bodies(recipe, registry)
+
+    with timer.stage("pressure"):
+        solver = registry.get("pressure_solver", recipe["pressure"]["solver"])
+        p = recipe["pressure"]
+        pressures = [
+            solver.solve(body, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
+            for body in bodies
+        ]
+
+    with timer.stage("template"):
+        template = registry.get("template", recipe["template"])
+        initial = template.fit(bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
+
+    mesh = initial
+    for ref in recipe["refiners"]:
+        with timer.stage(f"refine:{ref['name']}"):
+            refiner = registry.get("refiner", ref["name"])
+            mesh = refiner.refine(mesh, bodies, pressures, params=ref["params"])
+
+    with timer.stage("surface"):
+        from seatkit.subdivision import limit_surface
+
+        surface = limit_surface(mesh, level=recipe["surface_level"])
+
+    result = BuildResult(
+        recipe=recipe,
+        bodies=bodies,
+        pressures=pressures,
+        initial_mesh=initial,
+        control_mesh=mesh,
+        surface=surface,
+        timings=timer.timings,
+    )
+
+    if write:
+        target = Path(recipe["output"] or Path("seatkit-out") / recipe["template"])
+        target.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.staging-", dir=target.parent))
+        try:
+            with timer.stage("export"):
+                files: dict[str, Path] = {}
+                for name in recipe["exporters"]:
+                    exporter = registry.get("exporter", name)
+                    for role, path in exporter.export(result, staging).items():
+                        files[role] = target / Path(path).name
+            result.timings = timer.timings
+            report = {
+                "seatkit_run": recipe_id(recipe),
+                "recipe": _jsonable(recipe),
+                "versions": _versions(),
+                "timings_s": _jsonable(timer.timings),
+                "control_mesh": {
+                    "vertices": int(len(mesh.vertices)),
+                    "faces": int(len(mesh.faces)),
+                    "meta": _jsonable(mesh.meta),
+                },
+                "pressure": [
+                    {
+                        "status": pf.status,
+                        "solve_seconds": pf.solve_seconds,
+                        "max_pressure_pa": float(pf.pressure.max()),
+                        "max_joint_moment_nm": float(np.linalg.norm(pf.joint_moment, axis=1).max()),
+                    }
+                    for pf in pressures
+                ],
+                "metrics": _jsonable(result.metrics),
+                "files": {k: Path(v).name for k, v in files.items()},
+            }
+            write_text_atomic(staging / "report.json", json.dumps(report, indent=1) + "\n")
+            files["report"] = target / "report.json"
+            mark_complete(staging, run_id=recipe_id(recipe), files=files)
+            _finish_output(staging, target, overwrite=overwrite)
+        except BaseException:
+            shutil.rmtree(staging, ignore_errors=True)
+            raise
+        result.files = {k: str(v) for k, v in files.items()}
+        result.extra["output"] = str(target)
+    return result

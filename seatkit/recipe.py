@@ -1,0 +1,348 @@
+"""Recipes: the YAML (or mapping) that says what one build does.
+
+A recipe names every stage's component by its registered name and gives its
+parameters::
+
+    template: chair                 # a registered template
+    template_params: {}             # overrides of the template's parameters
+    bodies:                         # people in seat order (one for a chair)
+      - model: default-male         # a registered body model
+        params: {mass: 75}          # model parameters (mass in kg)
+        pose: upright-sitting       # library name, pose YAML or BVH path
+        frame: 0                    # BVH frame
+        offset: [0, 0, 0]           # metres, optional placement
+    pressure: {solver: qp, lambda: 0.013, mu: 0.5}
+    refiners: [optimize, catmull-clark-fit]
+    exporters: [usd, obj, surface, body-ply]
+    surface_level: 3
+    output: out/chair
+    seed: 0
+
+:func:`load_recipe` validates the shape against :data:`RECIPE_SCHEMA`, fills
+defaults, applies command-line overrides, then :func:`check_recipe` checks
+that every named component, pose and file exists, before any geometry work.
+Every error names the file, line and key path.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from pathlib import Path
+from typing import Any, Mapping
+
+from seatkit.constants import DEFAULT_BODY_MASS, DEFAULT_LAMBDA, DEFAULT_MU, DEFAULT_SEED
+from seatkit.errors import RecipeError
+from seatkit.yamlio import Document, load_yaml, validate
+
+DEFAULT_REFINERS = ("optimize", "catmull-clark-fit")
+DEFAULT_EXPORTERS = ("usd", "obj", "surface", "body-ply")
+DEFAULT_SURFACE_LEVEL = 3
+DEFAULT_POSE = "upright-sitting"
+DEFAULT_BODY_MODEL = "default-male"
+
+_NAME = {"type": "string", "minLength": 1}
+_PARAMS = {"type": "object"}
+_NUMBER_OR_INF = {"anyOf": [{"type": "number"}, {"type": "string", "enum": ["inf", "infinity"]}]}
+
+RECIPE_SCHEMA: dict = {
+    "type": "object",
+    "additionalProperties": False,
+    "properties": {
+        "template": _NAME,
+        "template_params": _PARAMS,
+        "bodies": {
+            "type": "array",
+            "minItems": 1,
+            "items": {
+                "type": "object",
+                "additionalProperties": False,
+                "properties": {
+                    "model": _NAME,
+                    "params": _PARAMS,
+                    "pose": _NAME,
+                    "frame": {"type": "integer", "minimum": 0},
+                    "offset": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
+                    "name": _NAME,
+                },
+            },
+        },
+        "placement": {
+            "type": "object",
+            "additionalProperties": False,
+            "properties": {"gap": {"type": "number", "minimum": 0}},
+        },
+        "pressure": {
+            "type": "object",
+            "additionalProperties": False,
+            "properties": {
+                "solver": _NAME,
+                "lambda": _NUMBER_OR_INF,
+                "mu": {"type": "number", "minimum": 0},
+                "exclude": {"type": "array", "items": _NAME},
+                "options": _PARAMS,
+            },
+        },
+        "refiners": {
+            "type": "array",
+            "items": {
+                "anyOf": [
+                    _NAME,
+                    {
+                        "type": "object",
+                        "additionalProperties": False,
+                        "required": ["name"],
+                        "properties": {"name": _NAME, "params": _PARAMS},
+                    },
+                ]
+            },
+        },
+        "exporters": {"type": "array", "items": _NAME},
+        "surface_level": {"type": "integer", "minimum": 1, "maximum": 4},
+        "output": _NAME,
+        "seed": {"type": "integer", "minimum": 0},
+    },
+}
+
+
+def default_recipe() -> dict:
+    """The recipe of ``seatkit build --template chair`` with nothing else given."""
+    return {
+        "template": "chair",
+        "template_params": {},
+        "bodies": [{"model": DEFAULT_BODY_MODEL, "params": {}, "pose": DEFAULT_POSE, "frame": 0}],
+        "placement": {},
+        "pressure": {"solver": "qp", "lambda": DEFAULT_LAMBDA, "mu": DEFAULT_MU, "exclude": None, "options": {}},
+        "refiners": [{"name": n, "params": {}} for n in DEFAULT_REFINERS],
+        "exporters": list(DEFAULT_EXPORTERS),
+        "surface_level": DEFAULT_SURFACE_LEVEL,
+        "output": None,
+        "seed": DEFAULT_SEED,
+    }
+
+
+def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
+    """Fill defaults into validated recipe data; resolve relative paths."""
+    recipe = default_recipe()
+    for key in ("template", "surface_level", "output", "seed"):
+        if key in data:
+            recipe[key] = data[key]
+    recipe["template_params"] = dict(data.get("template_params", {}))
+    recipe["placement"] = dict(data.get("placement", {}))
+    if "bodies" in data:
+        recipe["bodies"] = []
+        for body in data["bodies"]:
+            entry = {"model": DEFAULT_BODY_MODEL, "params": {}, "pose": DEFAULT_POSE, "frame": 0}
+            entry.update(copy.deepcopy(body))
+            recipe["bodies"].append(entry)
+    pressure = recipe["pressure"]
+    pressure.update(copy.deepcopy(data.get("pressure", {})))
+    if isinstance(pressure["lambda"], str):
+        pressure["lambda"] = math.inf
+    if "refiners" in data:
+        recipe["refiners"] = [
+            {"name": r, "params": {}} if isinstance(r, str) else {"name": r["name"], "params": dict(r.get("params", {}))}
+            for r in data["refiners"]
+        ]
+    if "exporters" in data:
+        recipe["exporters"] = list(data["exporters"])
+    if base_dir is not None:
+        for body in recipe["bodies"]:
+            body["pose"] = _resolve_path_like(body["pose"], base_dir)
+            if "path" in body["params"]:
+                body["params"]["path"] = str((base_dir / body["params"]["path"]).resolve())
+        if recipe["output"] is not None:
+            recipe["output"] = str((base_dir / recipe["output"]).resolve())
+    return recipe
+
+
+def looks_like_path(spec: str) -> bool:
+    """Whether a pose/body argument names a file rather than a library entry."""
+    return "/" in spec or "\\" in spec or Path(spec).suffix.lower() in (".yaml", ".yml", ".bvh", ".npz", ".glb", ".gltf")
+
+
+def _resolve_path_like(spec: str, base_dir: Path) -> str:
+    if looks_like_path(spec) and not Path(spec).is_absolute():
+        return str((base_dir / spec).resolve())
+    return spec
+
+
+def load_recipe(source: str | Path | Mapping | None = None) -> tuple[dict, Document | None]:
+    """Load and validate a recipe.
+
+    Parameters
+    ----------
+    source : path, mapping or None
+        A YAML file, an already-parsed mapping, or None for the defaults.
+
+    Returns
+    -------
+    recipe : dict
+        The normalised recipe (every key present).
+    document : Document or None
+        The parsed file, for locating later errors.
+
+    Raises
+    ------
+    RecipeError
+        With file, line, key path and what was expected.
+    """
+    if source is None:
+        return default_recipe(), None
+    if isinstance(source, Mapping):
+        doc = Document(dict(source), "<recipe>")
+        base_dir = None
+    else:
+        path = Path(source)
+        doc = load_yaml(path)
+        base_dir = path.resolve().parent
+    if not isinstance(doc.data, dict):
+        raise doc.error((), f"a recipe must be a mapping of keys (template, bodies, ...), got {type(doc.data).__name__}")
+    validate(doc, RECIPE_SCHEMA)
+    return _normalise(doc.data, base_dir), doc
+
+
+def parse_body_spec(spec: str) -> dict:
+    """Turn a ``--body`` argument into a recipe body entry's model and params.
+
+    ``default-male``, ``default-female``: a registered model name.
+    ``NAME:key=value,key=value``: a model with parameters (numbers parsed).
+    A path to a ``.npz`` or ``.glb``/``.gltf`` file: the ``file`` model.
+    """
+    if looks_like_path(spec) and ":" not in Path(spec).name:
+        return {"model": "file", "params": {"path": str(Path(spec).resolve())}}
+    name, _, rest = spec.partition(":")
+    params: dict[str, Any] = {}
+    if rest:
+        for item in rest.split(","):
+            key, eq, value = item.partition("=")
+            if not eq or not key:
+                msg = f"--body {spec!r}: expected NAME or NAME:key=value,...; cannot read {item!r}"
+                raise RecipeError(msg)
+            try:
+                params[key.strip()] = float(value)
+            except ValueError:
+                params[key.strip()] = value.strip()
+    return {"model": name, "params": params}
+
+
+def apply_overrides(
+    recipe: dict,
+    *,
+    template: str | None = None,
+    poses: list[str] | None = None,
+    bodies: list[str] | None = None,
+    mass: float | None = None,
+    frame: int | None = None,
+    refiners: list[str] | None = None,
+    exporters: list[str] | None = None,
+    solver: str | None = None,
+    lam: float | None = None,
+    mu: float | None = None,
+    output: str | None = None,
+    seed: int | None = None,
+    surface_level: int | None = None,
+) -> dict:
+    """Return a copy of ``recipe`` with command-line flags applied (flags win).
+
+    ``poses`` and ``bodies`` are in seat order; a single ``--body`` applies
+    to every pose, and vice versa.
+    """
+    r = copy.deepcopy(recipe)
+    if template is not None:
+        r["template"] = template
+    if poses or bodies:
+        poses = list(poses or [])
+        bodies = list(bodies or [])
+        n = max(len(poses), len(bodies), len(r["bodies"]) if not poses and not bodies else 0)
+        if poses and bodies and len(poses) != len(bodies) and 1 not in (len(poses), len(bodies)):
+            msg = f"got {len(poses)} --pose and {len(bodies)} --body options; give one of them once or both equally often"
+            raise RecipeError(msg)
+        entries = []
+        for i in range(n):
+            base = copy.deepcopy(r["bodies"][min(i, len(r["bodies"]) - 1)])
+            if bodies:
+                spec = parse_body_spec(bodies[i] if len(bodies) > 1 else bodies[0])
+                base["model"], base["params"] = spec["model"], {**spec["params"]}
+            if poses:
+                base["pose"] = poses[i] if len(poses) > 1 else poses[0]
+                base.pop("name", None)
+            entries.append(base)
+        r["bodies"] = entries
+    for body in r["bodies"]:
+        if mass is not None:
+            body["params"]["mass"] = float(mass)
+        if frame is not None:
+            body["frame"] = int(frame)
+    if refiners is not None:
+        r["refiners"] = [{"name": n, "params": {}} for n in refiners if n]
+    if exporters is not None:
+        r["exporters"] = [n for n in exporters if n]
+    if solver is not None:
+        r["pressure"]["solver"] = solver
+    if lam is not None:
+        r["pressure"]["lambda"] = float(lam)
+    if mu is not None:
+        r["pressure"]["mu"] = float(mu)
+    if output is not None:
+        r["output"] = output
+    if seed is not None:
+        r["seed"] = int(seed)
+    if surface_level is not None:
+        r["surface_level"] = int(surface_level)
+    return r
+
+
+def check_recipe(recipe: dict, registry, *, document: Document | None = None) -> None:
+    """Check that every name and file in a recipe exists, before any geometry.
+
+    Raises
+    ------
+    RecipeError
+        Naming the key (and file and line when the recipe came from a file)
+        and the names that exist.
+    """
+
+    def fail(path, message):
+        if document is not None:
+            raise document.error(path, message)
+        from seatkit.yamlio import format_path
+
+        raise RecipeError(f"{format_path(path)}: {message}")
+
+    def need(kind, name, path):
+        try:
+            registry.get(kind, name)
+        except RecipeError as e:
+            fail(path, str(e))
+
+    need("template", recipe["template"], ("template",))
+    need("pressure_solver", recipe["pressure"]["solver"], ("pressure", "solver"))
+    for i, ref in enumerate(recipe["refiners"]):
+        need("refiner", ref["name"], ("refiners", i))
+    for i, name in enumerate(recipe["exporters"]):
+        need("exporter", name, ("exporters", i))
+    lam = recipe["pressure"]["lambda"]
+    if not (lam > 0):
+        fail(("pressure", "lambda"), f"expected a positive number or inf, got {lam!r}")
+    for i, body in enumerate(recipe["bodies"]):
+        need("body_model", body["model"], ("bodies", i, "model"))
+        mass = body["params"].get("mass", DEFAULT_BODY_MASS)
+        if not isinstance(mass, (int, float)) or not (20.0 <= float(mass) <= 300.0):
+            fail(("bodies", i, "params", "mass"), f"expected a body mass in kg between 20 and 300, got {mass!r}")
+        path = body["params"].get("path")
+        if path is not None and not Path(path).is_file():
+            fail(("bodies", i, "params", "path"), f"file not found: {path}")
+        _check_pose(body["pose"], ("bodies", i, "pose"), fail)
+
+
+def _check_pose(spec: str, path, fail) -> None:
+    if looks_like_path(spec):
+        if not Path(spec).is_file():
+            fail(path, f"pose file not found: {spec}")
+        return
+    from seatkit.body import list_poses
+
+    names = [p.name for p in list_poses()]
+    if spec not in names:
+        fail(path, f"unknown pose {spec!r}; library poses: {', '.join(names)} (or give a .yaml or .bvh path)")
