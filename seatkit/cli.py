@@ -138,7 +138,7 @@ def build(
         seed=seed,
         surface_level=level,
     )
-    check_recipe(merged, pm.registry, document=document if merged == base else None)
+    check_recipe(merged, pm.registry, document=document)
 
     if quiet or as_json:
         result = run_build(merged, pm=pm, overwrite=overwrite)

@@ -303,8 +303,20 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
         and the names that exist.
     """
 
+    def from_document(path) -> bool:
+        """Whether the value at ``path`` is the one the file gave (not a flag's)."""
+        if document is None:
+            return False
+        node_doc, node_rec = document.data, recipe
+        try:
+            for part in path:
+                node_doc, node_rec = node_doc[part], node_rec[part]
+        except (KeyError, IndexError, TypeError):
+            return False
+        return node_doc == node_rec or (isinstance(node_doc, str) and looks_like_path(node_doc))
+
     def fail(path, message):
-        if document is not None:
+        if from_document(path):
             raise document.error(path, message)
         from seatkit.yamlio import format_path
 
