@@ -1,0 +1,313 @@
+"""Rigged bodies: the embedded defaults, seatkit ``.npz`` rig files, and validation.
+
+A seatkit rig file is a compressed ``.npz`` holding (float32 storage is fine;
+everything is cast to float64 on load):
+
+==================  ==============  ============================================
+key                 shape           meaning
+==================  ==============  ============================================
+``vertices``        (n, 3)          rest-pose vertices, m, +Y up, facing +Z
+``faces``           (m, 3) int      triangles, counter-clockwise from outside
+``weights``         (n, 21)         skinning weights per segment (rows -> 1)
+``joints``          (21, 3)         proximal joint of each segment, m
+``tips``            (21, 3)         distal end of each segment, m
+``region_<name>``   (k,) int        optional named vertex sets (``face`` ...)
+``meta``            () str          optional JSON: provenance; ``sex`` selects
+                                    the Plagenhoef column (default ``male``)
+==================  ==============  ============================================
+
+The rest pose must have every segment frame aligned with the world axes (a
+T-pose: arms along +-X, legs straight down), because pose rotations are given
+in those axes (see :mod:`seatkit.body.skinning`).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from seatkit.body.anthropometry import com_ratios, segment_masses
+from seatkit.constants import DEFAULT_BODY_MASS
+from seatkit.errors import InputError, RecipeError
+from seatkit.model import RiggedBody
+from seatkit.resources import data_path
+from seatkit.skeleton import N_SEGMENTS
+
+__all__ = ["DEFAULT_BODIES", "default_body_path", "load_rig", "load_rig_file", "make_rig", "save_rig"]
+
+#: Names of the embedded default bodies.
+DEFAULT_BODIES: tuple[str, ...] = ("default-male", "default-female")
+
+#: Tolerance on a row of skinning weights summing to 1 in a rig file.
+WEIGHT_SUM_TOL = 1e-3
+
+
+def default_body_path(name: str) -> Path:
+    """Path of an embedded default body's ``.npz``."""
+    return data_path("bodies", f"{name}.npz")
+
+
+def make_rig(
+    vertices,
+    faces,
+    weights,
+    joints,
+    tips,
+    *,
+    mass: float = DEFAULT_BODY_MASS,
+    sex: str = "male",
+    name: str = "",
+    region_labels: Mapping[str, Any] | None = None,
+    meta: Mapping[str, Any] | None = None,
+    source: str = "body",
+) -> RiggedBody:
+    """Validate arrays and make a :class:`RiggedBody` with Plagenhoef masses.
+
+    Parameters
+    ----------
+    vertices : (n, 3) array_like
+        Rest vertices, m.
+    faces : (m, 3) array_like of int
+    weights : (n, 21) array_like
+        Non-negative; each row is normalised to sum to 1 (a row must already
+        sum to 1 within 1e-3, or to a positive number if it is float32 data).
+    joints, tips : (21, 3) array_like
+    mass : float
+        Total body mass, kg.
+    sex : {"male", "female"}
+        Column of the Plagenhoef et al. (1983) table.
+    name : str
+    region_labels : mapping of str to (k,) int, optional
+    meta : mapping, optional
+    source : str
+        Where the arrays came from (a file name), for error messages.
+
+    Returns
+    -------
+    RiggedBody
+
+    Raises
+    ------
+    InputError
+        Wrong shapes, NaN or infinite values, faces out of range, negative
+        weights, rows of weights that do not sum to 1, a segment owning no
+        vertex.
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or len(vertices) == 0:
+        msg = f"{source}: vertices must be (n, 3), got {vertices.shape}"
+        raise InputError(msg)
+    n = len(vertices)
+    if not np.isfinite(vertices).all():
+        bad = np.flatnonzero(~np.isfinite(vertices).all(axis=1))
+        msg = f"{source}: {bad.size} vertices are NaN or infinite (first: vertex {bad[0]})"
+        raise InputError(msg)
+    faces_in = np.asarray(faces)
+    if faces_in.ndim != 2 or faces_in.shape[1] != 3 or not np.issubdtype(faces_in.dtype, np.integer):
+        msg = f"{source}: faces must be (m, 3) integers, got {faces_in.shape} {faces_in.dtype}"
+        raise InputError(msg)
+    faces = faces_in.astype(np.int64)
+    if faces.size and (faces.min() < 0 or faces.max() >= n):
+        msg = f"{source}: faces index vertices {faces.min()}..{faces.max()}, but there are {n} vertices"
+        raise InputError(msg)
+    weights = np.asarray(weights, dtype=np.float64)
+    if weights.shape != (n, N_SEGMENTS):
+        msg = f"{source}: weights must be ({n}, {N_SEGMENTS}), got {weights.shape}"
+        raise InputError(msg)
+    if not np.isfinite(weights).all() or (weights < 0).any():
+        msg = f"{source}: weights must be finite and non-negative"
+        raise InputError(msg)
+    row_sum = weights.sum(axis=1)
+    off = np.abs(row_sum - 1.0) > WEIGHT_SUM_TOL
+    if off.any():
+        i = int(np.flatnonzero(off)[0])
+        msg = f"{source}: weights of {int(off.sum())} vertices do not sum to 1 (vertex {i}: {row_sum[i]:.6g})"
+        raise InputError(msg)
+    weights = weights / row_sum[:, None]
+    touched = (weights > 0).sum(axis=0)
+    if (touched == 0).any():
+        from seatkit.skeleton import SEGMENTS
+
+        missing = [SEGMENTS[i] for i in np.flatnonzero(touched == 0)]
+        msg = f"{source}: segments with no skinned vertex: {', '.join(missing)}"
+        raise InputError(msg)
+    arrays = {}
+    for key, value in (("joints", joints), ("tips", tips)):
+        arr = np.asarray(value, dtype=np.float64)
+        if arr.shape != (N_SEGMENTS, 3) or not np.isfinite(arr).all():
+            msg = f"{source}: {key} must be finite ({N_SEGMENTS}, 3), got {arr.shape}"
+            raise InputError(msg)
+        arrays[key] = arr
+    regions = {}
+    for region, idx in (region_labels or {}).items():
+        idx = np.asarray(idx, dtype=np.int64).ravel()
+        if idx.size and (idx.min() < 0 or idx.max() >= n):
+            msg = f"{source}: region {region!r} indexes vertices outside 0..{n - 1}"
+            raise InputError(msg)
+        regions[str(region)] = idx
+    return RiggedBody(
+        vertices=vertices,
+        faces=faces,
+        weights=weights,
+        joints=arrays["joints"],
+        tips=arrays["tips"],
+        mass=float(mass),
+        segment_mass=segment_masses(mass, sex),
+        com_ratio=com_ratios(sex),
+        name=name,
+        region_labels=regions,
+        meta=dict(meta or {}),
+    )
+
+
+def load_rig_file(path, *, mass: float = DEFAULT_BODY_MASS, name: str | None = None) -> RiggedBody:
+    """Load a seatkit ``.npz`` rig file.
+
+    Parameters
+    ----------
+    path : str or Path
+    mass : float
+        Total body mass, kg.
+    name : str, optional
+        Name of the rig; default the file path.
+
+    Returns
+    -------
+    RiggedBody
+
+    Raises
+    ------
+    InputError
+        Unreadable file, missing keys, invalid arrays (see :func:`make_rig`).
+    """
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            contents = {key: data[key] for key in data.files}
+    except FileNotFoundError:
+        msg = f"{path}: no such body file"
+        raise InputError(msg) from None
+    except (OSError, ValueError) as e:
+        msg = f"{path}: not a seatkit .npz rig file ({e})"
+        raise InputError(msg) from None
+    missing = [k for k in ("vertices", "faces", "weights", "joints", "tips") if k not in contents]
+    if missing:
+        msg = f"{path}: missing arrays {', '.join(missing)} (a seatkit rig needs vertices, faces, weights, joints, tips)"
+        raise InputError(msg)
+    meta: dict = {}
+    if "meta" in contents:
+        try:
+            meta = json.loads(str(contents["meta"]))
+        except json.JSONDecodeError as e:
+            msg = f"{path}: meta is not JSON ({e})"
+            raise InputError(msg) from None
+    regions = {key[len("region_"):]: contents[key] for key in contents if key.startswith("region_")}
+    sex = meta.get("sex", "male")
+    if sex not in ("male", "female"):
+        msg = f"{path}: meta.sex must be 'male' or 'female', got {sex!r}"
+        raise InputError(msg)
+    return make_rig(
+        contents["vertices"],
+        contents["faces"],
+        contents["weights"],
+        contents["joints"],
+        contents["tips"],
+        mass=mass,
+        sex=sex,
+        name=name if name is not None else str(path),
+        region_labels=regions,
+        meta=meta,
+        source=str(path),
+    )
+
+
+def save_rig(rig: RiggedBody, path, *, sex: str | None = None) -> Path:
+    """Write ``rig`` as a seatkit ``.npz`` rig file (float32, compressed).
+
+    Parameters
+    ----------
+    rig : RiggedBody
+    path : str or Path
+    sex : str, optional
+        Stored in ``meta``; default ``rig.meta['sex']`` or ``male``.
+
+    Returns
+    -------
+    Path
+    """
+    from seatkit.io import atomic_write
+
+    path = Path(path)
+    meta = dict(rig.meta)
+    meta["sex"] = sex or meta.get("sex", "male")
+    arrays = {
+        "vertices": rig.vertices.astype(np.float32),
+        "faces": rig.faces.astype(np.int32),
+        "weights": rig.weights.astype(np.float32),
+        "joints": rig.joints.astype(np.float32),
+        "tips": rig.tips.astype(np.float32),
+        "meta": np.array(json.dumps(meta, sort_keys=True, default=str)),
+    }
+    for region, idx in rig.region_labels.items():
+        arrays[f"region_{region}"] = np.asarray(idx, dtype=np.int32)
+    with atomic_write(path, "wb") as f:
+        np.savez_compressed(f, **arrays)
+    return path
+
+
+def _load_gltf_rig(path: Path, *, mass: float, params: Mapping[str, Any] | None) -> RiggedBody:
+    """A skinned glTF/GLB body, through :func:`seatkit.body.gltf.load_gltf_rig`."""
+    try:
+        from seatkit.body.gltf import load_gltf_rig
+    except ImportError as e:
+        msg = f"{path}: glTF body import is not available in this installation ({e})"
+        raise InputError(msg) from None
+    return load_gltf_rig(path, mass=mass, **dict(params or {}))
+
+
+def load_rig(body: str | Path = "default-male", *, mass: float = DEFAULT_BODY_MASS, params: Mapping[str, Any] | None = None) -> RiggedBody:
+    """Load a rigged body by name or path.
+
+    Parameters
+    ----------
+    body : str or Path
+        ``default-male``, ``default-female``, a path to a seatkit ``.npz``
+        rig, or the name of a body model registered by a plugin (e.g.
+        ``anny``), built with ``params``.
+    mass : float
+        Total body mass, kg (default 75).
+    params : mapping, optional
+        Model parameters for a registered body model.
+
+    Returns
+    -------
+    RiggedBody
+
+    Raises
+    ------
+    InputError
+        A rig file that cannot be read or is invalid.
+    RecipeError
+        An unknown body name.
+    """
+    spec = str(body)
+    if spec in DEFAULT_BODIES:
+        return load_rig_file(default_body_path(spec), mass=mass, name=spec)
+    path = Path(spec)
+    suffix = path.suffix.lower()
+    if suffix in (".glb", ".gltf"):
+        return _load_gltf_rig(path, mass=mass, params=params)
+    if suffix == ".npz" or path.exists():
+        return load_rig_file(path, mass=mass)
+    from seatkit.plugins import get_plugin_manager
+
+    registry = get_plugin_manager().registry
+    if spec not in registry.names("body_model"):
+        have = ", ".join(sorted(set(DEFAULT_BODIES) | set(registry.names("body_model"))))
+        msg = f"unknown body {spec!r}: expected a path to a .npz rig or one of {have}"
+        raise RecipeError(msg)
+    model = registry.get("body_model", spec)
+    return model.make_body(params={"mass": mass, **dict(params or {})})
