@@ -1,0 +1,247 @@
+"""Mesh files: the cage as OBJ, the limit surface as OBJ/PLY/STL/GLB, a
+watertight shell of the surface for fabrication, the pressure-coloured body.
+
+Every file is written atomically (a temporary file beside the target, then
+``os.replace``), so an interrupted export never leaves half a file.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from seatkit.errors import InputError
+from seatkit.io import atomic_path, atomic_write
+
+__all__ = [
+    "SURFACE_FORMATS",
+    "read_obj_cage",
+    "pressure_colors",
+    "quads_to_triangles",
+    "surface_trimesh",
+    "thick_shell",
+    "write_body_ply",
+    "write_cage_obj",
+    "write_shell",
+    "write_surface",
+]
+
+#: File suffixes :func:`write_surface` writes.
+SURFACE_FORMATS = (".obj", ".ply", ".stl", ".glb")
+
+
+def _fmt_rows(prefix: str, rows: np.ndarray, fmt: str) -> str:
+    line = prefix + " " + " ".join([fmt] * rows.shape[1]) + "\n"
+    return "".join(line % tuple(r) for r in rows.tolist())
+
+
+def write_cage_obj(mesh, path) -> Path:
+    """Write a cage (ControlMesh or Cage) as a plain Wavefront OBJ.
+
+    Vertices in metres, faces 1-based, counter-clockwise. OBJ has no crease
+    syntax that Blender, Maya or Houdini read, so creases go to the USD file;
+    they are listed here as comments only.
+
+    Parameters
+    ----------
+    mesh : ControlMesh or Cage
+    path : str or Path
+
+    Returns
+    -------
+    Path
+    """
+    verts = np.asarray(mesh.vertices, dtype=np.float64)
+    polys = mesh.polygons if hasattr(mesh, "polygons") else list(np.asarray(mesh.faces))
+    out = ["# seatkit subdivision cage (Catmull-Clark control mesh), metres, +Y up\n"]
+    out.append(f"# {len(verts)} vertices, {len(polys)} faces\n")
+    ce = np.asarray(getattr(mesh, "crease_edges", np.zeros((0, 2))), dtype=np.int64).reshape(-1, 2)
+    cs = np.asarray(getattr(mesh, "crease_sharpness", np.zeros(0)), dtype=np.float64)
+    for (a, b), s in zip(ce.tolist(), cs.tolist()):
+        out.append(f"# crease {a + 1} {b + 1} {s:g}\n")
+    out.append(_fmt_rows("v", verts, "%.9g"))
+    out.extend("f " + " ".join(str(int(i) + 1) for i in p) + "\n" for p in polys)
+    with atomic_write(path, "w") as fh:
+        fh.write("".join(out))
+    return Path(path)
+
+
+def read_obj_cage(path):
+    """Read the polygons of an OBJ file as a :class:`~seatkit.subdivision.Cage`.
+
+    Reads ``v`` and ``f`` records (``f a/b/c`` forms and negative indices
+    too) and the ``# crease a b s`` comments :func:`write_cage_obj` writes.
+    """
+    from seatkit.subdivision import Cage
+
+    path = Path(path)
+    verts, faces, creases, sharp = [], [], [], []
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        msg = f"{path}: cannot read OBJ cage: {exc.strerror}"
+        raise InputError(msg) from exc
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        parts = raw.split()
+        if not parts:
+            continue
+        try:
+            if parts[0] == "v":
+                verts.append([float(x) for x in parts[1:4]])
+            elif parts[0] == "f":
+                idx = [int(tok.split("/")[0]) for tok in parts[1:]]
+                faces.append([i - 1 if i > 0 else len(verts) + i for i in idx])
+            elif parts[:2] == ["#", "crease"] and len(parts) >= 5:
+                creases.append([int(parts[2]) - 1, int(parts[3]) - 1])
+                sharp.append(float(parts[4]))
+        except ValueError as exc:
+            msg = f"{path}:{lineno}: malformed OBJ record {raw.strip()!r}"
+            raise InputError(msg) from exc
+    if not verts or not faces:
+        msg = f"{path}: no vertices or faces in OBJ cage"
+        raise InputError(msg)
+    try:
+        return Cage(np.array(verts), faces, crease_edges=creases or None, crease_sharpness=sharp or None)
+    except InputError as exc:
+        msg = f"{path}: {exc}"
+        raise InputError(msg) from exc
+
+
+def quads_to_triangles(quads: np.ndarray) -> np.ndarray:
+    """(2q, 3) int64 triangles of (q, 4) quads, split along the 0-2 diagonal."""
+    q = np.asarray(quads, dtype=np.int64)
+    return np.concatenate([q[:, [0, 1, 2]], q[:, [0, 2, 3]]]).reshape(2, -1, 3).transpose(1, 0, 2).reshape(-1, 3)
+
+
+def surface_trimesh(surface):
+    """A :class:`trimesh.Trimesh` of a limit surface (its normals kept)."""
+    import trimesh
+
+    return trimesh.Trimesh(
+        vertices=surface.vertices,
+        faces=quads_to_triangles(surface.faces),
+        vertex_normals=surface.normals,
+        process=False,
+    )
+
+
+def write_surface(surface, path) -> Path:
+    """Write a limit surface; the format follows the suffix (.obj .ply .stl .glb).
+
+    OBJ keeps the quads and the limit normals (``vn``); PLY, STL and GLB are
+    triangle meshes written by trimesh.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in SURFACE_FORMATS:
+        msg = f"{path}: unsupported surface format {suffix!r}; expected one of {SURFACE_FORMATS}"
+        raise InputError(msg)
+    if suffix == ".obj":
+        text = [f"# seatkit Catmull-Clark limit surface, level {surface.level}, metres, +Y up\n"]
+        text.append(_fmt_rows("v", np.asarray(surface.vertices), "%.9g"))
+        text.append(_fmt_rows("vn", np.asarray(surface.normals), "%.7g"))
+        f1 = np.asarray(surface.faces, dtype=np.int64) + 1
+        text.extend("f " + " ".join(f"{i}//{i}" for i in row) + "\n" for row in f1.tolist())
+        with atomic_write(path, "w") as fh:
+            fh.write("".join(text))
+        return path
+    mesh = surface_trimesh(surface)
+    with atomic_path(path) as tmp:
+        mesh.export(tmp, file_type=suffix[1:])
+    return path
+
+
+def thick_shell(surface, thickness: float):
+    """A closed solid: the limit surface and its offset by ``-thickness`` along the normals.
+
+    The surface's normals point at the body, so the solid grows away from
+    it. Boundary loops are closed by side walls; a closed surface gives a
+    hollow solid (two nested closed sheets).
+
+    Parameters
+    ----------
+    surface : seatkit.model.Surface
+    thickness : float
+        Shell thickness, m (> 0).
+
+    Returns
+    -------
+    trimesh.Trimesh
+        Watertight when the offset does not fold over itself (thickness
+        smaller than the surface's radius of curvature).
+    """
+    import trimesh
+
+    t = float(thickness)
+    if not np.isfinite(t) or t <= 0:
+        msg = f"shell thickness must be > 0 m, got {thickness!r}"
+        raise InputError(msg)
+    V = np.asarray(surface.vertices, dtype=np.float64)
+    N = np.asarray(surface.normals, dtype=np.float64)
+    n = len(V)
+    tris = quads_to_triangles(surface.faces)
+    top = tris
+    bottom = tris[:, ::-1] + n
+    # Boundary half-edges: directed edges with no opposite.
+    half = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    key = half[:, 0] * n + half[:, 1]
+    rkey = half[:, 1] * n + half[:, 0]
+    boundary = half[~np.isin(key, rkey)]
+    a, b = boundary[:, 0], boundary[:, 1]
+    walls = np.concatenate([np.stack([b, a, a + n], axis=1), np.stack([b, a + n, b + n], axis=1)])
+    mesh = trimesh.Trimesh(
+        vertices=np.concatenate([V, V - t * N]),
+        faces=np.concatenate([top, bottom, walls]),
+        process=False,
+    )
+    return mesh
+
+
+def write_shell(surface, thickness: float, path) -> Path:
+    """Write :func:`thick_shell` (format by suffix: .stl .ply .obj .glb)."""
+    path = Path(path)
+    mesh = thick_shell(surface, thickness)
+    with atomic_path(path) as tmp:
+        mesh.export(tmp, file_type=path.suffix.lower()[1:])
+    return path
+
+
+def pressure_colors(pressure: np.ndarray, *, cmap: str = "magma_r") -> np.ndarray:
+    """(n, 4) uint8 RGBA colours of pressures, scaled by the maximum.
+
+    Zero pressure maps to the light end of ``cmap``, the peak to the dark end.
+    """
+    from matplotlib import colormaps
+
+    p = np.asarray(pressure, dtype=np.float64)
+    peak = float(p.max()) if p.size else 0.0
+    importance = np.clip(p / peak, 0.0, 1.0) if peak > 0 else np.zeros_like(p)
+    return (colormaps[cmap](importance) * 255).round().astype(np.uint8)
+
+
+def write_body_ply(body, pressure, path) -> Path:
+    """Write the posed body as a PLY with vertex colours from ``pressure`` (Pa).
+
+    Parameters
+    ----------
+    body : seatkit.model.Body
+    pressure : (n,) float64 or seatkit.model.PressureField
+    path : str or Path
+    """
+    import trimesh
+
+    p = np.asarray(getattr(pressure, "pressure", pressure), dtype=np.float64)
+    if p.shape != (len(body.vertices),):
+        msg = f"pressure must have one value per body vertex ({len(body.vertices)}), got shape {p.shape}"
+        raise InputError(msg)
+    mesh = trimesh.Trimesh(
+        vertices=body.vertices,
+        faces=body.faces,
+        vertex_colors=pressure_colors(p),
+        process=False,
+    )
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        mesh.export(tmp, file_type="ply")
+    return path
