@@ -1,0 +1,558 @@
+"""The paper's mesh optimisation (Section 5.3, Appendix B).
+
+Minimises ::
+
+    E = lambda_S (S_L + S_A) + lambda_D (D_V + D_P)
+
+over the control points of a quad cage:
+
+- ``S_L``: importance-weighted Laplacian, ``lambda_laplacian * sum_i
+  || v_i - sum_j w_j v_j / sum_j w_j ||^2`` over the 1-ring ``j`` of ``i``;
+- ``S_A``: per face, ``lambda_regular * (sum_k alpha_k - 2 pi)^2 +
+  lambda_max_angle * sum_k (alpha_k - pi)^2`` (the paper's regular-face and
+  maximal-angle terms, face weights ``w^1 = w^2 = 1``);
+- ``D_V``: ``lambda_vertex * sum_i w_i || v_i - v~_i ||^2``, the distance to
+  the template's positions;
+- ``D_P``: ``lambda_plane * sum_faces sum_{i in F} w_i <v_i - c_F, n_F>^2``,
+  the distance of each face's corners to the supporting plane the template
+  fitted for it (faces with NaN planes are skipped);
+
+with the hard constraints of the paper: ground vertices stay on the edges of
+the ground rectangle (they slide along their edge, rectangle corners stay
+put; fixed non-ground vertices do not move) and every edge is at least
+``min_edge_length`` long.
+
+Lengths are measured in units of the cage's mean edge length inside the
+solver, so the weights are dimensionless and independent of the cage's size.
+The ground constraints are met exactly by construction: a sliding vertex has
+one unknown, its position along its rectangle edge (with bounds), so only the
+edge-length inequalities go to the solver (scipy's SLSQP, with the analytic
+gradient and constraint Jacobian).
+
+Departures from the paper, and why:
+
+- The vertex weights ``w`` are the template's ``vertex_weights`` scaled to a
+  maximum of 1. In the Laplacian's weighted average they are floored at
+  ``laplacian_weight_floor`` so that a vertex whose neighbours all have zero
+  importance still has an average.
+- Face weights of the angle terms are 1 (the paper leaves them unspecified).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, replace
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import scipy.optimize
+import scipy.sparse as sp
+
+from seatkit.errors import SolverError
+from seatkit.model import Body, ControlMesh, PressureField
+from seatkit.refine.params import refiner_params
+from seatkit.refine.quality import cage_quality, mesh_edges
+
+__all__ = ["OPTIMIZE_DEFAULTS", "CageEnergy", "optimize_cage", "OptimizeRefiner"]
+
+#: Default parameters of ``optimize`` (weights dimensionless, lengths in m).
+OPTIMIZE_DEFAULTS: dict[str, Any] = {
+    "lambda_smooth": 1.0,  # lambda_S, the mesh term
+    "lambda_data": 10.0,  # lambda_D, the data term
+    "lambda_laplacian": 1.0,  # lambda_S^l
+    "lambda_regular": 1.0,  # lambda_S^A1, (sum alpha - 2 pi)^2
+    "lambda_max_angle": 1.0,  # lambda_S^A2, sum (alpha - pi)^2
+    "lambda_vertex": 1.0,  # lambda_D^V
+    "lambda_plane": 1.0,  # lambda_D^P
+    "laplacian_weight_floor": 0.1,  # smallest neighbour weight in the Laplacian average
+    "min_edge_length": 0.02,  # m, hard constraint
+    "slide_border": True,  # ground vertices slide along their rectangle edge
+    "max_iterations": 300,
+    "tolerance": 1e-9,  # SLSQP's ftol on the (dimensionless) energy
+}
+
+#: Relative tolerance when checking that a vertex lies on the ground rectangle.
+_RECT_TOL = 1e-6
+
+
+def _scatter_matrix(index: np.ndarray, n: int) -> sp.csr_matrix:
+    """(n, len(index)) matrix summing rows of a per-corner array into vertices."""
+    m = index.size
+    return sp.csr_matrix((np.ones(m), (index, np.arange(m))), shape=(n, m))
+
+
+@dataclass(frozen=True)
+class CageEnergy:
+    """The energy ``E`` of the paper on a fixed topology, with its gradient.
+
+    All positions are in normalised units (see :func:`optimize_cage`).
+
+    Attributes
+    ----------
+    faces : (f, 4) int64
+    rest : (v, 3) float64
+        The template's positions ``v~``.
+    weights : (v,) float64
+        Vertex importance in [0, 1].
+    laplacian : (v, v) csr_matrix
+        ``I - D^-1 A W``: row ``i`` gives ``v_i`` minus its weighted average.
+    plane_faces : (g,) int64
+        Faces with a supporting plane.
+    plane_points, plane_normals : (g, 3) float64
+    coeffs : dict of str to float
+        The products of global and term weights.
+    """
+
+    faces: np.ndarray
+    rest: np.ndarray
+    weights: np.ndarray
+    laplacian: sp.csr_matrix
+    plane_faces: np.ndarray
+    plane_points: np.ndarray
+    plane_normals: np.ndarray
+    coeffs: dict
+    corner_scatter: sp.csr_matrix
+
+    @classmethod
+    def build(
+        cls,
+        vertices: np.ndarray,
+        faces: np.ndarray,
+        weights: np.ndarray,
+        plane_points: np.ndarray,
+        plane_normals: np.ndarray,
+        params: Mapping[str, Any],
+    ) -> "CageEnergy":
+        """Precompute the topology-dependent parts.
+
+        Parameters
+        ----------
+        vertices : (v, 3) float64
+            Rest (template) positions.
+        faces : (f, 4) int64
+        weights : (v,) float64
+            Importance in [0, 1].
+        plane_points, plane_normals : (f, 3) float64
+            NaN rows for faces without a plane.
+        params : mapping
+            Merged ``OPTIMIZE_DEFAULTS``.
+        """
+        n = len(vertices)
+        edges = mesh_edges(faces)
+        # symmetric 1-ring adjacency
+        rows = np.concatenate([edges[:, 0], edges[:, 1]])
+        cols = np.concatenate([edges[:, 1], edges[:, 0]])
+        lap_w = np.maximum(weights, params["laplacian_weight_floor"])
+        # A W: neighbour weights; divide each row by its sum -> weighted average
+        aw = sp.csr_matrix((lap_w[cols], (rows, cols)), shape=(n, n))
+        row_sum = np.asarray(aw.sum(axis=1)).ravel()
+        average = sp.diags(1.0 / np.maximum(row_sum, 1e-300)) @ aw
+        laplacian = (sp.identity(n, format="csr") - average).tocsr()
+
+        has_plane = np.all(np.isfinite(plane_points), axis=1) & np.all(np.isfinite(plane_normals), axis=1)
+        plane_faces = np.flatnonzero(has_plane)
+        normals = plane_normals[plane_faces]
+        normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+        p = params
+        coeffs = {
+            "laplacian": p["lambda_smooth"] * p["lambda_laplacian"],
+            "regular": p["lambda_smooth"] * p["lambda_regular"],
+            "max_angle": p["lambda_smooth"] * p["lambda_max_angle"],
+            "vertex": p["lambda_data"] * p["lambda_vertex"],
+            "plane": p["lambda_data"] * p["lambda_plane"],
+        }
+        return cls(
+            faces=np.asarray(faces, dtype=np.int64),
+            rest=np.array(vertices, dtype=np.float64),
+            weights=np.asarray(weights, dtype=np.float64),
+            laplacian=laplacian,
+            plane_faces=plane_faces,
+            plane_points=plane_points[plane_faces],
+            plane_normals=normals,
+            coeffs=coeffs,
+            corner_scatter=_scatter_matrix(np.asarray(faces, dtype=np.int64).ravel(), n),
+        )
+
+    def terms(self, x: np.ndarray) -> dict[str, float]:
+        """Each weighted term's value at ``x`` (v, 3)."""
+        return self._evaluate(x, want_grad=False)[2]
+
+    def value_and_grad(self, x: np.ndarray) -> tuple[float, np.ndarray]:
+        """Energy and gradient at ``x``.
+
+        Parameters
+        ----------
+        x : (v, 3) float64
+
+        Returns
+        -------
+        energy : float
+        grad : (v, 3) float64
+        """
+        energy, grad, _ = self._evaluate(x, want_grad=True)
+        return energy, grad
+
+    def _evaluate(self, x: np.ndarray, *, want_grad: bool):
+        c = self.coeffs
+        grad = np.zeros_like(x)
+        terms: dict[str, float] = {}
+
+        # S_L: squared distance of each vertex to its weighted 1-ring average
+        residual = self.laplacian @ x
+        terms["laplacian"] = c["laplacian"] * float(np.sum(residual**2))
+        if want_grad:
+            grad += 2.0 * c["laplacian"] * (self.laplacian.T @ residual)
+
+        # S_A: corner angles alpha = angle(a, b), a = prev - v, b = next - v
+        corner = x[self.faces]  # (f, 4, 3)
+        a = np.roll(corner, 1, axis=1) - corner
+        b = np.roll(corner, -1, axis=1) - corner
+        cross = np.cross(a, b)
+        sin_part = np.linalg.norm(cross, axis=-1)
+        cos_part = np.einsum("fkc,fkc->fk", a, b)
+        alpha = np.arctan2(sin_part, cos_part)
+        sum_err = alpha.sum(axis=1) - 2.0 * np.pi
+        terms["regular"] = c["regular"] * float(np.sum(sum_err**2))
+        terms["max_angle"] = c["max_angle"] * float(np.sum((alpha - np.pi) ** 2))
+        if want_grad:
+            # dE/dalpha per corner
+            d_alpha = 2.0 * c["regular"] * sum_err[:, None] + 2.0 * c["max_angle"] * (alpha - np.pi)
+            # d alpha / d a = -b_perp / |a x b|, b_perp = b minus its component along a
+            aa = np.einsum("fkc,fkc->fk", a, a)
+            bb = np.einsum("fkc,fkc->fk", b, b)
+            safe = np.maximum(sin_part, 1e-300)[..., None]
+            b_perp = b - (cos_part / np.maximum(aa, 1e-300))[..., None] * a
+            a_perp = a - (cos_part / np.maximum(bb, 1e-300))[..., None] * b
+            g_a = -b_perp / safe * d_alpha[..., None]  # w.r.t. the previous corner
+            g_b = -a_perp / safe * d_alpha[..., None]  # w.r.t. the next corner
+            # corner k gets -(g_a + g_b) from its own angle, g_a from the angle
+            # of corner k+1 (k is its previous) and g_b from corner k-1
+            per_corner = -(g_a + g_b) + np.roll(g_a, -1, axis=1) + np.roll(g_b, 1, axis=1)
+            grad += self.corner_scatter @ per_corner.reshape(-1, 3)
+
+        # D_V: weighted squared distance to the template positions
+        delta = x - self.rest
+        terms["vertex"] = c["vertex"] * float(np.sum(self.weights[:, None] * delta**2))
+        if want_grad:
+            grad += 2.0 * c["vertex"] * self.weights[:, None] * delta
+
+        # D_P: weighted squared distance of each face's corners to its plane
+        if self.plane_faces.size:
+            idx = self.faces[self.plane_faces]  # (g, 4)
+            dist = np.einsum("gkc,gc->gk", x[idx] - self.plane_points[:, None, :], self.plane_normals)
+            w = self.weights[idx]
+            terms["plane"] = c["plane"] * float(np.sum(w * dist**2))
+            if want_grad:
+                g = 2.0 * c["plane"] * (w * dist)[..., None] * self.plane_normals[:, None, :]
+                np.add.at(grad, idx.ravel(), g.reshape(-1, 3))
+        else:
+            terms["plane"] = 0.0
+
+        energy = float(sum(terms.values()))
+        return energy, (grad if want_grad else None), terms
+
+
+@dataclass(frozen=True)
+class _Border:
+    """Affine map from the reduced unknowns ``z`` to all coordinates ``x``.
+
+    ``x.ravel() = base + basis @ z``; free vertices contribute three columns,
+    vertices sliding along a rectangle edge one (the edge direction).
+    """
+
+    base: np.ndarray
+    basis: sp.csr_matrix
+    bounds: list
+    moving: np.ndarray  # (v,) bool: vertex depends on z
+    sliding: np.ndarray  # (v,) bool
+    rectangle: dict
+
+
+def _ground_rectangle(points_xz: np.ndarray, tol: float):
+    """Find the rectangle the ground vertices lie on.
+
+    Returns (origin (2,), axes (2, 2) rows u and w, lo (2,), hi (2,)) in the
+    rectangle frame ``p = origin + u * axes[0] + w * axes[1]``.
+    """
+    candidates = [np.eye(2)]
+    if len(points_xz) >= 3:
+        import trimesh
+
+        transform, _ = trimesh.bounds.oriented_bounds_2D(points_xz)
+        candidates.append(transform[:2, :2])
+    for axes in candidates:
+        local = points_xz @ axes.T
+        lo, hi = local.min(axis=0), local.max(axis=0)
+        on_side = np.abs(local - lo) <= tol
+        on_side_hi = np.abs(local - hi) <= tol
+        if np.all(on_side.any(axis=1) | on_side_hi.any(axis=1)):
+            return np.zeros(2), axes, lo, hi
+    return None
+
+
+def _build_border(x: np.ndarray, ground: np.ndarray, fixed: np.ndarray, *, slide: bool, scale: float) -> _Border:
+    """Reduced parametrisation meeting the ground constraints exactly."""
+    n = len(x)
+    tol = _RECT_TOL
+    frozen = fixed & ~ground
+    sliding = np.zeros(n, bool)
+    base = x.copy()
+    rectangle: dict = {}
+    slide_dirs = np.zeros((n, 3))
+    slide_param = np.zeros(n)
+    bounds_slide = np.zeros((n, 2))
+    if ground.any():
+        gi = np.flatnonzero(ground)
+        height = np.abs(x[gi, 1]).max()
+        if height > tol:
+            worst = gi[np.argmax(np.abs(x[gi, 1]))]
+            msg = (
+                f"optimize: ground vertex {worst} is at y = {x[worst, 1] * scale:.6g} m; "
+                f"ground vertices must lie on y = 0"
+            )
+            raise SolverError(msg)
+        found = _ground_rectangle(x[gi][:, [0, 2]], tol)
+        if found is None:
+            msg = "optimize: the ground vertices do not lie on the edges of a rectangle; cannot keep them on it"
+            raise SolverError(msg)
+        origin, axes, lo, hi = found
+        local = x[gi][:, [0, 2]] @ axes.T
+        rectangle = {"axes": axes, "lo": lo * scale, "hi": hi * scale}
+        at_lo = np.abs(local - lo) <= tol
+        at_hi = np.abs(local - hi) <= tol
+        on_u_side = at_lo[:, 0] | at_hi[:, 0]  # u fixed, slides along w
+        on_w_side = at_lo[:, 1] | at_hi[:, 1]  # w fixed, slides along u
+        corner = on_u_side & on_w_side
+        # snap every ground vertex exactly onto its side, y = 0
+        snapped = local.copy()
+        snapped[:, 0] = np.where(at_lo[:, 0], lo[0], np.where(at_hi[:, 0], hi[0], local[:, 0]))
+        snapped[:, 1] = np.where(at_lo[:, 1], lo[1], np.where(at_hi[:, 1], hi[1], local[:, 1]))
+        world = snapped @ axes
+        base[gi, 0], base[gi, 1], base[gi, 2] = world[:, 0], 0.0, world[:, 1]
+        if slide:
+            slides = ~corner
+            # along w for u-sides, along u for w-sides
+            along = np.where(on_u_side[:, None], axes[1][None, :], axes[0][None, :])
+            t = np.where(on_u_side, snapped[:, 1], snapped[:, 0])
+            t_lo = np.where(on_u_side, lo[1], lo[0])
+            t_hi = np.where(on_u_side, hi[1], hi[0])
+            sl = gi[slides]
+            sliding[sl] = True
+            slide_dirs[sl] = np.column_stack([along[slides, 0], np.zeros(slides.sum()), along[slides, 1]])
+            slide_param[sl] = t[slides]
+            bounds_slide[sl] = np.column_stack([t_lo[slides], t_hi[slides]])
+            # base of a sliding vertex: its position with the slide parameter at 0
+            base[sl] -= slide_param[sl, None] * slide_dirs[sl]
+        rectangle["corners_fixed"] = int(corner.sum())
+    free = ~(frozen | ground)
+    # columns: 3 per free vertex, then 1 per sliding vertex
+    free_idx = np.flatnonzero(free)
+    slide_idx = np.flatnonzero(sliding)
+    n_free = free_idx.size
+    rows_f = (3 * free_idx[:, None] + np.arange(3)).ravel()
+    cols_f = np.arange(3 * n_free)
+    vals_f = np.ones(3 * n_free)
+    rows_s = (3 * slide_idx[:, None] + np.arange(3)).ravel()
+    cols_s = np.repeat(3 * n_free + np.arange(slide_idx.size), 3)
+    vals_s = slide_dirs[slide_idx].ravel()
+    keep = vals_s != 0.0
+    basis = sp.csr_matrix(
+        (np.concatenate([vals_f, vals_s[keep]]), (np.concatenate([rows_f, rows_s[keep]]), np.concatenate([cols_f, cols_s[keep]]))),
+        shape=(3 * n, 3 * n_free + slide_idx.size),
+    )
+    base_flat = base.ravel().copy()
+    base_flat[rows_f] = 0.0
+    for_bounds = [(None, None)] * (3 * n_free) + [tuple(bounds_slide[i]) for i in slide_idx]
+    return _Border(
+        base=base_flat,
+        basis=basis,
+        bounds=for_bounds,
+        moving=free | sliding,
+        sliding=sliding,
+        rectangle=rectangle,
+    ), np.concatenate([x[free_idx].ravel(), slide_param[slide_idx]])
+
+
+def _check_sides(border: _Border, x0: np.ndarray, ground: np.ndarray, min_len: float, scale: float) -> None:
+    """Raise SolverError when a rectangle side is too short for its vertices."""
+    if not border.sliding.any():
+        return
+    axes = border.rectangle["axes"]
+    lo, hi = border.rectangle["lo"] / scale, border.rectangle["hi"] / scale
+    gi = np.flatnonzero(ground)
+    local = x0[gi][:, [0, 2]] @ axes.T
+    for dim in range(2):
+        for side_value in (lo[dim], hi[dim]):
+            on = np.abs(local[:, dim] - side_value) <= _RECT_TOL
+            count = int(on.sum())
+            length = hi[1 - dim] - lo[1 - dim]
+            if count >= 2 and (count - 1) * min_len > length * (1 + 1e-9):
+                msg = (
+                    f"optimize: min_edge_length {min_len * scale:.4g} m cannot be met: "
+                    f"{count} ground vertices share a rectangle side of {length * scale:.4g} m"
+                )
+                raise SolverError(msg)
+
+
+def optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None = None) -> ControlMesh:
+    """Run the paper's mesh optimisation on ``mesh``.
+
+    Parameters
+    ----------
+    mesh : ControlMesh
+        Quad cage from a template (faces (f, 4)).
+    params : mapping, optional
+        Overrides of :data:`OPTIMIZE_DEFAULTS` (after the template's defaults in
+        ``mesh.meta["refiners"]["optimize"]``).
+
+    Returns
+    -------
+    ControlMesh
+        Same topology; ``meta["optimize"]`` holds the quality figures before
+        and after, the energy terms, iterations, status and time.
+
+    Raises
+    ------
+    SolverError
+        When a hard constraint cannot be met or the solver diverges.
+    RecipeError
+        On an unknown parameter.
+    """
+    start = time.perf_counter()
+    p = refiner_params("optimize", OPTIMIZE_DEFAULTS, mesh.meta, params)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    faces = np.asarray(mesh.faces, dtype=np.int64)
+    if faces.ndim != 2 or faces.shape[1] != 4:
+        msg = f"optimize: faces must be quads (f, 4), got shape {faces.shape}"
+        raise SolverError(msg)
+    if not np.all(np.isfinite(vertices)):
+        msg = "optimize: the cage has non-finite vertex coordinates"
+        raise SolverError(msg)
+    n = len(vertices)
+
+    # normalise: centre at the origin's xz (keep y = 0 as the ground), unit mean edge
+    edges = mesh_edges(faces)
+    lengths = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
+    scale = float(lengths.mean())
+    shift = np.array([vertices[:, 0].mean(), 0.0, vertices[:, 2].mean()])
+    x0 = (vertices - shift) / scale
+    min_len = p["min_edge_length"] / scale
+
+    weights = np.asarray(mesh.vertex_weights, dtype=np.float64)
+    peak = float(weights.max()) if weights.size else 0.0
+    weights = np.clip(weights / peak, 0.0, 1.0) if peak > 0 else np.zeros(n)
+    energy = CageEnergy.build(
+        x0,
+        faces,
+        weights,
+        (np.asarray(mesh.plane_points, dtype=np.float64) - shift) / scale,
+        np.asarray(mesh.plane_normals, dtype=np.float64),
+        p,
+    )
+    ground = np.asarray(mesh.ground, bool)
+    fixed = np.asarray(mesh.fixed, bool)
+    border, z0 = _build_border(x0, ground, fixed, slide=p["slide_border"], scale=scale)
+    _check_sides(border, x0, ground, min_len, scale)
+
+    # edge-length inequalities on edges with a moving end
+    moving_edge = border.moving[edges[:, 0]] | border.moving[edges[:, 1]]
+    c_edges = edges[moving_edge]
+    m = len(c_edges)
+    jac_rows = np.repeat(np.arange(m), 6)
+    jac_cols = np.concatenate(
+        [3 * c_edges[:, [0]] + np.arange(3), 3 * c_edges[:, [1]] + np.arange(3)], axis=1
+    ).ravel()
+    basis = border.basis
+    basis_t = basis.T.tocsr()
+
+    def unpack(z):
+        return (border.base + basis @ z).reshape(n, 3)
+
+    def fun(z):
+        e, g = energy.value_and_grad(unpack(z))
+        return e, basis_t @ g.ravel()
+
+    def cons(z):
+        x = unpack(z)
+        e = x[c_edges[:, 0]] - x[c_edges[:, 1]]
+        return (np.einsum("ec,ec->e", e, e) - min_len**2) / min_len**2
+
+    def cons_jac(z):
+        x = unpack(z)
+        e = 2.0 * (x[c_edges[:, 0]] - x[c_edges[:, 1]]) / min_len**2
+        vals = np.concatenate([e, -e], axis=1).ravel()
+        jx = sp.csr_matrix((vals, (jac_rows, jac_cols)), shape=(m, 3 * n))
+        return (jx @ basis).toarray()
+
+    x_start = unpack(z0)
+    e_start, _ = energy.value_and_grad(x_start)
+    quality_before = cage_quality(vertices, faces)
+    constraints = [{"type": "ineq", "fun": cons, "jac": cons_jac}] if m else []
+    result = scipy.optimize.minimize(
+        fun,
+        z0,
+        jac=True,
+        method="SLSQP",
+        bounds=border.bounds,
+        constraints=constraints,
+        options={"maxiter": p["max_iterations"], "ftol": p["tolerance"]},
+    )
+    z = result.x
+    x = unpack(z)
+    e_end = energy.terms(x)
+    e_total = float(sum(e_end.values()))
+    if not np.all(np.isfinite(x)) or not np.isfinite(e_total):
+        msg = f"optimize: the solver diverged (non-finite result; SLSQP status {result.status}: {result.message})"
+        raise SolverError(msg)
+    worst = float(cons(z).min()) if m else 0.0
+    # relative violation of |e|^2 >= l^2, as a length: |e| >= l (1 - tol)
+    if m and worst < -1e-6:
+        short = float(np.sqrt(max(worst + 1.0, 0.0)) * p["min_edge_length"])
+        msg = (
+            f"optimize: hard constraint not met: an edge is {short:.4g} m long, "
+            f"min_edge_length is {p['min_edge_length']:.4g} m (SLSQP status {result.status}: {result.message})"
+        )
+        raise SolverError(msg)
+    if e_total > e_start * (1 + 1e-9) and worst >= 0 and (cons(z0).min() if m else 0.0) >= 0:
+        msg = (
+            f"optimize: the solver diverged: energy rose from {e_start:.6g} to {e_total:.6g} "
+            f"(SLSQP status {result.status}: {result.message})"
+        )
+        raise SolverError(msg)
+
+    out = x * scale + shift
+    # the ground rows are exact by construction; write them without round-off
+    out[ground, 1] = 0.0
+    quality_after = cage_quality(out, faces)
+    meta = dict(mesh.meta)
+    meta["optimize"] = {
+        "before": quality_before,
+        "after": quality_after,
+        "energy_before": float(e_start),
+        "energy_after": e_total,
+        "terms_after": e_end,
+        "iterations": int(result.nit),
+        "status": int(result.status),
+        "message": str(result.message),
+        "seconds": time.perf_counter() - start,
+        "params": p,
+    }
+    return replace(mesh, vertices=out, meta=meta)
+
+
+class OptimizeRefiner:
+    """The ``optimize`` refiner: the paper's Section 5.3 mesh optimisation."""
+
+    name = "optimize"
+    description = "Mesh optimisation of the paper (Laplacian, angle, vertex and plane terms; SLSQP)"
+
+    def refine(
+        self,
+        mesh: ControlMesh,
+        bodies: Sequence[Body],
+        pressures: Sequence[PressureField],
+        *,
+        params: Mapping[str, Any] | None = None,
+    ) -> ControlMesh:
+        """Return the optimised cage (same topology); bodies are not used."""
+        return optimize_cage(mesh, params)

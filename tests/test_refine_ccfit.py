@@ -1,0 +1,112 @@
+"""Tests of the ``catmull-clark-fit`` refiner on synthetic targets."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from seatkit.errors import SolverError
+from seatkit.model import Body, PressureField
+from seatkit.refine.ccfit import CatmullClarkFitRefiner, fit_cage, surface_distances
+from seatkit.refine.flat_patch import flat_patch_cage
+from seatkit.subdivision import Cage, build_operators
+
+
+def height_field(x, z):
+    """A smooth seat-like target above y = 0.3 (a bowl with a raised back)."""
+    return 0.36 + 0.06 * (x / 0.25) ** 2 + 0.12 * np.clip(-z / 0.3, 0, None) ** 2 - 0.02 * np.cos(np.pi * z / 0.4)
+
+
+def synthetic_body(n_side: int = 40, segment: int = 0) -> tuple[Body, PressureField]:
+    """Points sampled from ``height_field`` as a 'body' with uniform importance."""
+    x, z = np.meshgrid(np.linspace(-0.2, 0.2, n_side), np.linspace(-0.25, 0.45, n_side), indexing="ij")
+    pts = np.column_stack([x.ravel(), height_field(x, z).ravel(), z.ravel()])
+    n = len(pts)
+    weights = np.zeros((n, 21))
+    weights[:, segment] = 1.0
+    body = Body(
+        vertices=pts,
+        faces=np.zeros((0, 3), np.int64),
+        weights=weights,
+        joints=np.zeros((21, 3)),
+        tips=np.zeros((21, 3)),
+        segment_mass=np.full(21, 75.0 / 21),
+        segment_com=np.zeros((21, 3)),
+        name="synthetic",
+    )
+    pressure = np.full(n, 1000.0)
+    field = PressureField(
+        force=np.zeros((n, 3)),
+        normal_force=pressure * 1e-4,
+        pressure=pressure,
+        shear=np.zeros(n),
+        area=np.full(n, 1e-4),
+        contact=np.ones(n, bool),
+        joint_force=np.zeros((20, 3)),
+        joint_moment=np.zeros((20, 3)),
+    )
+    return body, field
+
+
+def flat_cage(height: float = 0.3):
+    mesh = flat_patch_cage((-0.22, 0.22), (-0.27, 0.47), height, rows=11, cols=7, margin=0.05)
+    from dataclasses import replace
+
+    return replace(mesh, meta={"supported_segments": [0]})
+
+
+def _signed(mesh, points, level=3):
+    ops = build_operators(Cage.from_control_mesh(mesh), level)
+    X = ops.limit_points(mesh.vertices)
+    N = ops.limit_normals(mesh.vertices)
+    return surface_distances(X, N, points)
+
+
+def test_fit_pulls_flat_patch_onto_smooth_target():
+    body, field = synthetic_body()
+    mesh = flat_cage()
+    out = CatmullClarkFitRefiner().refine(mesh, [body], [field])
+    report = out.meta["catmull-clark-fit"]
+    before, after = report["before"]["mean_distance"], report["after"]["mean_distance"]
+    assert before > 0.05
+    assert after < 0.2 * before
+    # evaluated independently at a finer level: no point deeper than 5 mm inside
+    _, dist, signed = _signed(out, body.vertices, level=4)
+    assert (-signed).max() <= 0.005
+    assert np.mean(np.abs(signed)) < 0.2 * before
+    # topology kept; ground ring untouched
+    assert np.array_equal(out.faces, mesh.faces)
+    assert np.array_equal(out.vertices[mesh.ground], mesh.vertices[mesh.ground])
+    assert report["iterations"] >= 2
+
+
+def test_fit_resolves_penetration():
+    # the patch starts inside the target: a third of the points are below it
+    body, field = synthetic_body()
+    mesh = flat_cage(height=0.40)
+    _, _, signed0 = _signed(mesh, body.vertices)
+    assert (-signed0).max() > 0.03
+    assert (signed0 < 0).mean() > 0.2
+    out = fit_cage(mesh, [body], [field])
+    _, _, signed = _signed(out, body.vertices, level=4)
+    assert (-signed).max() <= 0.005
+
+
+def test_fit_is_deterministic():
+    body, field = synthetic_body(25)
+    mesh = flat_cage()
+    a = fit_cage(mesh, [body], [field])
+    b = fit_cage(mesh, [body], [field])
+    assert np.array_equal(a.vertices, b.vertices)
+
+
+def test_unsupported_segments_give_solver_error():
+    body, field = synthetic_body(10, segment=12)  # only the head
+    with pytest.raises(SolverError, match="no supported body vertex"):
+        fit_cage(flat_cage(), [body], [field])
+
+
+def test_unmeetable_penetration_limit_raises():
+    body, field = synthetic_body(25)
+    with pytest.raises(SolverError, match="inside"):
+        fit_cage(flat_cage(height=0.55), [body], [field], {"max_iterations": 1, "max_penetration": 0.0, "raise_on_penetration": True})

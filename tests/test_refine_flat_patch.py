@@ -1,0 +1,126 @@
+"""The flat-patch baseline, and both refiners on the library's bodies."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from seatkit.errors import RecipeError, UnsupportedPoseError
+from seatkit.refine import (
+    CatmullClarkFitRefiner,
+    FlatPatchTemplate,
+    OptimizeRefiner,
+    fit_report,
+)
+from seatkit.refine.grid import grid_ring
+from seatkit.skeleton import SEGMENT_INDEX
+
+
+@pytest.fixture(scope="module")
+def seated():
+    """The default male body in every supportable library pose, with pressure."""
+    from seatkit.body import list_poses, load_pose, load_rig, pose_rig
+    from seatkit.pressure import solve_pressure
+
+    rig = load_rig("default-male", mass=75.0)
+    out = {}
+    for info in list_poses():
+        if info.supported:
+            body = pose_rig(rig, load_pose(info.name), ground=True)
+            out[info.name] = (body, solve_pressure(body))
+    return out
+
+
+def test_flat_patch_shape(seated):
+    body, pressure = seated["upright-sitting"]
+    mesh = FlatPatchTemplate().fit([body], [pressure])
+    rows, cols = 11, 7
+    assert mesh.faces.shape == (rows * cols, 4)
+    assert mesh.vertices.shape == ((rows + 1) * (cols + 1), 3)
+    ring = grid_ring(rows, cols, 0)
+    assert np.array_equal(mesh.ground, ring) and np.array_equal(mesh.fixed, ring)
+    assert np.all(mesh.vertices[ring, 1] == 0.0)
+    # flat part: one height, under every supported vertex (or at 2 cm)
+    top = mesh.vertices[~ring, 1]
+    assert np.ptp(top) == 0.0
+    dominant = np.argmax(body.weights, axis=1)
+    segs = mesh.meta["supported_segments"]
+    supported = (pressure.importance > 0.02) & np.isin(dominant, segs)
+    assert top[0] == pytest.approx(max(body.vertices[supported, 1].min(), 0.02))
+    # it covers the supported footprint; the ground ring lies outside it
+    pts = body.vertices[supported]
+    inner = mesh.vertices[~ring]
+    assert inner[:, 0].min() <= pts[:, 0].min() + 1e-12 and inner[:, 0].max() >= pts[:, 0].max() - 1e-12
+    assert inner[:, 2].min() <= pts[:, 2].min() + 1e-12 and inner[:, 2].max() >= pts[:, 2].max() - 1e-12
+    # normals point up (at the body)
+    v = mesh.vertices
+    f = mesh.faces[~mesh.ground[mesh.faces].any(axis=1)]
+    normals = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 3]] - v[f[:, 0]])
+    assert np.all(normals[:, 1] > 0)
+    assert SEGMENT_INDEX["Hips"] in segs and SEGMENT_INDEX["Head"] not in segs
+
+
+def test_flat_patch_parameters(seated):
+    body, pressure = seated["upright-sitting"]
+    mesh = FlatPatchTemplate().fit([body], [pressure], params={"rows": 9, "cols": 5, "height": 0.3})
+    assert mesh.faces.shape == (45, 4)
+    assert np.all(mesh.vertices[~mesh.ground, 1] == 0.3)
+    with pytest.raises(RecipeError, match="unknown segment"):
+        FlatPatchTemplate().fit([body], [pressure], params={"segments": ["Tail"]})
+    with pytest.raises(RecipeError, match="unknown parameter"):
+        FlatPatchTemplate().fit([body], [pressure], params={"colums": 5})
+
+
+def test_flat_patch_fit_upright_sitting(seated):
+    body, pressure = seated["upright-sitting"]
+    mesh = FlatPatchTemplate().fit([body], [pressure])
+    out = CatmullClarkFitRefiner().refine(mesh, [body], [pressure])
+    before = fit_report(mesh, [body], [pressure])
+    after = fit_report(out, [body], [pressure])
+    # the fit brings the patch from the floor up to the seat and back
+    assert after["mean_distance"] < 0.25 * before["mean_distance"]
+    assert np.array_equal(out.vertices[mesh.ground], mesh.vertices[mesh.ground])
+
+
+def _chair_or_skip(body, pressure):
+    from seatkit.plugins import get_plugin_manager
+
+    registry = get_plugin_manager(autoload=False).registry
+    if "chair" not in registry.names("template"):
+        pytest.skip("chair template not registered")
+    try:
+        return registry.get("template", "chair").fit([body], [pressure])
+    except UnsupportedPoseError as exc:
+        pytest.skip(f"chair template does not fit this pose: {exc}")
+
+
+@pytest.mark.parametrize(
+    "pose",
+    [
+        "upright-sitting",
+        "armrest-sitting",
+        "crossed-legs-ankles",
+        "crossed-legs-knees",
+        "leaning-forward",
+        "lounger",
+        "reclined-sitting",
+        "standing-leaning-back",
+    ],
+)
+def test_chair_after_both_refiners_beats_flat_patch(seated, pose):
+    if pose not in seated:
+        pytest.skip(f"{pose} is not a supportable library pose")
+    body, pressure = seated[pose]
+    chair = _chair_or_skip(body, pressure)
+    optimised = OptimizeRefiner().refine(chair, [body], [pressure])
+    report = optimised.meta["optimize"]
+    assert report["after"]["planarity_mean"] < report["before"]["planarity_mean"]
+    assert report["after"]["regularity_deg"] < report["before"]["regularity_deg"]
+    assert report["after"]["min_angle_deg"] >= report["before"]["min_angle_deg"]
+    fitted = CatmullClarkFitRefiner().refine(optimised, [body], [pressure])
+    ours = fit_report(fitted, [body], [pressure])
+    segments = fitted.meta["catmull-clark-fit"]["supported_segments"][0]
+    flat = FlatPatchTemplate().fit([body], [pressure], params={"segments": segments})
+    baseline = fit_report(CatmullClarkFitRefiner().refine(flat, [body], [pressure]), [body], [pressure])
+    assert ours["mean_distance"] < baseline["mean_distance"]
+    assert ours["max_penetration"] <= 0.005

@@ -1,0 +1,204 @@
+"""Tests of the ``optimize`` refiner (paper Section 5.3, Appendix B)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from seatkit.errors import RecipeError, SolverError
+from seatkit.model import ControlMesh
+from seatkit.refine.grid import grid_faces, grid_ring
+from seatkit.refine.optimize import OPTIMIZE_DEFAULTS, CageEnergy, OptimizeRefiner, optimize_cage
+from seatkit.refine.quality import cage_quality, mesh_edges
+
+ROWS, COLS = 11, 7  # faces, like the chair: 7 x 3 grid plus two border rings
+
+#: (z, y) of each vertex row from the front ground edge to the back one, m
+PROFILE = np.array(
+    [
+        (0.70, 0.00),  # ground
+        (0.62, 0.06),  # border ring
+        (0.58, 0.20),  # feet / shins
+        (0.52, 0.36),
+        (0.42, 0.46),  # knees
+        (0.20, 0.45),  # thighs
+        (0.00, 0.42),  # hips
+        (-0.12, 0.52),  # lumbar
+        (-0.17, 0.72),  # lower back
+        (-0.22, 0.95),  # upper back
+        (-0.30, 1.00),  # border ring
+        (-0.40, 0.00),  # ground
+    ]
+)
+XS = np.array([-0.35, -0.25, -0.15, -0.05, 0.05, 0.15, 0.25, 0.35])
+
+
+def chair_cage(noise: float = 0.0, seed: int = 0) -> ControlMesh:
+    """A synthetic chair-like cage (12 x 8 vertices) with planes per face.
+
+    Planes are fitted to the unperturbed faces; ``noise`` (m) then perturbs
+    every non-ground vertex.
+    """
+    z = np.repeat(PROFILE[:, 0][:, None], len(XS), axis=1)
+    y = np.repeat(PROFILE[:, 1][:, None], len(XS), axis=1)
+    x = np.repeat(XS[None, :], len(PROFILE), axis=0)
+    # ground columns: on the x = +-0.35 sides, y = 0
+    y[:, [0, -1]] = 0.0
+    vertices = np.stack([x, y, z], axis=-1).reshape(-1, 3)
+    faces = grid_faces(ROWS, COLS)
+    ground = grid_ring(ROWS, COLS, 0)
+    # best-fit plane of each unperturbed face
+    corners = vertices[faces]
+    centre = corners.mean(axis=1)
+    _, _, vt = np.linalg.svd(corners - centre[:, None, :])
+    normals = vt[:, 2, :]
+    normals *= np.sign(normals[:, 1:2] + 1e-12)
+    weights = np.where(ground, 0.0, np.where(grid_ring(ROWS, COLS, 1), 0.3, 1.0))
+    rng = np.random.default_rng(seed)
+    moved = vertices + np.where(ground[:, None], 0.0, noise * rng.standard_normal(vertices.shape))
+    segments = np.where(grid_ring(ROWS, COLS, 0)[faces].all(axis=1), -1, 0)
+    structural = np.zeros(len(faces), bool)
+    structural[np.flatnonzero(ground[faces].any(axis=1))] = True
+    planes_p = np.where(structural[:, None], np.nan, centre)
+    planes_n = np.where(structural[:, None], np.nan, normals)
+    return ControlMesh(
+        vertices=moved,
+        faces=faces,
+        face_segments=np.where(structural, -1, segments),
+        plane_points=planes_p,
+        plane_normals=planes_n,
+        vertex_weights=weights,
+        fixed=ground.copy(),
+        ground=ground,
+    )
+
+
+def _energy(mesh, params=None):
+    p = dict(OPTIMIZE_DEFAULTS, **(params or {}))
+    w = mesh.vertex_weights / mesh.vertex_weights.max()
+    rest = mesh.vertices + 0.01  # a rest state different from x: D_V non-zero
+    return CageEnergy.build(rest, mesh.faces, w, mesh.plane_points, mesh.plane_normals, p)
+
+
+TERM_PARAMS = {
+    "laplacian": {"lambda_regular": 0.0, "lambda_max_angle": 0.0, "lambda_vertex": 0.0, "lambda_plane": 0.0},
+    "regular": {"lambda_laplacian": 0.0, "lambda_max_angle": 0.0, "lambda_vertex": 0.0, "lambda_plane": 0.0},
+    "max_angle": {"lambda_laplacian": 0.0, "lambda_regular": 0.0, "lambda_vertex": 0.0, "lambda_plane": 0.0},
+    "vertex": {"lambda_laplacian": 0.0, "lambda_regular": 0.0, "lambda_max_angle": 0.0, "lambda_plane": 0.0},
+    "plane": {"lambda_laplacian": 0.0, "lambda_regular": 0.0, "lambda_max_angle": 0.0, "lambda_vertex": 0.0},
+    "all": {},
+}
+
+
+@pytest.mark.parametrize("term", sorted(TERM_PARAMS))
+def test_gradient_matches_central_differences(term):
+    mesh = chair_cage(noise=0.02, seed=3)
+    energy = _energy(mesh, TERM_PARAMS[term])
+    x = mesh.vertices
+    value, grad = energy.value_and_grad(x)
+    assert value > 0.0
+    h = 1e-6
+    numeric = np.zeros_like(x)
+    for i in range(x.shape[0]):
+        for c in range(3):
+            xp, xm = x.copy(), x.copy()
+            xp[i, c] += h
+            xm[i, c] -= h
+            numeric[i, c] = (energy.value_and_grad(xp)[0] - energy.value_and_grad(xm)[0]) / (2 * h)
+    rel = np.linalg.norm(grad - numeric) / np.linalg.norm(numeric)
+    assert rel < 1e-5, f"{term}: relative gradient error {rel:.2e}"
+
+
+def test_terms_vanish_where_expected():
+    mesh = chair_cage()
+    p = dict(OPTIMIZE_DEFAULTS)
+    w = mesh.vertex_weights
+    energy = CageEnergy.build(mesh.vertices, mesh.faces, w, mesh.plane_points, mesh.plane_normals, p)
+    terms = energy.terms(mesh.vertices)
+    assert terms["vertex"] == 0.0
+    # planes were fitted to these faces: only the non-planarity remains
+    assert terms["plane"] < 1e-3
+    # a flat unit square grid: no angle-sum error, max-angle term = pi^2 per face
+    flat = np.stack(np.meshgrid(np.arange(4.0), np.arange(3.0), indexing="ij"), -1).reshape(-1, 2)
+    v = np.column_stack([flat[:, 1], np.zeros(len(flat)), flat[:, 0]])
+    f = grid_faces(3, 2)
+    e = CageEnergy.build(v, f, np.ones(len(v)), np.full((6, 3), np.nan), np.full((6, 3), np.nan), p)
+    t = e.terms(v)
+    assert t["regular"] == pytest.approx(0.0, abs=1e-24)
+    assert t["max_angle"] == pytest.approx(p["lambda_max_angle"] * 6 * 4 * (np.pi / 2) ** 2)
+    assert t["plane"] == 0.0
+
+
+def test_optimize_improves_perturbed_cage_and_keeps_constraints():
+    mesh = chair_cage(noise=0.02, seed=1)
+    out = OptimizeRefiner().refine(mesh, [], [], params={"min_edge_length": 0.03})
+    assert out.faces is mesh.faces or np.array_equal(out.faces, mesh.faces)
+    assert out.vertices.shape == mesh.vertices.shape
+    before, after = cage_quality(mesh.vertices, mesh.faces), cage_quality(out.vertices, out.faces)
+    assert after["planarity_mean"] < before["planarity_mean"]
+    assert after["min_angle_deg"] > before["min_angle_deg"]
+    assert after["regularity_deg"] < before["regularity_deg"]
+    report = out.meta["optimize"]
+    assert report["before"] == before
+    assert report["after"] == after
+    assert report["energy_after"] < report["energy_before"]
+    # ground vertices: y = 0 and on the rectangle x = +-0.35 or z in {0.7, -0.4}
+    g = out.vertices[mesh.ground]
+    assert np.abs(g[:, 1]).max() <= 1e-9
+    on_x = np.abs(np.abs(g[:, 0]) - 0.35) <= 1e-9
+    on_z = (np.abs(g[:, 2] - 0.7) <= 1e-9) | (np.abs(g[:, 2] + 0.4) <= 1e-9)
+    assert np.all(on_x | on_z)
+    assert np.all((g[:, 2] >= -0.4 - 1e-9) & (g[:, 2] <= 0.7 + 1e-9))
+    assert np.all((g[:, 0] >= -0.35 - 1e-9) & (g[:, 0] <= 0.35 + 1e-9))
+    # ground vertices slid only along their side: the fixed coordinate is unchanged
+    g0 = mesh.vertices[mesh.ground]
+    assert np.all(np.isclose(g[:, 0], g0[:, 0], atol=1e-9) | np.isclose(g[:, 2], g0[:, 2], atol=1e-9))
+    # minimal edge length
+    e = mesh_edges(out.faces)
+    lengths = np.linalg.norm(out.vertices[e[:, 0]] - out.vertices[e[:, 1]], axis=1)
+    assert lengths.min() >= 0.03 * (1 - 1e-6)
+    # the data term keeps the supporting (weight 1) control points near the template
+    moved = np.linalg.norm(out.vertices - mesh.vertices, axis=1)
+    assert moved[mesh.vertex_weights == 1.0].max() < 0.05
+
+
+def test_min_edge_length_is_enforced_when_active():
+    mesh = chair_cage(noise=0.0)
+    e = mesh_edges(mesh.faces)
+    lengths = np.linalg.norm(mesh.vertices[e[:, 0]] - mesh.vertices[e[:, 1]], axis=1)
+    target = 0.09  # longer than several edges of the template
+    assert (lengths < target).sum() > 5
+    out = optimize_cage(mesh, {"min_edge_length": target})
+    after = np.linalg.norm(out.vertices[e[:, 0]] - out.vertices[e[:, 1]], axis=1)
+    moving = ~(mesh.fixed[e[:, 0]] & mesh.fixed[e[:, 1]]) | True
+    assert after[moving].min() >= target * (1 - 1e-6)
+
+
+def test_optimize_is_deterministic():
+    mesh = chair_cage(noise=0.02, seed=5)
+    a = optimize_cage(mesh)
+    b = optimize_cage(mesh)
+    assert np.array_equal(a.vertices, b.vertices)
+
+
+def test_unmeetable_edge_length_raises_solver_error():
+    mesh = chair_cage(noise=0.0)
+    # 12 ground vertices share a 1.05 m side: 0.2 m apart cannot fit
+    with pytest.raises(SolverError, match="min_edge_length"):
+        optimize_cage(mesh, {"min_edge_length": 0.2})
+
+
+def test_ground_off_rectangle_raises_solver_error():
+    mesh = chair_cage()
+    v = mesh.vertices.copy()
+    v[np.flatnonzero(mesh.ground)[3], 0] += 0.05  # off the front side, inside
+    v[np.flatnonzero(mesh.ground)[3], 2] -= 0.05
+    with pytest.raises(SolverError, match="rectangle"):
+        optimize_cage(mesh.with_vertices(v))
+
+
+def test_unknown_parameter_is_a_recipe_error():
+    with pytest.raises(RecipeError, match="lambda_laplace"):
+        optimize_cage(chair_cage(), {"lambda_laplace": 1.0})
+    with pytest.raises(RecipeError, match="expected float"):
+        optimize_cage(chair_cage(), {"lambda_plane": "big"})
