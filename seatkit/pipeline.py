@@ -148,6 +148,56 @@ def _finish_output(staging: Path, target: Path, *, overwrite: bool) -> None:
         os.replace(staging, target)
 
 
+def evaluate_result(result: BuildResult, registry, timer: "_Timer | None" = None) -> None:
+    """Fill ``result.metrics`` with the paper's Table 1 figures, ours and the baseline's.
+
+    The baseline (default ``flat-patch``, what Sit & Relax starts from) is
+    fitted to the same bodies, asked to support the same body segments as our
+    cage, and refined by the same ``catmull-clark-fit`` step with the same
+    parameters (when the recipe uses it). Both surfaces are then evaluated
+    the same way (:mod:`seatkit.evaluate`).
+    """
+    from seatkit.evaluate import design_segments, evaluate_design
+    from seatkit.skeleton import SEGMENTS
+    from seatkit.subdivision import limit_surface
+
+    timer = timer or _Timer(_noop)
+    recipe = result.recipe
+    ev = recipe["evaluate"]
+    p = recipe["pressure"]
+    solver = registry.get("pressure_solver", p["solver"])
+    segments = design_segments(result.control_mesh)
+    kw = dict(solver=solver, support_distance=ev["support_distance"], pressure_settings=p, segments=segments)
+    with timer.stage("evaluate"):
+        ours, fields = evaluate_design(result.bodies, result.pressures, result.surface, **kw)
+    metrics = {
+        "support_distance_m": ev["support_distance"],
+        "supported_segments": [SEGMENTS[s] for s in segments],
+        "ours": ours,
+    }
+    result.extra["contact_pressures"] = fields
+    if ev.get("baseline"):
+        with timer.stage("baseline"):
+            template = registry.get("template", ev["baseline"])
+            params = {"segments": metrics["supported_segments"]} if ev["baseline"] == "flat-patch" else {}
+            base = template.fit(result.bodies, result.pressures, params=params, seed=recipe["seed"])
+            for ref in recipe["refiners"]:
+                if ref["name"] == "catmull-clark-fit":
+                    base = registry.get("refiner", ref["name"]).refine(
+                        base, result.bodies, result.pressures, params=ref["params"]
+                    )
+            base_surface = limit_surface(base, level=recipe["surface_level"])
+            baseline, base_fields = evaluate_design(result.bodies, result.pressures, base_surface, **kw)
+        metrics["baseline_template"] = ev["baseline"]
+        metrics["baseline"] = baseline
+        result.extra["baseline"] = {
+            "control_mesh": base,
+            "surface": base_surface,
+            "contact_pressures": base_fields,
+        }
+    result.metrics = metrics
+
+
 def build(
     recipe,
     *,
@@ -227,11 +277,16 @@ def build(
         surface=surface,
         timings=timer.timings,
     )
+    if recipe["evaluate"]["enabled"]:
+        evaluate_result(result, registry, timer)
 
     if write:
         target = Path(recipe["output"] or Path("seatkit-out") / recipe["template"])
         target.parent.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.staging-", dir=target.parent))
+        mask = os.umask(0)
+        os.umask(mask)
+        os.chmod(staging, 0o777 & ~mask)  # mkdtemp makes 0700 folders
         try:
             with timer.stage("export"):
                 files: dict[str, Path] = {}

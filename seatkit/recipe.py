@@ -31,7 +31,7 @@ import math
 from pathlib import Path
 from typing import Any, Mapping
 
-from seatkit.constants import DEFAULT_BODY_MASS, DEFAULT_LAMBDA, DEFAULT_MU, DEFAULT_SEED
+from seatkit.constants import DEFAULT_BODY_MASS, DEFAULT_LAMBDA, DEFAULT_MU, DEFAULT_SEED, DEFAULT_SUPPORT_DISTANCE
 from seatkit.errors import RecipeError
 from seatkit.yamlio import Document, load_yaml, validate
 
@@ -99,6 +99,15 @@ RECIPE_SCHEMA: dict = {
         },
         "exporters": {"type": "array", "items": _NAME},
         "surface_level": {"type": "integer", "minimum": 1, "maximum": 4},
+        "evaluate": {
+            "type": "object",
+            "additionalProperties": False,
+            "properties": {
+                "enabled": {"type": "boolean"},
+                "baseline": {"anyOf": [_NAME, {"type": "null"}]},
+                "support_distance": {"type": "number", "exclusiveMinimum": 0},
+            },
+        },
         "output": _NAME,
         "seed": {"type": "integer", "minimum": 0},
     },
@@ -116,6 +125,7 @@ def default_recipe() -> dict:
         "refiners": [{"name": n, "params": {}} for n in DEFAULT_REFINERS],
         "exporters": list(DEFAULT_EXPORTERS),
         "surface_level": DEFAULT_SURFACE_LEVEL,
+        "evaluate": {"enabled": True, "baseline": "flat-patch", "support_distance": DEFAULT_SUPPORT_DISTANCE},
         "output": None,
         "seed": DEFAULT_SEED,
     }
@@ -129,6 +139,7 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
             recipe[key] = data[key]
     recipe["template_params"] = dict(data.get("template_params", {}))
     recipe["placement"] = dict(data.get("placement", {}))
+    recipe["evaluate"].update(data.get("evaluate", {}))
     if "bodies" in data:
         recipe["bodies"] = []
         for body in data["bodies"]:
@@ -242,6 +253,8 @@ def apply_overrides(
     output: str | None = None,
     seed: int | None = None,
     surface_level: int | None = None,
+    evaluate: bool | None = None,
+    baseline: str | None = None,
 ) -> dict:
     """Return a copy of ``recipe`` with command-line flags applied (flags win).
 
@@ -290,6 +303,10 @@ def apply_overrides(
         r["seed"] = int(seed)
     if surface_level is not None:
         r["surface_level"] = int(surface_level)
+    if evaluate is not None:
+        r["evaluate"]["enabled"] = bool(evaluate)
+    if baseline is not None:
+        r["evaluate"]["baseline"] = baseline or None
     return r
 
 
@@ -334,6 +351,8 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
         need("refiner", ref["name"], ("refiners", i))
     for i, name in enumerate(recipe["exporters"]):
         need("exporter", name, ("exporters", i))
+    if recipe["evaluate"]["enabled"] and recipe["evaluate"]["baseline"]:
+        need("template", recipe["evaluate"]["baseline"], ("evaluate", "baseline"))
     lam = recipe["pressure"]["lambda"]
     if not (lam > 0):
         fail(("pressure", "lambda"), f"expected a positive number or inf, got {lam!r}")

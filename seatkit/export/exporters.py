@@ -6,9 +6,9 @@ writes files atomically and returns them by role.
 =========  =====================================================================
 name       files
 =========  =====================================================================
-usd        ``seat.usda``: Catmull-Clark cage with creases, corners, per-face
+usd        ``cage.usda``: Catmull-Clark cage with creases, corners, per-face
            body segment; posed bodies coloured by pressure
-usdc       ``seat.usdc``: the same as a binary crate file
+usdc       ``cage.usdc``: the same as a binary crate file
 obj        ``cage.obj``: the control mesh as plain OBJ
 surface    ``surface.obj/.ply/.stl/.glb``: the limit surface at the recipe's
            ``surface_level``
@@ -68,13 +68,13 @@ class UsdExporter:
         self.fmt = fmt
         self.name = "usd" if fmt == "usda" else "usdc"
         kind = "text" if fmt == "usda" else "binary"
-        self.description = f"seat.{fmt} ({kind} USD): Catmull-Clark cage with creases, bodies coloured by pressure"
+        self.description = f"cage.{fmt} ({kind} USD): Catmull-Clark cage with creases, bodies coloured by pressure"
 
     def export(self, result, directory: Path) -> dict[str, Path]:
         from seatkit.export.usd import write_usd
 
         path = write_usd(
-            Path(directory) / f"seat.{self.fmt}",
+            Path(directory) / f"cage.{self.fmt}",
             _cage(result),
             bodies=list(result.bodies or []),
             pressures=list(result.pressures or []),

@@ -70,6 +70,6 @@ def contact_from_surface(body, surface, distance: float) -> np.ndarray:
     else:
         points = np.asarray(surface, dtype=np.float64).reshape(-1, 3)
         slack = 0.0
-    tree = cKDTree(points)
+    tree = cKDTree(points, balanced_tree=False, compact_nodes=False)  # much faster queries here
     nearest, _ = tree.query(body.vertices, k=1, distance_upper_bound=distance + slack)
     return np.isfinite(nearest)

@@ -226,7 +226,7 @@ def surface_distances(
         ``n . (point - sample)``: negative when the point lies behind the
         surface (inside the furniture).
     """
-    tree = cKDTree(samples)
+    tree = cKDTree(samples, balanced_tree=False, compact_nodes=False)  # much faster queries here
     distance, closest = tree.query(points, workers=1)
     signed = np.einsum("kc,kc->k", normals[closest], points - samples[closest])
     if boundary is not None:
