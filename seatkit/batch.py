@@ -1,0 +1,407 @@
+"""Many builds at once, fanned out on Dask (``dask.distributed``).
+
+A batch is a list of *items*; each item is one recipe (a normalised recipe
+mapping, see :mod:`seatkit.recipe`) with its own output folder and seed.
+:func:`run_batch` submits one task per item to a Dask cluster (a
+``LocalCluster`` sized to the machine, or an existing scheduler), each task
+runs :func:`seatkit.pipeline.build` — a pure function of its recipe — and
+writes exactly what ``seatkit build`` writes. A failing item records its
+one-line error and does not stop the others. An item whose folder already
+holds a complete, valid run (:func:`seatkit.io.is_complete`) is skipped, so
+re-running the same command resumes after a crash or Ctrl-C.
+
+Items come from :func:`collect_items`: a folder or list of recipe YAML
+files, pose files (YAML or BVH) with a shared template, or a CSV/YAML table
+of bodies and poses.
+"""
+
+from __future__ import annotations
+
+import copy
+import csv
+import hashlib
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterable, Sequence
+
+from seatkit.errors import MissingExtraError, RecipeError, SeatkitError
+from seatkit.io import is_complete, write_text_atomic
+from seatkit.recipe import apply_overrides, default_recipe, load_recipe, looks_like_path
+
+SUMMARY_METRICS = ("avg_distance_m", "avg_moment_nm", "max_moment_nm", "avg_pressure_pa", "max_pressure_pa")
+
+
+@dataclass
+class BatchItem:
+    """One build of a batch."""
+
+    name: str
+    recipe: dict
+    source: str = ""
+
+
+@dataclass
+class ItemResult:
+    """What happened to one item (one row of summary.csv)."""
+
+    name: str
+    status: str  # "ok", "skipped" or "failed"
+    seconds: float = 0.0
+    error: str = ""
+    output: str = ""
+    inputs: dict = field(default_factory=dict)
+    metrics: dict = field(default_factory=dict)
+
+
+def item_seed(base_seed: int, name: str) -> int:
+    """A per-item seed derived from the batch seed and the item's name.
+
+    It depends on nothing else (not the item's position or the number of
+    workers), so each item is reproducible on its own.
+    """
+    digest = hashlib.sha256(f"{base_seed}:{name}".encode()).digest()
+    return int.from_bytes(digest[:4], "little")
+
+
+def _safe_name(text: str) -> str:
+    keep = "".join(c if c.isalnum() or c in "-_." else "-" for c in text)
+    return keep.strip("-.") or "item"
+
+
+def _table_rows(path: Path) -> list[dict]:
+    if path.suffix.lower() == ".csv":
+        with path.open(newline="", encoding="utf-8") as fh:
+            return [{k.strip(): (v or "").strip() for k, v in row.items() if k} for row in csv.DictReader(fh)]
+    from seatkit.yamlio import load_yaml
+
+    doc = load_yaml(path)
+    rows = doc.data.get("items") if isinstance(doc.data, dict) else doc.data
+    if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
+        raise doc.error(("items",), "expected a list of mappings with keys pose, body, mass, template, name")
+    return rows
+
+
+def collect_items(
+    sources: Sequence[str | Path],
+    *,
+    template: str | None = None,
+    out: Path,
+    seed: int = 0,
+    base_recipe: dict | None = None,
+) -> list[BatchItem]:
+    """Turn the ITEMS arguments of ``seatkit batch`` into build items.
+
+    Parameters
+    ----------
+    sources : sequence of path
+        Recipe files (``*.yaml`` with a ``template`` or ``bodies`` key), pose
+        files (pose YAML or ``.bvh``), folders of those, or one CSV/YAML
+        table (columns ``pose``, optional ``body``, ``mass``, ``template``,
+        ``name``).
+    template : str, optional
+        Template for pose files and tables (default ``chair``).
+    out : Path
+        Batch output folder; item ``NAME`` writes ``out/NAME``.
+    seed : int
+        Batch seed; each item gets :func:`item_seed`.
+
+    Raises
+    ------
+    RecipeError
+        For a missing path or an unreadable table, before anything runs.
+    """
+    base = copy.deepcopy(base_recipe or default_recipe())
+    if template:
+        base["template"] = template
+    files: list[Path] = []
+    for src in sources:
+        p = Path(src)
+        if p.is_dir():
+            files.extend(sorted(q for q in p.iterdir() if q.suffix.lower() in (".yaml", ".yml", ".bvh")))
+        elif p.is_file():
+            files.append(p)
+        else:
+            raise RecipeError(f"{p}: no such file or folder")
+    items: list[BatchItem] = []
+    for f in files:
+        if f.suffix.lower() == ".csv" or f.name.startswith("table") or _is_table(f):
+            for i, row in enumerate(_table_rows(f)):
+                name = _safe_name(row.get("name") or f"{i:03d}-{Path(str(row.get('pose', 'pose'))).stem}")
+                pose = str(row.get("pose") or "").strip()
+                if not pose:
+                    raise RecipeError(f"{f}: row {i + 1}: missing 'pose'")
+                if looks_like_path(pose) and not Path(pose).is_absolute():
+                    pose = str((f.parent / pose).resolve())
+                body = row.get("body") or None
+                mass = float(row["mass"]) if row.get("mass") not in (None, "") else None
+                r = apply_overrides(
+                    base, template=row.get("template") or None, poses=[pose], bodies=[body] if body else None, mass=mass
+                )
+                items.append(BatchItem(name, r, f"{f}:{i + 2}"))
+        elif _is_recipe(f):
+            r, _ = load_recipe(f)
+            items.append(BatchItem(_safe_name(f.stem), r, str(f)))
+        else:
+            r = apply_overrides(base, poses=[str(f.resolve())])
+            items.append(BatchItem(_safe_name(f.stem), r, str(f)))
+    seen: dict[str, str] = {}
+    for it in items:
+        if it.name in seen:
+            raise RecipeError(f"two batch items are both named {it.name!r}: {seen[it.name]} and {it.source}")
+        seen[it.name] = it.source
+        it.recipe["output"] = str(Path(out) / it.name)
+        it.recipe["seed"] = item_seed(seed, it.name)
+    return items
+
+
+def _is_table(path: Path) -> bool:
+    if path.suffix.lower() not in (".yaml", ".yml"):
+        return False
+    try:
+        head = path.read_text(encoding="utf-8")[:4096]
+    except OSError:
+        return False
+    return head.lstrip().startswith("items:")
+
+
+def _is_recipe(path: Path) -> bool:
+    if path.suffix.lower() not in (".yaml", ".yml"):
+        return False
+    import yaml
+
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError):
+        return False
+    return isinstance(data, dict) and ("template" in data or "bodies" in data) and "joints" not in data
+
+
+def run_item(recipe: dict) -> dict:
+    """Run one build (on a worker); never raises for a user error.
+
+    Returns a plain dict (picklable): status, seconds, error, metrics.
+    """
+    from seatkit.pipeline import build
+
+    start = time.perf_counter()
+    try:
+        result = build(recipe, overwrite=True)
+    except SeatkitError as e:
+        first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        return {"status": "failed", "seconds": time.perf_counter() - start, "error": first}
+    return {
+        "status": "ok",
+        "seconds": time.perf_counter() - start,
+        "error": "",
+        "metrics": result.metrics,
+    }
+
+
+def _inputs(item: BatchItem) -> dict:
+    r = item.recipe
+    return {
+        "template": r["template"],
+        "poses": ";".join(str(b["pose"]) for b in r["bodies"]),
+        "bodies": ";".join(b["model"] for b in r["bodies"]),
+        "mass_kg": ";".join(str(b["params"].get("mass", 75.0)) for b in r["bodies"]),
+        "seed": r["seed"],
+    }
+
+
+def _flat_metrics(metrics: dict) -> dict:
+    ours = (metrics or {}).get("ours") or []
+    if isinstance(ours, dict):
+        ours = [ours]
+    out = {}
+    for key in SUMMARY_METRICS:
+        vals = [m.get(key) for m in ours if isinstance(m, dict) and m.get(key) is not None]
+        out[key] = max(vals) if key.startswith("max") and vals else (sum(vals) / len(vals) if vals else "")
+    return out
+
+
+def run_batch(
+    items: Sequence[BatchItem],
+    out: Path,
+    *,
+    scheduler: str | None = None,
+    workers: int | None = None,
+    progress: Callable[[int, int, ItemResult], None] | None = None,
+) -> list[ItemResult]:
+    """Run every item on Dask; write ``out/summary.csv`` and ``out/summary.png``.
+
+    Parameters
+    ----------
+    items : sequence of BatchItem
+    out : Path
+    scheduler : str, optional
+        Address of an existing Dask scheduler (``tcp://host:8786``); default a
+        ``LocalCluster`` with ``workers`` processes (default: one per core).
+    workers : int, optional
+    progress : callable, optional
+        Called as ``progress(done, total, item_result)`` after each item.
+
+    Returns
+    -------
+    list of ItemResult, in item order.
+    """
+    try:
+        from dask.distributed import Client, LocalCluster, as_completed
+    except ImportError as e:  # pragma: no cover - depends on the install
+        raise MissingExtraError("dask[distributed]", "batch") from e
+    import os
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    results: dict[str, ItemResult] = {}
+    todo: list[BatchItem] = []
+    for it in items:
+        if is_complete(Path(it.recipe["output"])):
+            prev = _previous_metrics(Path(it.recipe["output"]))
+            results[it.name] = ItemResult(it.name, "skipped", output=it.recipe["output"], inputs=_inputs(it), metrics=prev)
+        else:
+            todo.append(it)
+    done = len(results)
+    if progress:
+        for r in list(results.values()):
+            progress(done, len(items), r)
+    if todo:
+        cluster = None
+        if scheduler:
+            client = Client(scheduler)
+        else:
+            n = workers or os.cpu_count() or 1
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+            client = Client(cluster)
+        try:
+            futures = {client.submit(run_item, it.recipe, key=f"seatkit-{it.name}-{it.recipe['seed']}", pure=False): it for it in todo}
+            for fut in as_completed(futures):
+                it = futures[fut]
+                try:
+                    data = fut.result()
+                except Exception as e:  # a crash of the worker itself
+                    data = {"status": "failed", "seconds": 0.0, "error": f"{type(e).__name__}: {e}".splitlines()[0]}
+                res = ItemResult(
+                    it.name,
+                    data["status"],
+                    data.get("seconds", 0.0),
+                    data.get("error", ""),
+                    it.recipe["output"],
+                    _inputs(it),
+                    data.get("metrics", {}),
+                )
+                results[it.name] = res
+                done += 1
+                if progress:
+                    progress(done, len(items), res)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    ordered = [results[it.name] for it in items]
+    write_summary(ordered, out)
+    return ordered
+
+
+def _previous_metrics(folder: Path) -> dict:
+    try:
+        return json.loads((folder / "report.json").read_text()).get("metrics", {})
+    except (OSError, ValueError):
+        return {}
+
+
+def write_summary(results: Iterable[ItemResult], out: Path) -> None:
+    """``summary.csv`` (one row per item) and ``summary.png`` (metrics across items)."""
+    results = list(results)
+    cols = ["name", "status", "seconds", "error", "output", "template", "poses", "bodies", "mass_kg", "seed", *SUMMARY_METRICS]
+    import io
+
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=cols)
+    w.writeheader()
+    for r in results:
+        row = {"name": r.name, "status": r.status, "seconds": f"{r.seconds:.3f}", "error": r.error, "output": r.output}
+        row.update(r.inputs)
+        row.update(_flat_metrics(r.metrics))
+        w.writerow(row)
+    write_text_atomic(Path(out) / "summary.csv", buf.getvalue())
+    _summary_plot(results, Path(out) / "summary.png")
+
+
+def _summary_plot(results: list[ItemResult], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from seatkit.io import atomic_path
+
+    ok = [r for r in results if r.status in ("ok", "skipped")]
+    fig, axes = plt.subplots(1, len(SUMMARY_METRICS), figsize=(3.2 * len(SUMMARY_METRICS), 3.2))
+    names = [r.name for r in ok]
+    for ax, key in zip(axes, SUMMARY_METRICS):
+        vals = [_flat_metrics(r.metrics).get(key) for r in ok]
+        vals = [v if isinstance(v, (int, float)) else float("nan") for v in vals]
+        ax.bar(range(len(vals)), vals, color="#4477aa")
+        ax.set_title(key, fontsize=9)
+        ax.set_xticks(range(len(vals)))
+        ax.set_xticklabels(names, rotation=70, fontsize=6)
+    failed = [r.name for r in results if r.status == "failed"]
+    fig.suptitle(f"{len(ok)} built, {len(failed)} failed" + (f": {', '.join(failed)}" if failed else ""), fontsize=10)
+    fig.tight_layout()
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+
+
+def sweep_items(
+    *,
+    template: str,
+    pose: str,
+    body: str,
+    vary: dict[str, Sequence[float]],
+    out: Path,
+    seed: int = 0,
+) -> list[BatchItem]:
+    """A population grid: every combination of the ``vary`` values.
+
+    ``vary`` maps a body-model parameter (``height``, ``weight``, ``mass``
+    ...) to its values; for the default bodies ``mass`` is the one that
+    varies.
+    """
+    import itertools
+
+    keys = sorted(vary)
+    items = []
+    for combo in itertools.product(*(vary[k] for k in keys)):
+        params = ",".join(f"{k}={v:g}" for k, v in zip(keys, combo))
+        name = _safe_name("-".join(f"{k}{v:g}" for k, v in zip(keys, combo)))
+        spec = f"{body}:{params}" if body not in ("default-male", "default-female") or set(keys) - {"mass"} else body
+        r = apply_overrides(default_recipe(), template=template, poses=[pose], bodies=[spec])
+        if set(keys) == {"mass"}:
+            for b in r["bodies"]:
+                b["params"]["mass"] = float(combo[0])
+        items.append(BatchItem(name, r, f"sweep:{params}"))
+    for it in items:
+        it.recipe["output"] = str(Path(out) / it.name)
+        it.recipe["seed"] = item_seed(seed, it.name)
+    return items
+
+
+def parse_vary(spec: str) -> tuple[str, list[float]]:
+    """``height=1.50:1.95:10`` -> ("height", 10 values from 1.50 to 1.95)."""
+    import numpy as np
+
+    key, eq, rng = spec.partition("=")
+    parts = rng.split(":")
+    try:
+        if not eq or len(parts) != 3:
+            raise ValueError
+        lo, hi, n = float(parts[0]), float(parts[1]), int(parts[2])
+        if n < 1:
+            raise ValueError
+    except ValueError:
+        raise RecipeError(f"--vary {spec!r}: expected NAME=LOW:HIGH:COUNT, e.g. height=1.50:1.95:10") from None
+    return key.strip(), [float(x) for x in np.linspace(lo, hi, n)]
+
