@@ -52,17 +52,18 @@ class FileBody:
     """A rigged body read from a seatkit ``.npz`` rig file (parameter ``path``)."""
 
     name = "file"
-    description = "A rigged body from a seatkit .npz rig file (params: path, mass)"
+    description = "A rigged body from a file: a seatkit .npz rig or a skinned .glb/.gltf (params: path, mass, name_map)"
 
     def make_body(self, *, params: Mapping[str, Any]):
-        from seatkit.body.rig import load_rig_file
+        from seatkit.body.rig import load_rig
         from seatkit.errors import RecipeError
 
-        p = _params(self.name, params, ("mass", "path"))
+        p = _params(self.name, params, ("mass", "path", "name_map"))
         if "path" not in p:
-            msg = "body model 'file': parameter 'path' (a .npz rig file) is required"
+            msg = "body model 'file': parameter 'path' (a .npz rig or .glb/.gltf body) is required"
             raise RecipeError(msg)
-        return load_rig_file(Path(p["path"]), mass=p["mass"])
+        extra = {"name_map": p["name_map"]} if "name_map" in p else None
+        return load_rig(Path(p["path"]), mass=p["mass"], params=extra)
 
     def pose(self, rig, pose, *, ground: bool = True):
         from seatkit.body.skinning import pose_rig
