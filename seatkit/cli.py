@@ -76,6 +76,7 @@ def plugin_manager(ctx: typer.Context):
     obj = root.obj if root.obj is not None else {}
     if "pm" not in obj:
         obj["pm"] = get_plugin_manager(disabled=obj.get("disabled", ()))
+        obj["pm"].registry  # noqa: B018 - build it now so that its problems are shown too
         for problem in obj["pm"].problems:
             click.echo(f"seatkit: warning: {problem}", err=True)
         root.obj = obj

@@ -1,4 +1,4 @@
-"""Built-in seatkit plugin: the exporters (usd, usdc, obj, surface, shell, body-ply)."""
+"""Built-in seatkit plugin: the exporters (usd, usdc, obj, surface, shell, body-ply, report-png, report-html)."""
 
 from __future__ import annotations
 
@@ -11,5 +11,6 @@ hookimpl = pluggy.HookimplMarker("seatkit")
 def seatkit_register_exporters():
     """Register every built-in exporter."""
     from seatkit.export.exporters import builtin_exporters
+    from seatkit.export.report import report_exporters
 
-    return builtin_exporters()
+    return builtin_exporters() + report_exporters()

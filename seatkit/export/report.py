@@ -1,0 +1,822 @@
+"""The visual report of a build: PNG renders and an offline HTML page.
+
+Two exporters (registered by the ``seatkit_exporters`` plugin):
+
+``report-png``
+    ``pressure.png``  the body coloured by its importance pressure (the
+    "supported everywhere" solution, kPa), front and back, with a colour bar;
+    ``cage.png``  the control mesh over the body: front, side, three-quarter;
+    ``surface.png``  the limit surface with the body, the body coloured by its
+    contact pressure on that surface when the evaluation computed it;
+    ``comparison.png``  our surface beside the flat-patch baseline, both with
+    their contact pressure on one colour scale, and the paper's Table 1
+    figures (only when the build evaluated a baseline).
+``report-html``
+    ``report.html``  an interactive 3D view (plotly ``Mesh3d``: the body with
+    pressure colours, the limit surface translucent, the cage as lines, a
+    switch to the baseline) and the metrics table. plotly.js is embedded, so
+    the file opens with no network.
+
+The pictures come from :mod:`seatkit.export.raster` (a numpy z-buffer) and
+PIL, not matplotlib, to stay within the build's time budget (see
+docs/performance.md, "Report"). Both exporters draw what the result holds:
+without an evaluation (``metrics`` empty) the contact pressure, the baseline
+and the table are left out, never invented.
+
+What they read from a :class:`~seatkit.model.BuildResult`:
+``bodies``, ``pressures`` (importance maps), ``control_mesh``, ``surface``,
+``metrics["ours"]`` / ``metrics["baseline"]`` (lists of per-person dicts
+with the keys of :mod:`seatkit.evaluate`), ``metrics["baseline_template"]``,
+``extra["contact_pressures"]`` (a PressureField per person on our surface) and
+``extra["baseline"]`` (``control_mesh``, ``surface``, ``contact_pressures``).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from seatkit.errors import InputError
+from seatkit.export import raster as rs
+from seatkit.io import atomic_write, write_text_atomic
+
+__all__ = [
+    "PNG_FILES",
+    "ReportHtmlExporter",
+    "ReportPngExporter",
+    "pressure_rgb",
+    "render_pngs",
+    "report_exporters",
+    "write_report_html",
+]
+
+#: The PNG files of ``report-png`` by role (comparison only with a baseline).
+PNG_FILES = {
+    "report_pressure_png": "pressure.png",
+    "report_cage_png": "cage.png",
+    "report_surface_png": "surface.png",
+    "report_comparison_png": "comparison.png",
+}
+
+#: Size of one rendered view, pixels.
+PANEL_WIDTH, PANEL_HEIGHT = 360, 440
+#: Camera (azimuth, elevation) of each named view, degrees (see :func:`seatkit.export.raster.view_rotation`).
+VIEWS = {
+    "front": (0.0, 0.0),
+    "back": (180.0, 0.0),
+    "side": (-90.0, 0.0),
+    "three-quarter": (35.0, 20.0),
+    "from below": (160.0, -50.0),
+}
+#: The contact-pressure colour scale saturates at this percentile of the loaded
+#: vertices' pressure (a few vertices at the peak would leave the rest pale);
+#: the peak is printed beside it.
+CONTACT_PERCENTILE = 99.0
+BACKGROUND = np.array([0.965, 0.965, 0.975])
+#: Body colour where no pressure is drawn; surface and cage colours.
+BODY_RGB = np.array([0.86, 0.79, 0.72])
+SURFACE_RGB = np.array([0.42, 0.60, 0.80])
+BASELINE_RGB = np.array([0.80, 0.58, 0.40])
+CAGE_FACE_RGB = np.array([0.55, 0.70, 0.90])
+CAGE_EDGE = (25, 70, 160)
+CAGE_EDGE_HIDDEN = (140, 165, 215)
+TEXT = (30, 30, 30)
+#: Opacity of the limit surface drawn with the body, of the cage faces.
+SURFACE_ALPHA, CAGE_ALPHA = 0.55, 0.22
+#: plotly's name of the pressure colour scale, and whether it is reversed:
+#: magma reversed, light at zero and dark at the peak, as body.ply.
+COLORSCALE, COLORSCALE_REVERSED = "Magma", True
+#: Size of the HTML report's meshes: coordinates are rounded to this, m.
+HTML_ROUNDING = 1e-3
+#: Height of the HTML report's 3D view, CSS pixels.
+HTML_VIEW_HEIGHT = 720
+
+
+# ----------------------------------------------------------------------------- colours
+
+
+def _colorscale_stops() -> tuple[np.ndarray, np.ndarray]:
+    """Positions (s,) and RGB (s, 3) in [0, 1] of the pressure colour scale."""
+    import plotly.colors as pc
+
+    hexes = list(getattr(pc.sequential, COLORSCALE))
+    if COLORSCALE_REVERSED:
+        hexes = hexes[::-1]
+    rgb = np.array([[int(h[i : i + 2], 16) for i in (1, 3, 5)] for h in hexes], dtype=np.float64) / 255.0
+    return np.linspace(0.0, 1.0, len(hexes)), rgb
+
+
+def pressure_rgb(pressure: np.ndarray, vmax: float) -> np.ndarray:
+    """Colours of pressures on the report's colour scale.
+
+    Parameters
+    ----------
+    pressure : (n,) float64
+        Pa.
+    vmax : float
+        Pressure at the dark end of the scale, Pa (zero at the light end).
+
+    Returns
+    -------
+    (n, 3) float64
+        RGB in [0, 1].
+    """
+    pos, rgb = _colorscale_stops()
+    t = np.clip(np.asarray(pressure, dtype=np.float64) / vmax, 0.0, 1.0) if vmax > 0 else np.zeros(len(pressure))
+    return np.stack([np.interp(t, pos, rgb[:, c]) for c in range(3)], axis=1)
+
+
+def contact_scale(*fields) -> float:
+    """Top of the contact-pressure colour scale, Pa (0 with no loaded vertex).
+
+    :data:`CONTACT_PERCENTILE` of the pressures above
+    :data:`seatkit.evaluate.LOADED_PRESSURE` over every given field.
+    """
+    from seatkit.evaluate import LOADED_PRESSURE
+
+    loaded = [f[f > LOADED_PRESSURE] for f in fields if f is not None]
+    loaded = np.concatenate(loaded) if loaded else np.zeros(0)
+    return float(np.percentile(loaded, CONTACT_PERCENTILE)) if loaded.size else 0.0
+
+
+def _nice_ticks(vmax: float, count: int = 5) -> np.ndarray:
+    """Round tick values in [0, vmax] (steps of 1, 2 or 5 times a power of ten)."""
+    if vmax <= 0:
+        return np.array([0.0])
+    raw = vmax / count
+    power = 10.0 ** math.floor(math.log10(raw))
+    step = next(s * power for s in (1, 2, 5, 10) if s * power >= raw)
+    return np.arange(0.0, vmax + 1e-9 * vmax, step)
+
+
+# ----------------------------------------------------------------------------- the scene
+
+
+def _tri(quads: np.ndarray) -> np.ndarray:
+    from seatkit.export.meshes import quads_to_triangles
+
+    return quads_to_triangles(np.asarray(quads, dtype=np.int64))
+
+
+@dataclass
+class _Mesh:
+    vertices: np.ndarray
+    faces: np.ndarray  # triangles
+    normals: np.ndarray
+    closed: bool = False
+
+
+@dataclass
+class _Scene:
+    """The meshes of a result, merged over people, with cached rasters."""
+
+    body: _Mesh
+    importance: np.ndarray  # (n,) Pa, all people
+    contact: np.ndarray | None  # (n,) Pa on our surface, or None
+    surface: _Mesh | None
+    cage: object | None  # ControlMesh
+    baseline_surface: _Mesh | None
+    baseline_contact: np.ndarray | None
+    baseline_cage: object | None
+    baseline_name: str
+    metrics: dict
+    surface_level: int = 0
+    _rasters: dict = field(default_factory=dict)
+    _frames: dict = field(default_factory=dict)
+
+    def frame(self, view: str, family: str) -> rs.Frame:
+        """The frame of a view that shows the body only or the whole scene."""
+        key = (view, family)
+        if key not in self._frames:
+            rot = rs.view_rotation(*VIEWS[view])
+            pts = [self.body.vertices]
+            if family == "scene":
+                pts += [m.vertices for m in (self.surface, self.baseline_surface) if m is not None]
+                pts += [c.vertices for c in (self.cage, self.baseline_cage) if c is not None]
+            self._frames[key] = rs.fit_frame(pts, rot, PANEL_WIDTH, PANEL_HEIGHT)
+        return self._frames[key]
+
+    def raster(self, name: str, view: str, family: str) -> rs.Raster:
+        key = (name, view, family)
+        if key not in self._rasters:
+            mesh = self.mesh(name)
+            self._rasters[key] = rs.rasterize(self.frame(view, family), mesh.vertices, mesh.faces, cull_back=mesh.closed)
+        return self._rasters[key]
+
+    def mesh(self, name: str) -> _Mesh:
+        if name == "body":
+            return self.body
+        if name == "surface":
+            return self.surface
+        if name == "baseline_surface":
+            return self.baseline_surface
+        cage = self.cage if name == "cage" else self.baseline_cage
+        v = np.asarray(cage.vertices, dtype=np.float64)
+        f = _tri(cage.faces)
+        return _Mesh(v, f, rs.vertex_normals(v, f))
+
+    def layer(self, name: str, view: str, family: str, rgb: np.ndarray, alpha: float = 1.0):
+        """(raster, shaded image, alpha) of a mesh with per-vertex or uniform colours."""
+        mesh = self.mesh(name)
+        ra = self.raster(name, view, family)
+        colors = np.broadcast_to(np.asarray(rgb, dtype=np.float64), mesh.vertices.shape)
+        lit = rs.light_vertices(colors, mesh.normals, self.frame(view, family).rotation)
+        return ra, ra.shade(lit), alpha
+
+
+def _surface_mesh(surface) -> _Mesh | None:
+    if surface is None:
+        return None
+    faces = _tri(surface.faces)
+    v = np.asarray(surface.vertices, dtype=np.float64)
+    normals = np.asarray(surface.normals, dtype=np.float64)
+    if normals.shape != v.shape:
+        normals = rs.vertex_normals(v, faces)
+    return _Mesh(v, faces, normals)
+
+
+def _concat_fields(fields, n_per_body) -> np.ndarray | None:
+    """One (n,) pressure array over all people, or None when any is missing."""
+    if not fields or len(fields) != len(n_per_body) or any(f is None for f in fields):
+        return None
+    arrays = [np.asarray(getattr(f, "pressure", f), dtype=np.float64) for f in fields]
+    if any(a.shape != (n,) for a, n in zip(arrays, n_per_body)):
+        return None
+    return np.concatenate(arrays)
+
+
+def _scene(result) -> _Scene:
+    bodies = list(result.bodies or [])
+    if not bodies:
+        msg = "the build result holds no body to draw in the report"
+        raise InputError(msg)
+    sizes = [len(b.vertices) for b in bodies]
+    offsets = np.cumsum([0, *sizes[:-1]])
+    verts = np.concatenate([np.asarray(b.vertices, dtype=np.float64) for b in bodies])
+    faces = np.concatenate([np.asarray(b.faces, dtype=np.int64) + o for b, o in zip(bodies, offsets)])
+    body = _Mesh(verts, faces, rs.vertex_normals(verts, faces), closed=True)
+    importance = _concat_fields(list(result.pressures or []), sizes)
+    if importance is None:
+        msg = f"the report needs one importance pressure per body, got {len(result.pressures or [])} for {len(bodies)} bodies"
+        raise InputError(msg)
+    extra = result.extra or {}
+    base = extra.get("baseline") or {}
+    metrics = result.metrics or {}
+    return _Scene(
+        body=body,
+        importance=importance,
+        contact=_concat_fields(extra.get("contact_pressures"), sizes),
+        surface=_surface_mesh(result.surface),
+        cage=result.control_mesh if result.control_mesh is not None else result.initial_mesh,
+        baseline_surface=_surface_mesh(base.get("surface")),
+        baseline_contact=_concat_fields(base.get("contact_pressures"), sizes),
+        baseline_cage=base.get("control_mesh"),
+        baseline_name=str(metrics.get("baseline_template") or "baseline"),
+        metrics=metrics,
+        surface_level=int(getattr(result.surface, "level", 0) or 0),
+    )
+
+
+# ----------------------------------------------------------------------------- drawing
+
+
+def _font(size: int):
+    from PIL import ImageFont
+
+    return ImageFont.load_default(size=size)
+
+
+def _draw_cage(image, scene: _Scene, name: str, view: str, family: str) -> None:
+    """Draw a cage's edges on a PIL image: solid where in front of the body, light where hidden."""
+    from PIL import ImageDraw
+
+    cage = scene.cage if name == "cage" else scene.baseline_cage
+    if cage is None:
+        return
+    frame = scene.frame(view, family)
+    quads = np.asarray(cage.faces, dtype=np.int64)
+    edges = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    edges = np.unique(edges, axis=0)
+    xy, z = frame.project(cage.vertices)
+    # an edge is hidden when the body is nearer than the edge at its midpoint
+    mid_xy = 0.5 * (xy[edges[:, 0]] + xy[edges[:, 1]])
+    mid_z = 0.5 * (z[edges[:, 0]] + z[edges[:, 1]])
+    px = np.clip(mid_xy[:, 0].astype(np.int64), 0, frame.width - 1)
+    py = np.clip(mid_xy[:, 1].astype(np.int64), 0, frame.height - 1)
+    body_z = scene.raster("body", view, family).depth[py, px]
+    hidden = body_z > mid_z + 0.005
+    draw = ImageDraw.Draw(image)
+    for (a, b), hid in zip(edges.tolist(), hidden.tolist()):  # a few hundred edges
+        draw.line([tuple(xy[a]), tuple(xy[b])], fill=CAGE_EDGE_HIDDEN if hid else CAGE_EDGE, width=1 if hid else 2)
+    for x, y in xy.tolist():
+        draw.ellipse([x - 2, y - 2, x + 2, y + 2], fill=CAGE_EDGE)
+
+
+def _colorbar(height: int, vmax_pa: float, label: str):
+    """A vertical colour bar image (PIL) for 0..vmax_pa, ticks in kPa."""
+    from PIL import Image, ImageDraw
+
+    bar_w, width = 18, 92
+    top, bottom = 30, height - 30
+    img = Image.new("RGB", (width, height), tuple(int(255 * c) for c in BACKGROUND))
+    t = np.linspace(1.0, 0.0, bottom - top)
+    strip = rs.to_uint8(pressure_rgb(t * vmax_pa, vmax_pa))
+    img.paste(Image.fromarray(np.repeat(strip[:, None, :], bar_w, axis=1)), (8, top))
+    draw = ImageDraw.Draw(img)
+    font = _font(13)
+    draw.text((4, 6), label, fill=TEXT, font=font)
+    vmax_kpa = vmax_pa / 1000.0
+    for tick in _nice_ticks(vmax_kpa):
+        y = bottom - (tick / vmax_kpa) * (bottom - top) if vmax_kpa > 0 else bottom
+        draw.line([(8 + bar_w, y), (12 + bar_w, y)], fill=TEXT)
+        draw.text((15 + bar_w, y - 7), f"{tick:g}", fill=TEXT, font=font)
+    return img
+
+
+def _sheet(title: str, panels, *, colorbar=None, table=None, table_head=("ours", "baseline"), columns: int | None = None):
+    """Lay out captioned panels in a grid with a title, an optional colour bar and table.
+
+    Parameters
+    ----------
+    title : str
+    panels : list of (PIL.Image, str)
+        Rendered views and their captions.
+    colorbar : PIL.Image, optional
+        Placed right of the grid.
+    table : (rows, labels), optional
+        :func:`table_rows` output, drawn under the grid, one block per person.
+    table_head : (str, str)
+        Column titles of the two designs.
+    columns : int, optional
+        Panels per row (default all in one row).
+    """
+    from PIL import Image, ImageDraw
+
+    columns = columns or len(panels)
+    n_rows = math.ceil(len(panels) / columns)
+    title_h, caption_h, line_h = 34, 22, 19
+    rows, labels = table if table is not None else ([], [])
+    table_h = len(rows) * (len(labels) + 1) * line_h + 16 if rows else 0
+    grid_w, grid_h = columns * PANEL_WIDTH, n_rows * (PANEL_HEIGHT + caption_h)
+    width = grid_w + (colorbar.width if colorbar is not None else 0)
+    sheet = Image.new("RGB", (width, title_h + grid_h + table_h), tuple(int(255 * c) for c in BACKGROUND))
+    draw = ImageDraw.Draw(sheet)
+    draw.text((10, 8), title, fill=TEXT, font=_font(17))
+    font = _font(14)
+    for k, (img, caption) in enumerate(panels):
+        x = (k % columns) * PANEL_WIDTH
+        y = title_h + (k // columns) * (PANEL_HEIGHT + caption_h)
+        draw.text((x + 10, y + 2), caption, fill=TEXT, font=font)
+        sheet.paste(img, (x, y + caption_h))
+    if colorbar is not None:
+        sheet.paste(colorbar, (grid_w, title_h + caption_h))
+    # the table: a label column and two right-aligned value columns
+    y = title_h + grid_h + 8
+    bold = _font(14)
+    col_right = (400, 560)
+    for person, ours, base in rows:
+        draw.text((12, y), f"{person} (paper's Table 1)", fill=TEXT, font=bold)
+        for x, head in zip(col_right, table_head):
+            draw.text((x, y), head, fill=TEXT, font=bold, anchor="ra")
+        y += line_h
+        for lab, a, b in zip(labels, ours, base):
+            draw.text((28, y), lab, fill=TEXT, font=font)
+            draw.text((col_right[0], y), a, fill=TEXT, font=font, anchor="ra")
+            draw.text((col_right[1], y), b, fill=TEXT, font=font, anchor="ra")
+            y += line_h
+    return sheet
+
+
+def _pil(image: np.ndarray):
+    from PIL import Image
+
+    return Image.fromarray(rs.to_uint8(image))
+
+
+def _write_png(image, path: Path) -> Path:
+    with atomic_write(path, "wb") as fh:
+        image.save(fh, format="PNG", compress_level=1)
+    return path
+
+
+class _PngWriter:
+    """Encodes and writes PNGs on a background thread while the next view renders.
+
+    zlib releases the GIL, so on two cores encoding overlaps with rendering.
+    :meth:`result` waits for every file and re-raises the first error.
+    """
+
+    def __init__(self):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self._pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="seatkit-png")
+        self._jobs = []
+
+    def __call__(self, image, path: Path) -> Path:
+        self._jobs.append(self._pool.submit(_write_png, image, path))
+        return path
+
+    def result(self) -> None:
+        try:
+            for job in self._jobs:
+                job.result()
+        finally:
+            self._pool.shutdown(wait=True)
+
+
+
+
+def _pressure_png(scene: _Scene, path: Path, save=_write_png) -> Path:
+    vmax = float(scene.importance.max())
+    colors = pressure_rgb(scene.importance, vmax)
+    panels = []
+    for view in ("front", "back"):
+        img = rs.composite(BACKGROUND, [scene.layer("body", view, "body", colors)])
+        panels.append((_pil(img), view))
+    bar = _colorbar(PANEL_HEIGHT, vmax, "kPa")
+    title = f"Importance pressure (supported everywhere), peak {vmax / 1000:.2f} kPa"
+    return save(_sheet(title, panels, colorbar=bar), path)
+
+
+def _cage_png(scene: _Scene, path: Path, save=_write_png) -> Path:
+    panels = []
+    for view in ("front", "side", "three-quarter"):
+        layers = [scene.layer("body", view, "scene", BODY_RGB)]
+        layers.append(scene.layer("cage", view, "scene", CAGE_FACE_RGB, CAGE_ALPHA))
+        img = _pil(rs.composite(BACKGROUND, layers))
+        _draw_cage(img, scene, "cage", view, "scene")
+        panels.append((img, view))
+    cage = scene.cage
+    title = f"Control mesh over the body: {len(cage.vertices)} control points, {len(cage.faces)} faces"
+    return save(_sheet(title, panels), path)
+
+
+def _body_layer(scene: _Scene, view: str, family: str, contact: np.ndarray | None, vmax: float):
+    rgb = pressure_rgb(contact, vmax) if contact is not None and vmax > 0 else BODY_RGB
+    return scene.layer("body", view, family, rgb)
+
+
+def _surface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
+    contact = scene.contact
+    vmax = contact_scale(contact) if contact is not None else 0.0
+    panels = []
+    for view in ("three-quarter", "side"):
+        layers = [_body_layer(scene, view, "scene", contact, vmax), scene.layer("surface", view, "scene", SURFACE_RGB, SURFACE_ALPHA)]
+        panels.append((_pil(rs.composite(BACKGROUND, layers)), view))
+    title = f"Limit surface (level {scene.surface_level}, {len(scene.surface.faces)} triangles) with the body"
+    if contact is None or vmax <= 0:
+        return save(_sheet(title, panels), path)
+    below = rs.composite(BACKGROUND, [_body_layer(scene, "from below", "body", contact, vmax)])
+    panels.append((_pil(below), "contact pressure, from below (surface hidden)"))
+    title += f"; contact pressure: peak {contact.max() / 1000:.1f} kPa, scale {vmax / 1000:.1f} kPa"
+    return save(_sheet(title, panels, colorbar=_colorbar(PANEL_HEIGHT, vmax, "kPa")), path)
+
+
+def _fmt(value, scale: float, unit: str) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "-"
+    if isinstance(value, str):
+        return value
+    return f"{value * scale:.2f} {unit}"
+
+
+def table_rows(metrics: dict) -> tuple[list[tuple[str, list[str], list[str]]], list[str]]:
+    """The Table 1 figures per person, formatted with units.
+
+    Returns
+    -------
+    rows : list of (person, ours, baseline)
+        ``ours`` and ``baseline`` list the quantities of
+        :data:`seatkit.evaluate.TABLE_COLUMNS` then the deepest penetration;
+        a person a design cannot support shows "not supported" (no invented
+        figures), a missing value "-".
+    labels : list of str
+        The quantity names, in the same order.
+    """
+    from seatkit.evaluate import TABLE_COLUMNS
+
+    ours = list(metrics.get("ours") or [])
+    base = list(metrics.get("baseline") or [])
+    cols = [*TABLE_COLUMNS, ("max_penetration_m", "max. penetration", "cm", 100.0)]
+    rows = []
+    for i in range(max(len(ours), len(base))):
+        cells = []
+        for person in (ours[i] if i < len(ours) else {}, base[i] if i < len(base) else {}):
+            if person and person.get("supported") is False:
+                cells.append(["not supported" if k not in ("avg_distance_m", "max_penetration_m") else _fmt(person.get(k), s, u) for k, _, u, s in cols])
+            else:
+                cells.append([_fmt(person.get(k), s, u) for k, _, u, s in cols])
+        rows.append((f"person {i + 1}", *cells))
+    return rows, [label for _, label, _, _ in cols]
+
+
+def _comparison_png(scene: _Scene, path: Path, save=_write_png) -> Path:
+    vmax = contact_scale(scene.contact, scene.baseline_contact)
+    designs = (
+        ("surface", scene.contact, SURFACE_RGB, "ours"),
+        ("baseline_surface", scene.baseline_contact, BASELINE_RGB, scene.baseline_name),
+    )
+    panels = []
+    for name, contact, rgb, label in designs:
+        layers = [_body_layer(scene, "three-quarter", "scene", contact, vmax), scene.layer(name, "three-quarter", "scene", rgb, SURFACE_ALPHA)]
+        panels.append((_pil(rs.composite(BACKGROUND, layers)), f"{label}: surface"))
+    for name, contact, rgb, label in designs:
+        if contact is None:
+            text = "no contact pressure (the design cannot hold the person)"
+            panels.append((_pil(rs.composite(BACKGROUND, [_body_layer(scene, "from below", "body", None, 0.0)])), f"{label}: {text}"))
+            continue
+        below = rs.composite(BACKGROUND, [_body_layer(scene, "from below", "body", contact, vmax)])
+        panels.append((_pil(below), f"{label}: contact pressure, peak {contact.max() / 1000:.1f} kPa"))
+    bar = _colorbar(PANEL_HEIGHT, vmax, "kPa") if vmax > 0 else None
+    title = f"Ours vs the {scene.baseline_name} baseline (contact pressure on one scale, up to {vmax / 1000:.1f} kPa)"
+    return save(_sheet(title, panels, colorbar=bar, table=table_rows(scene.metrics), table_head=("ours", scene.baseline_name), columns=2), path)
+
+
+def render_pngs(result, directory) -> dict[str, Path]:
+    """Write the report's PNG files into ``directory`` and return them by role.
+
+    ``comparison.png`` is written only when the result holds a baseline
+    surface; ``cage.png`` and ``surface.png`` only when it holds a cage and a
+    surface.
+    """
+    directory = Path(directory)
+    scene = _scene(result)
+    save = _PngWriter()
+    try:
+        out = {"report_pressure_png": _pressure_png(scene, directory / PNG_FILES["report_pressure_png"], save)}
+        if scene.cage is not None:
+            out["report_cage_png"] = _cage_png(scene, directory / PNG_FILES["report_cage_png"], save)
+        if scene.surface is not None:
+            out["report_surface_png"] = _surface_png(scene, directory / PNG_FILES["report_surface_png"], save)
+            if scene.baseline_surface is not None:
+                out["report_comparison_png"] = _comparison_png(scene, directory / PNG_FILES["report_comparison_png"], save)
+    finally:
+        save.result()
+    return out
+
+
+# ----------------------------------------------------------------------------- HTML
+
+
+def _typed(array: np.ndarray, dtype: str) -> dict:
+    """A plotly.js typed-array spec (base64 little-endian), compact in JSON."""
+    arr = np.ascontiguousarray(array, dtype=np.dtype(dtype).newbyteorder("<"))
+    code = {"float32": "f4", "float64": "f8", "int32": "i4", "uint32": "u4", "uint16": "u2", "uint8": "u1"}[arr.dtype.name]
+    return {"dtype": code, "bdata": base64.b64encode(arr.tobytes()).decode("ascii")}
+
+
+def _mesh_trace(vertices, faces, *, name: str, visible: bool, **style) -> dict:
+    v = np.round(np.asarray(vertices, dtype=np.float64) / HTML_ROUNDING) * HTML_ROUNDING
+    f = np.asarray(faces, dtype=np.int64)
+    index_type = "uint16" if len(v) < 2**16 else "uint32"
+    return {
+        "type": "mesh3d",
+        "name": name,
+        "visible": visible,
+        "showlegend": True,
+        "x": _typed(v[:, 0], "float32"),
+        "y": _typed(v[:, 1], "float32"),
+        "z": _typed(v[:, 2], "float32"),
+        "i": _typed(f[:, 0], index_type),
+        "j": _typed(f[:, 1], index_type),
+        "k": _typed(f[:, 2], index_type),
+        "hoverinfo": "name",
+        **style,
+    }
+
+
+def _pressure_trace(scene: _Scene, pressure: np.ndarray, vmax: float, *, name: str, visible: bool, title: str) -> dict:
+    kpa = np.round(pressure / 1000.0, 3)
+    return _mesh_trace(
+        scene.body.vertices,
+        scene.body.faces,
+        name=name,
+        visible=visible,
+        intensity=_typed(kpa, "float32"),
+        intensitymode="vertex",
+        colorscale=_plotly_colorscale(),
+        cmin=0.0,
+        cmax=round(vmax / 1000.0, 3),
+        colorbar={"title": {"text": title}, "len": 0.6},
+        hovertemplate="%{intensity:.2f} kPa<extra>" + html.escape(name) + "</extra>",
+        lighting={"ambient": 0.55, "diffuse": 0.7, "specular": 0.05},
+    )
+
+
+def _plotly_colorscale() -> list:
+    """The pressure colour scale as plotly.js stops (the PNGs' scale exactly)."""
+    pos, rgb = _colorscale_stops()
+    return [[round(float(p), 4), "rgb({},{},{})".format(*(int(round(255 * c)) for c in col))] for p, col in zip(pos, rgb)]
+
+
+def _cage_trace(cage, *, name: str, visible: bool, color: str) -> dict:
+    quads = np.asarray(cage.faces, dtype=np.int64)
+    edges = np.unique(np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1), axis=0)
+    v = np.round(np.asarray(cage.vertices, dtype=np.float64), 4)
+    # one polyline with a gap (null) after every edge
+    pts = np.full((len(edges), 3, 3), np.nan)
+    pts[:, :2] = v[edges]
+    coords = [[None if math.isnan(x) else x for x in pts[:, :, c].ravel().tolist()] for c in range(3)]
+    return {
+        "type": "scatter3d",
+        "mode": "lines",
+        "name": name,
+        "visible": visible,
+        "x": coords[0],
+        "y": coords[1],
+        "z": coords[2],
+        "line": {"color": color, "width": 3},
+        "hoverinfo": "name",
+    }
+
+
+def figure_dict(result) -> dict:
+    """The plotly figure (a plain dict) of the report's 3D view.
+
+    Traces: the body coloured by its contact pressure on our surface (by its
+    importance pressure when the build was not evaluated), our surface and
+    cage; with a baseline, the body coloured by its contact pressure on the
+    baseline, the baseline's surface and cage, and buttons that switch
+    between the two groups. The figure is a plain dict in plotly's JSON schema, so writing
+    it needs no ``plotly.graph_objects``; ``plotly.graph_objects.Figure(d)``
+    validates it.
+    """
+    scene = _scene(result)
+    traces, groups = [], {}
+    has_contact = scene.contact is not None
+    vmax_contact = contact_scale(scene.contact, scene.baseline_contact)
+
+    def add(group, trace):
+        groups.setdefault(group, []).append(len(traces))
+        traces.append(trace)
+
+    # the body is drawn once per group (plotly has no instancing): with an
+    # evaluation, coloured by its contact pressure on our surface, and on the
+    # baseline's; without, by its importance pressure (pressure.png has both views)
+    first = "contact" if has_contact else "importance"
+    if has_contact:
+        add("contact", _pressure_trace(scene, scene.contact, vmax_contact, name="body: contact pressure (ours)", visible=True, title="contact<br>kPa"))
+    else:
+        add("importance", _pressure_trace(scene, scene.importance, float(scene.importance.max()), name="body: importance pressure", visible=True, title="importance<br>kPa"))
+    for group in (first,):
+        if scene.surface is not None:
+            add(group, _mesh_trace(scene.surface.vertices, scene.surface.faces, name="limit surface (ours)", visible=group == first, color="rgb(107,153,204)", opacity=0.5, flatshading=False))
+        if scene.cage is not None:
+            add(group, _cage_trace(scene.cage, name="cage (ours)", visible=group == first, color="rgb(25,70,160)"))
+    if scene.baseline_surface is not None:
+        name = scene.baseline_name
+        if scene.baseline_contact is not None:
+            add("baseline", _pressure_trace(scene, scene.baseline_contact, vmax_contact, name=f"body: contact pressure ({name})", visible=False, title="contact<br>kPa"))
+        else:
+            add("baseline", _mesh_trace(scene.body.vertices, scene.body.faces, name="body", visible=False, color="rgb(219,201,184)"))
+        add("baseline", _mesh_trace(scene.baseline_surface.vertices, scene.baseline_surface.faces, name=f"limit surface ({name})", visible=False, color="rgb(204,148,102)", opacity=0.5))
+        if scene.baseline_cage is not None:
+            add("baseline", _cage_trace(scene.baseline_cage, name=f"cage ({name})", visible=False, color="rgb(150,80,30)"))
+    labels = {
+        "importance": "Ours (importance pressure)",
+        "contact": "Ours (contact pressure)",
+        "baseline": f"Baseline: {scene.baseline_name} (contact pressure)",
+    }
+    buttons = [
+        {
+            "label": labels[g],
+            "method": "update",
+            "args": [{"visible": [i in members for i in range(len(traces))]}],
+        }
+        for g, members in groups.items()
+    ]
+    lo, hi = scene.body.vertices.min(axis=0), scene.body.vertices.max(axis=0)
+    layout = {
+        "margin": {"l": 0, "r": 0, "t": 40, "b": 0},
+        "paper_bgcolor": "white",
+        "font": {"family": "sans-serif"},
+        "legend": {"x": 0.01, "y": 0.99},
+        "scene": {
+            "aspectmode": "data",
+            "xaxis": {"title": {"text": "x (m)"}},
+            "yaxis": {"title": {"text": "y (m), up"}},
+            "zaxis": {"title": {"text": "z (m), front"}},
+            "camera": {
+                "up": {"x": 0, "y": 1, "z": 0},
+                "eye": {"x": 1.3, "y": 0.7, "z": 1.9},
+                "center": {"x": 0, "y": -0.1, "z": 0},
+            },
+        },
+        "meta": {"body_extent_m": (hi - lo).round(3).tolist()},
+    }
+    if len(buttons) > 1:
+        layout["updatemenus"] = [
+            {
+                "type": "buttons",
+                "direction": "right",
+                "active": list(groups).index(first),
+                "x": 0.0,
+                "y": 1.06,
+                "xanchor": "left",
+                "buttons": buttons,
+            }
+        ]
+    return {"data": traces, "layout": layout}
+
+
+def _metrics_html(result) -> str:
+    metrics = result.metrics or {}
+    parts = []
+    if metrics.get("ours") or metrics.get("baseline"):
+        rows, labels = table_rows(metrics)
+        base = html.escape(str(metrics.get("baseline_template") or "baseline"))
+        for person, ours, bl in rows:
+            parts.append(f"<h3>{html.escape(person)}</h3><table><tr><th>quantity</th><th>ours</th><th>{base}</th></tr>")
+            parts += [f"<tr><td>{html.escape(lab)}</td><td>{html.escape(a)}</td><td>{html.escape(b)}</td></tr>" for lab, a, b in zip(labels, ours, bl)]
+            parts.append("</table>")
+    else:
+        parts.append("<p>No evaluation in this build (built with evaluation switched off): no metrics.</p>")
+    timings = result.timings or {}
+    if timings:
+        parts.append("<h2>Time per stage</h2><table><tr><th>stage</th><th>seconds</th></tr>")
+        parts += [f"<tr><td>{html.escape(str(k))}</td><td>{float(v):.3f}</td></tr>" for k, v in timings.items()]
+        parts.append("</table>")
+    return "\n".join(parts)
+
+
+_PAGE = """<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<title>{title}</title>
+<style>
+body {{ font-family: sans-serif; margin: 1em 2em; color: #222; }}
+table {{ border-collapse: collapse; margin: 0.5em 0 1em; }}
+td, th {{ border: 1px solid #bbb; padding: 0.25em 0.8em; text-align: right; }}
+td:first-child, th:first-child {{ text-align: left; }}
+#view {{ width: 100%; height: {height}px; }}
+</style></head>
+<body>
+<h1>{title}</h1>
+<p>{summary}</p>
+{plot}
+<h2>Evaluation (the paper's Table 1)</h2>
+{metrics}
+</body></html>
+"""
+
+
+def write_report_html(result, path) -> Path:
+    """Write ``report.html``: the 3D view and the metrics, with plotly.js inline.
+
+    The page makes no network request: plotly.js is embedded
+    (``include_plotlyjs=True``), MathJax is off and the fonts are the
+    browser's own ``sans-serif``.
+    """
+    import plotly.io as pio
+
+    fig = figure_dict(result)
+    plot = pio.to_html(
+        fig,
+        include_plotlyjs=True,
+        include_mathjax=False,
+        full_html=False,
+        validate=False,
+        div_id="view",
+        default_width="100%",
+        default_height=f"{HTML_VIEW_HEIGHT}px",
+        config={"displaylogo": False, "responsive": True},
+    )
+    recipe = result.recipe or {}
+    poses = ", ".join(str(b.name) for b in result.bodies)
+    summary = html.escape(f"template: {recipe.get('template', '?')}; people: {len(result.bodies)} ({poses})")
+    title = html.escape(f"seatkit build: {recipe.get('template', '')}")
+    page = _PAGE.format(height=HTML_VIEW_HEIGHT, title=title, summary=summary, plot=plot, metrics=_metrics_html(result))
+    return write_text_atomic(Path(path), page)
+
+
+# ----------------------------------------------------------------------------- exporters
+
+
+class ReportPngExporter:
+    """PNG renders of the build: pressure, cage, surface, comparison with the baseline."""
+
+    name = "report-png"
+    description = "pressure.png, cage.png, surface.png, comparison.png: renders of the body, cage, surface and baseline"
+
+    def export(self, result, directory: Path) -> dict[str, Path]:
+        return render_pngs(result, directory)
+
+
+class ReportHtmlExporter:
+    """An interactive 3D report that opens offline."""
+
+    name = "report-html"
+    description = "report.html: interactive 3D view (plotly, embedded, offline) and the metrics table"
+
+    def export(self, result, directory: Path) -> dict[str, Path]:
+        return {"report_html": write_report_html(result, Path(directory) / "report.html")}
+
+
+def report_exporters() -> list:
+    """One instance of each report exporter."""
+    return [ReportPngExporter(), ReportHtmlExporter()]
+

@@ -1,0 +1,218 @@
+"""The report exporters: the z-buffer rasteriser, the PNG renders and report.html."""
+
+from __future__ import annotations
+
+import base64
+import json
+import re
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from seatkit.export import raster as rs
+from seatkit.export import report
+from test_report_support import evaluated_result, plain_result
+
+# ----------------------------------------------------------------------------- rasteriser
+
+
+def _brute_force(frame, vertices, faces):
+    """Nearest depth and triangle per pixel centre, one triangle at a time."""
+    xy, z = frame.project(vertices)
+    h, w = frame.height, frame.width
+    cy, cx = np.mgrid[0:h, 0:w] + 0.5
+    depth = np.full((h, w), -np.inf)
+    face = np.full((h, w), -1)
+    for t, (a, b, c) in enumerate(faces):
+        (ax, ay), (bx, by), (qx, qy) = xy[a], xy[b], xy[c]
+        area = (bx - ax) * (qy - ay) - (qx - ax) * (by - ay)
+        l1 = ((cx - ax) * (qy - ay) - (qx - ax) * (cy - ay)) / area
+        l2 = ((bx - ax) * (cy - ay) - (cx - ax) * (by - ay)) / area
+        l0 = 1 - l1 - l2
+        inside = (l0 >= 1e-6) & (l1 >= 1e-6) & (l2 >= 1e-6)
+        zz = l0 * z[a] + l1 * z[b] + l2 * z[c]
+        better = inside & (zz > depth)
+        depth[better], face[better] = zz[better], t
+    return depth, face
+
+
+def test_zbuffer_matches_brute_force_on_interpenetrating_triangles():
+    rng = np.random.default_rng(3)
+    vertices = rng.uniform(-1, 1, size=(60, 3))
+    faces = np.arange(60).reshape(20, 3)
+    frame = rs.fit_frame([vertices], rs.view_rotation(30, 20), 64, 48)
+    ra = rs.rasterize(frame, vertices, faces)
+    depth, face = _brute_force(frame, vertices, faces)
+    # pixels strictly inside a triangle (the brute force ignores edge ties) agree exactly
+    sure = face >= 0
+    assert sure.sum() > 500
+    assert np.array_equal(ra.face[sure], face[sure])
+    assert np.allclose(ra.depth[sure], depth[sure], atol=1e-4)
+    # and the rasteriser covers no pixel that no triangle covers (up to edge ties)
+    assert ra.mask.sum() >= sure.sum()
+    assert ra.mask.sum() - sure.sum() < 0.05 * sure.sum()
+
+
+def test_shared_edge_leaves_no_gap_and_no_double_cover():
+    # a 20 x 10 pixel rectangle made of two triangles, exactly on pixel borders
+    frame = rs.Frame(np.eye(3), 1.0, 0.0, 32.0, 32, 32)
+    vertices = np.array([[4, 12, 0], [24, 12, 0], [24, 22, 0], [4, 22, 0]], float)
+    vertices[:, 1] = 32 - vertices[:, 1]  # camera y up, pixel rows down
+    quads = np.array([[0, 1, 2, 3]])
+    ra = rs.rasterize(frame, vertices, report._tri(quads))
+    assert ra.mask.sum() == 20 * 10
+    assert np.allclose(ra.bary.sum(axis=1), 1.0, atol=1e-5)
+
+
+def test_back_faces_are_culled_and_visible_side_is_kept():
+    vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]])
+    frame = rs.fit_frame([vertices], rs.view_rotation(0, 0), 40, 40)
+    ccw = rs.rasterize(frame, vertices, np.array([[0, 1, 2]]), cull_back=True)
+    cw = rs.rasterize(frame, vertices, np.array([[0, 2, 1]]), cull_back=True)
+    assert ccw.mask.sum() > 300 and cw.mask.sum() == 0
+
+
+def test_translucent_layer_blends_only_in_front_of_opaque():
+    frame = rs.Frame(np.eye(3), 1.0, 0.0, 8.0, 8, 8)
+    quad = np.array([[0, 1, 2, 3]])
+    back = np.array([[0, 0, 0], [8, 0, 0], [8, 8, 0], [0, 8, 0]], float)
+    half = np.array([[0, 0, 1], [4, 0, 1], [4, 8, 1], [0, 8, 1]], float)  # nearer, left half
+    behind = half + [4, 0, -2]  # farther, right half
+    tri = report._tri(quad)
+    r_back, r_near, r_far = (rs.rasterize(frame, v, tri) for v in (back, half, behind))
+    red = np.array([1.0, 0, 0])
+    img = rs.composite(
+        [1, 1, 1],
+        [
+            (r_back, np.tile([0.0, 0, 1], (r_back.covered.size, 1)), 1.0),
+            (r_near, np.tile(red, (r_near.covered.size, 1)), 0.5),
+            (r_far, np.tile(red, (r_far.covered.size, 1)), 0.5),
+        ],
+    )
+    assert np.allclose(img[4, 1], [0.5, 0, 0.5])  # blended over the blue quad
+    assert np.allclose(img[4, 6], [0, 0, 1])  # hidden behind the blue quad
+
+
+# ----------------------------------------------------------------------------- PNGs
+
+
+@pytest.fixture(scope="module")
+def pngs(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    return out, report.ReportPngExporter().export(evaluated_result(), out)
+
+
+def _rgb(path):
+    return np.asarray(Image.open(path).convert("RGB")).astype(np.int64)
+
+
+def _near(img, color, tol=12):
+    return (np.abs(img - np.asarray(color)).max(axis=-1) <= tol).sum()
+
+
+def test_png_files_and_roles(pngs):
+    out, files = pngs
+    assert set(files) == set(report.PNG_FILES)
+    for role, path in files.items():
+        assert path.parent == out and path.name == report.PNG_FILES[role]
+        img = _rgb(path)
+        assert img.ndim == 3 and img.shape[0] >= report.PANEL_HEIGHT and img.shape[1] >= 2 * report.PANEL_WIDTH
+        # the renders are not blank: many colours, and the body's shading
+        assert len(np.unique(img.reshape(-1, 3) @ [65536, 256, 1])) > 300
+
+
+def test_pressure_png_shows_the_dark_end_of_the_scale_on_the_body(pngs):
+    _, files = pngs
+    img = _rgb(files["report_pressure_png"])
+    pos, stops = report._colorscale_stops()
+    dark = np.round(255 * stops[-2]).astype(int)  # the scale's second-darkest stop
+    panels = img[:, : 2 * report.PANEL_WIDTH]  # exclude the colour bar
+    # shading darkens the colours, so look for hue close to the dark stops in the back view
+    back = panels[:, report.PANEL_WIDTH :]
+    purple = (back[..., 2] > back[..., 1] + 30) & (back[..., 0] > back[..., 1] + 15)
+    assert purple.sum() > 100, "no high-pressure colour on the back view"
+    assert _near(img[:, 2 * report.PANEL_WIDTH :], dark, tol=8) > 10  # the colour bar holds the same scale
+
+
+def test_comparison_only_with_a_baseline(tmp_path):
+    files = report.ReportPngExporter().export(plain_result(), tmp_path)
+    assert set(files) == {"report_pressure_png", "report_cage_png", "report_surface_png"}
+    assert not (tmp_path / "comparison.png").exists()
+
+
+def test_contact_scale_is_a_percentile_of_loaded_pressures():
+    p = np.concatenate([np.zeros(100), np.linspace(100, 1000, 1000), [1e6]])
+    assert report.contact_scale(p) == pytest.approx(np.percentile(p[p > 1.0], report.CONTACT_PERCENTILE))
+    assert report.contact_scale(None) == 0.0
+
+
+def test_table_rows_never_invent_numbers():
+    metrics = {
+        "ours": [{"avg_distance_m": 0.012, "supported": True, "avg_pressure_pa": 1500.0, "max_penetration_m": 0.0}],
+        "baseline": [{"avg_distance_m": 0.05, "supported": False, "reason": "no contact", "max_penetration_m": 0.0}],
+    }
+    rows, labels = report.table_rows(metrics)
+    (person, ours, base), = rows
+    assert labels[0] == "avg. dist." and ours[0] == "1.20 cm" and base[0] == "5.00 cm"
+    assert ours[labels.index("avg. press.")] == "1500.00 Pa"
+    assert ours[labels.index("max. moment")] == "-"
+    assert base[labels.index("avg. press.")] == "not supported"
+
+
+# ----------------------------------------------------------------------------- HTML
+
+
+def _decode(spec):
+    return np.frombuffer(base64.b64decode(spec["bdata"]), dtype=np.dtype(spec["dtype"]).newbyteorder("<"))
+
+
+def test_html_is_offline_small_and_holds_the_geometry(tmp_path):
+    res = evaluated_result()
+    path = report.ReportHtmlExporter().export(res, tmp_path)["report_html"]
+    text = path.read_text()
+    assert path.stat().st_size < 8 * 1024 * 1024
+    # plotly.js inline, nothing loaded from elsewhere
+    assert "<script src=" not in text and "<link" not in text and "@import" not in text
+    assert "Plotly.newPlot" in text and len(re.findall(r"<script", text)) >= 2
+    fig = report.figure_dict(res)
+    body = fig["data"][0]
+    xyz = np.stack([_decode(body[c]) for c in "xyz"], axis=1)
+    assert np.abs(xyz - res.bodies[0].vertices).max() <= 0.5e-3 + 1e-6  # rounded to mm
+    ijk = np.stack([_decode(body[c]) for c in "ijk"], axis=1)
+    assert np.array_equal(ijk, res.bodies[0].faces)
+    kpa = _decode(body["intensity"])
+    assert np.allclose(kpa, res.extra["contact_pressures"][0].pressure / 1000, atol=1e-3)
+    names = [t["name"] for t in fig["data"]]
+    assert any("flat-patch" in n for n in names)
+    # the table of the paper's quantities, ours and the baseline
+    assert "avg. dist." in text and "flat-patch" in text
+
+
+def test_figure_is_valid_plotly():
+    go = pytest.importorskip("plotly.graph_objects")
+    fig = report.figure_dict(evaluated_result())
+    # plotly.py validates every property; typed arrays are given as lists here
+    for trace in fig["data"]:
+        for key, val in list(trace.items()):
+            if isinstance(val, dict) and "bdata" in val:
+                trace[key] = _decode(val).tolist()
+    go.Figure(json.loads(json.dumps(fig)))
+
+
+def test_html_without_evaluation_says_so(tmp_path):
+    path = report.write_report_html(plain_result(), tmp_path / "report.html")
+    text = path.read_text()
+    assert "No evaluation in this build" in text
+    fig = report.figure_dict(plain_result())
+    assert [t["type"] for t in fig["data"]] == ["mesh3d", "mesh3d", "scatter3d"]
+    assert "updatemenus" not in fig["layout"]
+
+
+def test_exporters_follow_the_protocol():
+    from seatkit.interfaces import Exporter
+
+    names = [e.name for e in report.report_exporters()]
+    assert names == ["report-png", "report-html"]
+    for e in report.report_exporters():
+        assert isinstance(e, Exporter) and e.description
