@@ -148,18 +148,58 @@ def _finish_output(staging: Path, target: Path, *, overwrite: bool) -> None:
         os.replace(staging, target)
 
 
-def evaluate_result(result: BuildResult, registry, timer: "_Timer | None" = None) -> None:
+def fit_baseline(recipe: Mapping, bodies, pressures, registry, segments) -> dict:
+    """Fit and evaluate the baseline design of a recipe (default ``flat-patch``).
+
+    The baseline (what Sit & Relax starts from) is fitted to the same bodies,
+    asked to support the same body segments as our cage, refined by the same
+    ``catmull-clark-fit`` step with the same parameters (when the recipe uses
+    it), and evaluated the same way (:mod:`seatkit.evaluate`).
+
+    Returns
+    -------
+    dict
+        ``control_mesh``, ``surface``, ``metrics`` (per person),
+        ``contact_pressures`` and ``seconds``.
+    """
+    from seatkit.evaluate import evaluate_design
+    from seatkit.skeleton import SEGMENTS
+    from seatkit.subdivision import limit_surface
+
+    start = time.perf_counter()
+    ev, p = recipe["evaluate"], recipe["pressure"]
+    template = registry.get("template", ev["baseline"])
+    params = {"segments": [SEGMENTS[s] for s in segments]} if ev["baseline"] == "flat-patch" else {}
+    base = template.fit(bodies, pressures, params=params, seed=recipe["seed"])
+    for ref in recipe["refiners"]:
+        if ref["name"] == "catmull-clark-fit":
+            base = registry.get("refiner", ref["name"]).refine(base, bodies, pressures, params=ref["params"])
+    surface = limit_surface(base, level=recipe["surface_level"])
+    solver = registry.get("pressure_solver", p["solver"])
+    metrics, fields = evaluate_design(
+        bodies, pressures, surface, solver=solver, support_distance=ev["support_distance"], pressure_settings=p, segments=segments
+    )
+    return {
+        "control_mesh": base,
+        "surface": surface,
+        "metrics": metrics,
+        "contact_pressures": fields,
+        "seconds": time.perf_counter() - start,
+    }
+
+
+def evaluate_result(result: BuildResult, registry, timer: "_Timer | None" = None, *, baseline=None) -> None:
     """Fill ``result.metrics`` with the paper's Table 1 figures, ours and the baseline's.
 
-    The baseline (default ``flat-patch``, what Sit & Relax starts from) is
-    fitted to the same bodies, asked to support the same body segments as our
-    cage, and refined by the same ``catmull-clark-fit`` step with the same
-    parameters (when the recipe uses it). Both surfaces are then evaluated
-    the same way (:mod:`seatkit.evaluate`).
+    Parameters
+    ----------
+    baseline : dict or concurrent.futures.Future, optional
+        The result of :func:`fit_baseline` (or a future of it, computed
+        while our refiners ran); computed here when not given and the recipe
+        asks for a baseline.
     """
     from seatkit.evaluate import design_segments, evaluate_design
     from seatkit.skeleton import SEGMENTS
-    from seatkit.subdivision import limit_surface
 
     timer = timer or _Timer(_noop)
     recipe = result.recipe
@@ -167,9 +207,16 @@ def evaluate_result(result: BuildResult, registry, timer: "_Timer | None" = None
     p = recipe["pressure"]
     solver = registry.get("pressure_solver", p["solver"])
     segments = design_segments(result.control_mesh)
-    kw = dict(solver=solver, support_distance=ev["support_distance"], pressure_settings=p, segments=segments)
     with timer.stage("evaluate"):
-        ours, fields = evaluate_design(result.bodies, result.pressures, result.surface, **kw)
+        ours, fields = evaluate_design(
+            result.bodies,
+            result.pressures,
+            result.surface,
+            solver=solver,
+            support_distance=ev["support_distance"],
+            pressure_settings=p,
+            segments=segments,
+        )
     metrics = {
         "support_distance_m": ev["support_distance"],
         "supported_segments": [SEGMENTS[s] for s in segments],
@@ -177,24 +224,15 @@ def evaluate_result(result: BuildResult, registry, timer: "_Timer | None" = None
     }
     result.extra["contact_pressures"] = fields
     if ev.get("baseline"):
-        with timer.stage("baseline"):
-            template = registry.get("template", ev["baseline"])
-            params = {"segments": metrics["supported_segments"]} if ev["baseline"] == "flat-patch" else {}
-            base = template.fit(result.bodies, result.pressures, params=params, seed=recipe["seed"])
-            for ref in recipe["refiners"]:
-                if ref["name"] == "catmull-clark-fit":
-                    base = registry.get("refiner", ref["name"]).refine(
-                        base, result.bodies, result.pressures, params=ref["params"]
-                    )
-            base_surface = limit_surface(base, level=recipe["surface_level"])
-            baseline, base_fields = evaluate_design(result.bodies, result.pressures, base_surface, **kw)
+        with timer.stage("baseline (wait)"):
+            if baseline is None:
+                baseline = fit_baseline(recipe, result.bodies, result.pressures, registry, segments)
+            elif hasattr(baseline, "result"):
+                baseline = baseline.result()
+        timer.timings["baseline (parallel)"] = baseline["seconds"]
         metrics["baseline_template"] = ev["baseline"]
-        metrics["baseline"] = baseline
-        result.extra["baseline"] = {
-            "control_mesh": base,
-            "surface": base_surface,
-            "contact_pressures": base_fields,
-        }
+        metrics["baseline"] = baseline["metrics"]
+        result.extra["baseline"] = {k: baseline[k] for k in ("control_mesh", "surface", "contact_pressures")}
     result.metrics = metrics
 
 
@@ -257,16 +295,32 @@ def build(
         template = registry.get("template", recipe["template"])
         initial = template.fit(bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
 
-    mesh = initial
-    for ref in recipe["refiners"]:
-        with timer.stage(f"refine:{ref['name']}"):
-            refiner = registry.get("refiner", ref["name"])
-            mesh = refiner.refine(mesh, bodies, pressures, params=ref["params"])
+    # The baseline depends only on the bodies and the segments our cage
+    # supports: fit it on a second thread while our refiners run (numpy,
+    # scipy.sparse and the KD-tree release the GIL for their heavy parts).
+    executor = baseline = None
+    if recipe["evaluate"]["enabled"] and recipe["evaluate"]["baseline"]:
+        from concurrent.futures import ThreadPoolExecutor
 
-    with timer.stage("surface"):
-        from seatkit.subdivision import limit_surface
+        from seatkit.evaluate import design_segments
 
-        surface = limit_surface(mesh, level=recipe["surface_level"])
+        executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="seatkit-baseline")
+        baseline = executor.submit(fit_baseline, recipe, bodies, pressures, registry, design_segments(initial))
+    try:
+        mesh = initial
+        for ref in recipe["refiners"]:
+            with timer.stage(f"refine:{ref['name']}"):
+                refiner = registry.get("refiner", ref["name"])
+                mesh = refiner.refine(mesh, bodies, pressures, params=ref["params"])
+
+        with timer.stage("surface"):
+            from seatkit.subdivision import limit_surface
+
+            surface = limit_surface(mesh, level=recipe["surface_level"])
+    except BaseException:
+        if executor is not None:
+            executor.shutdown(wait=True, cancel_futures=True)
+        raise
 
     result = BuildResult(
         recipe=recipe,
@@ -278,7 +332,11 @@ def build(
         timings=timer.timings,
     )
     if recipe["evaluate"]["enabled"]:
-        evaluate_result(result, registry, timer)
+        try:
+            evaluate_result(result, registry, timer, baseline=baseline)
+        finally:
+            if executor is not None:
+                executor.shutdown(wait=True)
 
     if write:
         target = Path(recipe["output"] or Path("seatkit-out") / recipe["template"])
