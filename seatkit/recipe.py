@@ -36,7 +36,7 @@ from seatkit.errors import RecipeError
 from seatkit.yamlio import Document, load_yaml, validate
 
 DEFAULT_REFINERS = ("optimize", "catmull-clark-fit")
-DEFAULT_EXPORTERS = ("usd", "obj", "surface", "body-ply", "report-png", "report-html")
+DEFAULT_EXPORTERS = ("usd", "obj", "surface", "body-ply", "design", "report-png", "report-html")
 DEFAULT_SURFACE_LEVEL = 3
 DEFAULT_POSE = "upright-sitting"
 DEFAULT_BODY_MODEL = "default-male"

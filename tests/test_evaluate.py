@@ -59,3 +59,30 @@ def test_comparison_rows_format_like_table_1():
     rows = comparison_rows(ours, base)
     assert rows[0] == ("avg. dist.", "4.00 cm", "6.42 cm")
     assert rows[-1] == ("max. press.", "3598.34 Pa", "3598.34 Pa")
+
+
+def test_design_file_round_trips(tmp_path):
+    from seatkit.model import Body, BuildResult, ControlMesh
+    from seatkit.state import load_design, save_design
+
+    rng = np.random.default_rng(1)
+    body = Body(
+        vertices=rng.normal(size=(10, 3)),
+        faces=np.array([[0, 1, 2], [2, 3, 4]]),
+        weights=np.full((10, 21), 1 / 21),
+        joints=rng.normal(size=(21, 3)),
+        tips=rng.normal(size=(21, 3)),
+        segment_mass=np.full(21, 75 / 21),
+        segment_com=rng.normal(size=(21, 3)),
+        name="b",
+        region_labels={"face": np.array([1, 2])},
+    )
+    mesh = ControlMesh(rng.normal(size=(4, 3)), np.array([[0, 1, 2, 3]]), np.array([3]), meta={"special_cases": ["x"]})
+    result = BuildResult(recipe={"template": "t", "pressure": {"lambda": float("inf")}}, bodies=[body], pressures=[], control_mesh=mesh)
+    save_design(result, tmp_path / "design.npz")
+    recipe, bodies, got, initial = load_design(tmp_path / "design.npz")
+    assert recipe["template"] == "t" and recipe["pressure"]["lambda"] == float("inf")
+    np.testing.assert_array_equal(bodies[0].vertices, body.vertices)
+    np.testing.assert_array_equal(bodies[0].region_labels["face"], [1, 2])
+    np.testing.assert_array_equal(got.vertices, mesh.vertices)
+    assert got.meta == {"special_cases": ["x"]} and initial is None

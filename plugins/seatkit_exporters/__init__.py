@@ -1,4 +1,4 @@
-"""Built-in seatkit plugin: the exporters (usd, usdc, obj, surface, shell, body-ply, report-png, report-html)."""
+"""Built-in seatkit plugin: the exporters (usd, usdc, obj, surface, shell, body-ply, design, report-png, report-html)."""
 
 from __future__ import annotations
 
@@ -12,5 +12,6 @@ def seatkit_register_exporters():
     """Register every built-in exporter."""
     from seatkit.export.exporters import builtin_exporters
     from seatkit.export.report import report_exporters
+    from seatkit.state import DesignExporter
 
-    return builtin_exporters() + report_exporters()
+    return builtin_exporters() + [DesignExporter()] + report_exporters()
