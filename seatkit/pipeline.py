@@ -265,6 +265,17 @@ def build(
     -------
     BuildResult
     """
+    from threadpoolctl import threadpool_limits
+
+    # Every numerical step here works on small dense blocks or sparse
+    # matrices: multithreaded BLAS only adds contention (SLSQP became 10-20x
+    # slower with OpenBLAS threads spinning on 2 busy cores), and two build
+    # threads (ours and the baseline) already use both cores.
+    with threadpool_limits(limits=1):
+        return _build(recipe, pm=pm, progress=progress, write=write, overwrite=overwrite)
+
+
+def _build(recipe, *, pm, progress, write, overwrite) -> BuildResult:
     from seatkit.plugins import get_plugin_manager
 
     if isinstance(recipe, Mapping) and "bodies" in recipe and "pressure" in recipe and "refiners" in recipe and all(isinstance(r, dict) for r in recipe["refiners"]):
