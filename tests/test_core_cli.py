@@ -49,3 +49,12 @@ def test_bad_recipe_is_refused_before_geometry(tmp_path):
     assert result.exit_code == 1
     assert f"{recipe}:3: bodies[0].pose: unknown pose 'no-such-pose'" in result.stderr
     assert not (tmp_path / "o").exists()
+
+
+def test_debug_shows_the_traceback_of_a_user_error(tmp_path):
+    import pytest
+
+    from seatkit.errors import RecipeError
+
+    with pytest.raises(RecipeError, match="unknown template 'sofa'"):
+        runner.invoke(app, ["--debug", "build", "--template", "sofa", "--out", str(tmp_path / "o")], catch_exceptions=False)

@@ -12,6 +12,7 @@ import typer
 def register(app: typer.Typer) -> None:
     @app.command()
     def body(
+        ctx: typer.Context,
         pose: str = typer.Option(
             "upright-sitting", "--pose", "-p", metavar="POSE",
             help="Library pose name (see 'seatkit poses'), a pose YAML file, or a .bvh file.",
@@ -20,7 +21,7 @@ def register(app: typer.Typer) -> None:
         png: Optional[Path] = typer.Option(None, "--png", help="Also write a preview picture (front and side views)."),
         body_name: str = typer.Option(
             "default-male", "--body", "-b", metavar="NAME|PATH",
-            help="default-male, default-female, a seatkit .npz rig, or a registered body model (e.g. anny).",
+            help="default-male, default-female, a .npz rig or .glb body, or MODEL:key=value,... (e.g. anny:height=0.6).",
         ),
         mass: float = typer.Option(75.0, "--mass", help="Body mass in kg."),
         frame: Optional[int] = typer.Option(None, "--frame", help="BVH frame to use (for a .bvh POSE)."),
@@ -29,16 +30,20 @@ def register(app: typer.Typer) -> None:
         """Pose a body by linear blend skinning and write the mesh (metres, +Y up, facing +Z)."""
         import trimesh
 
-        from seatkit.body import load_pose, load_rig, pose_rig
+        from seatkit.body import load_pose
+        from seatkit.cli import plugin_manager
         from seatkit.errors import InputError
+        from seatkit.recipe import parse_body_spec
         from seatkit.io import write_bytes_atomic
 
         suffix = out.suffix.lower().lstrip(".")
         if suffix not in ("ply", "obj", "stl", "glb", "off"):
             msg = f"--out {out}: unknown mesh format {out.suffix!r}; expected .ply, .obj, .stl, .glb or .off"
             raise InputError(msg)
-        rig = load_rig(body_name, mass=mass)
-        posed = pose_rig(rig, load_pose(pose, frame=frame, rig=rig), ground=not no_ground)
+        spec = parse_body_spec(body_name)
+        model = plugin_manager(ctx).registry.get("body_model", spec["model"])
+        rig = model.make_body(params={**spec["params"], "mass": mass})
+        posed = model.pose(rig, load_pose(pose, frame=frame, rig=rig), ground=not no_ground)
         mesh = trimesh.Trimesh(posed.vertices, posed.faces, process=False)
         data = mesh.export(file_type=suffix)
         write_bytes_atomic(out, data.encode() if isinstance(data, str) else data)
