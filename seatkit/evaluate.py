@@ -14,8 +14,12 @@ the paper's quantities are reported:
 ``avg_moment_nm``, ``max_moment_nm``
     Mean and largest joint-moment magnitude over the 20 joints, N m.
 ``avg_pressure_pa``, ``max_pressure_pa``
-    Mean contact pressure over the loaded vertices (pressure above 1 Pa) and
-    the largest, Pa.
+    Mean pressure over the contact set (the body vertices within the support
+    distance of the surface, as the paper computes it: a surface that meets
+    more of the body spreads the same weight over more vertices) and the
+    largest, Pa.
+``avg_loaded_pressure_pa``
+    Mean over the vertices that actually carry load (above 1 Pa), Pa.
 ``max_penetration_m``
     Deepest body vertex on the far side of the surface (0 when none), m.
 ``contact_vertices``, ``contact_area_m2``
@@ -234,7 +238,8 @@ def evaluate_person(
         supported=True,
         avg_moment_nm=float(moments.mean()),
         max_moment_nm=float(moments.max()),
-        avg_pressure_pa=float(field.pressure[loaded].mean()) if loaded.any() else 0.0,
+        avg_pressure_pa=float(field.pressure[contact].mean()) if contact.any() else 0.0,
+        avg_loaded_pressure_pa=float(field.pressure[loaded].mean()) if loaded.any() else 0.0,
         max_pressure_pa=float(field.pressure.max()),
         loaded_vertices=int(loaded.sum()),
     )
