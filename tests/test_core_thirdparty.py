@@ -57,3 +57,22 @@ def test_disable_plugin_flag_hides_the_example(installed_example):
     done = run_seatkit(installed_example, "--disable-plugin", "stool", "templates")
     assert done.returncode == 0, done.stderr
     assert not any(l.startswith("stool") for l in done.stdout.splitlines())
+
+
+def test_example_template_fits_the_default_body():
+    import importlib.util
+
+    from seatkit.body import load_pose, load_rig, pose_rig
+    from seatkit.plugins import get_plugin_manager
+
+    spec = importlib.util.spec_from_file_location("seatkit_stool", EXAMPLE / "seatkit_stool" / "__init__.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    pm = get_plugin_manager(autoload=False)
+    pm.register_plugin(module, "stool")
+    stool = pm.registry.get("template", "stool")
+    body = pose_rig(load_rig("default-male"), load_pose("upright-sitting"))
+    pressure = pm.registry.get("pressure_solver", "qp").solve(body)
+    mesh = stool.fit([body], [pressure], seed=0)
+    assert mesh.faces.shape == ((2 + 4) * (3 + 4), 4)
+    assert {"thigh.left", "thigh.right", "shank.left", "shank.right"} <= set(mesh.face_labels)

@@ -1,4 +1,4 @@
-"""A third-party seatkit plugin: a 2x3 stool (thighs and buttocks only, no backrest).
+"""A third-party seatkit plugin: a 2x3 stool (calves and thighs, no backrest).
 
 Everything a template needs is in ``stool.yaml``; this module only tells
 seatkit where it is.

@@ -1,0 +1,15 @@
+"""The YAML-driven support-template engine (paper Section 5).
+
+A template is a YAML file (``templates/chair.yaml``) declaring a grid of
+quad faces, the body segments each face supports, the fitting steps and
+their parameters; :func:`load_template` validates it and returns a
+:class:`YamlTemplate`, a :class:`seatkit.interfaces.SupportTemplate`.
+See ``docs/templates.md``.
+"""
+
+from seatkit.template.clearance import lift_off_bodies
+from seatkit.template.engine import YamlTemplate, grid_to_mesh, load_template
+from seatkit.template.schema import PARAMETERS, read_template
+from seatkit.template.steps import BUILTIN_STEPS, builtin_steps
+
+__all__ = ["YamlTemplate", "load_template", "read_template", "grid_to_mesh", "lift_off_bodies", "PARAMETERS", "BUILTIN_STEPS", "builtin_steps"]

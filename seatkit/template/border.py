@@ -1,0 +1,278 @@
+"""Border rings and the ground rectangle (paper Sec. 5.2, refinement stage).
+
+The fitted grid is extended by two rings of faces. The first ring continues
+the surface outwards by ``width``: the first and last rows along their
+faces, the side columns horizontally outwards (never below the ground).
+Before the ring is built, the grid's side columns are made to run
+monotonically from the front row to the back row (an outer back face
+wrapping forward past the seat's edge would make the walls below it
+overlap); the ring then envelops the grid (its back row behind every grid
+vertex of its column, and so on) and its walls, which hang down to the
+ground, are moved outside the bodies.
+
+The second ring lies on the ground (y = 0) on a rectangle around
+everything, axis-aligned (the body faces +Z: sides along X, front along Z).
+Along each side of the rectangle the ground vertices are placed by a linear
+programme (:func:`scipy.optimize.linprog`): as close as possible to below
+their ring vertex, in order with at least ``min_spacing`` between them, and
+such that every outer face is convex, seen from the side for wall faces and
+from above for faces lying near the ground (the paper's convexity
+correction).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linprog
+
+from seatkit.template.grid import GridMesh
+from seatkit.template.planes import unit
+
+__all__ = ["add_border", "place_ground_side"]
+
+_FLAT = 0.03  # m: a wall face lower than this is checked from above
+
+
+def place_ground_side(profile_t, profile_h, profile_u, length, min_spacing, eps=1e-5):
+    """Positions of the ground vertices along one side of the rectangle.
+
+    Parameters
+    ----------
+    profile_t : (m,) float64
+        Coordinate along the side of each ring-1 vertex above it, m.
+    profile_h : (m,) float64
+        Their height above the ground, m.
+    profile_u : (m,) float64
+        Their horizontal distance inside the rectangle's side, m (> 0).
+    length : float
+        Length of the side; the two corners are at 0 and ``length``.
+    min_spacing : float
+        Smallest distance between consecutive ground vertices, m.
+    eps : float
+        Smallest corner cross product accepted, m^2.
+
+    Returns
+    -------
+    t : (m,) float64
+        Ground positions along the side.
+    convex : bool
+        Whether the convexity constraints could be met (else only the order).
+    """
+    m = len(profile_t)
+    P = np.concatenate([[0.0], profile_t, [length]])
+    # the corners' own ring-1 points sit over the corners
+    H = np.concatenate([[profile_h[0]], profile_h, [profile_h[-1]]])
+    U = np.concatenate([[profile_u[0]], profile_u, [profile_u[-1]]])
+    # variables x = (t_1..t_m, e_1..e_m); objective sum e (|t - P|)
+    nvar = 2 * m
+    c = np.concatenate([np.zeros(m), np.ones(m)])
+    A, b = [], []
+
+    def row(coef_t: dict, const: float, lower: float):
+        # sum coef * t + const >= lower  ->  -sum coef t <= const - lower
+        a = np.zeros(nvar)
+        rhs = const - lower
+        for j, v in coef_t.items():
+            if 1 <= j <= m:
+                a[j - 1] -= v
+            else:
+                rhs += v * (0.0 if j == 0 else length)
+        A.append(a)
+        b.append(rhs)
+
+    for j in range(m):  # |t_j - P_j| <= e_j
+        a = np.zeros(nvar)
+        a[j], a[m + j] = 1.0, -1.0
+        A.append(a), b.append(P[j + 1])
+        a = np.zeros(nvar)
+        a[j], a[m + j] = -1.0, -1.0
+        A.append(a), b.append(-P[j + 1])
+    for j in range(m + 1):  # t_{j+1} - t_j >= min_spacing
+        row({j + 1: 1.0, j: -1.0}, 0.0, min_spacing)
+    n_order = len(A)
+    for j in range(1, m):  # convexity of the wall face over (t_j, t_{j+1}); corner faces excluded
+        flat = min(H[j], H[j + 1]) < _FLAT
+        Y = U if flat else H  # height seen from the side, or depth seen from above
+        Pj, Pk = P[j], P[j + 1]
+        Yj, Yk = Y[j], Y[j + 1]
+        # g_j=(t_j,0) -> g_k=(t_k,0) -> p_k=(Pk,Yk) -> p_j=(Pj,Yj): counter-clockwise
+        row({j + 1: Yj, j: -Yj}, 0.0, eps)  # at g_j: Y_j (t_k - t_j)
+        row({j + 1: Yk, j: -Yk}, 0.0, eps)  # at g_k
+        # at p_k: (Pk - t_k)(Yj - Yk) - Yk (Pj - Pk)
+        row({j + 1: -(Yj - Yk)}, Pk * (Yj - Yk) - Yk * (Pj - Pk), eps)
+        # at p_j: (Pj - Pk)(-Yj) - (Yj - Yk)(t_j - Pj)
+        row({j: -(Yj - Yk)}, -(Pj - Pk) * Yj + (Yj - Yk) * Pj, eps)
+    A, b = np.array(A), np.array(b)
+    bounds = [(0.0, length)] * m + [(0.0, None)] * m
+    res = linprog(c, A_ub=A, b_ub=b, bounds=bounds, method="highs")
+    if res.status == 0:
+        return res.x[:m], True
+    res = linprog(c, A_ub=A[:n_order], b_ub=b[:n_order], bounds=bounds, method="highs")
+    if res.status == 0:
+        return res.x[:m], False
+    # too many vertices for the side at this spacing: spread them evenly
+    return np.linspace(0, length, m + 2)[1:-1], False
+
+
+def _envelop(line: np.ndarray, lines: np.ndarray, direction: np.ndarray) -> None:
+    """Move each vertex of ``line`` (m, 3) along ``direction`` until it is not behind ``lines[i]`` (m, k, 3), in place."""
+    pos = line @ direction
+    reach = (lines @ direction).max(1)
+    line += np.outer(np.maximum(reach - pos, 0.0), direction)
+
+
+def _monotone(ring: np.ndarray, *, axis: int, direction: np.ndarray, step: float) -> None:
+    """Make the ring's outer lines advance along ``direction`` by ``step`` at least, in place.
+
+    ``axis`` 0: the first and last vertex columns (the sides), walked along
+    the rows; ``axis`` 1: the first and last vertex rows, walked along the
+    columns. A vertex that falls behind its predecessor is moved forward
+    along ``direction`` (horizontal), nothing else changes.
+    """
+    lines = [ring[:, 0], ring[:, -1]] if axis == 0 else [ring[0], ring[-1]]
+    for line in lines:
+        pos = line @ direction
+        want = pos.copy()
+        for i in range(1, len(want)):
+            want[i] = max(want[i], want[i - 1] + step)
+        line += np.outer(want - pos, direction)
+
+
+def _clear_bodies(line: np.ndarray, along: np.ndarray, across: np.ndarray, points: np.ndarray, clearance: float) -> None:
+    """Move ``line`` (m, 3) along ``along`` until its walls pass outside the body ``points``, in place.
+
+    A wall hangs from each vertex of the ring down to the ground; it must
+    lie beyond (along ``along``) every body vertex in the vertex's strip
+    (between the midpoints to its neighbours along ``across``) lower than
+    the vertex (and above 2 cm: skin resting on the floor under a lying
+    body is below every wall).
+    """
+    if len(points) == 0:
+        return
+    c = line @ across
+    mid = 0.5 * (c[1:] + c[:-1])
+    lo = np.concatenate([[-np.inf], mid])
+    hi = np.concatenate([mid, [np.inf]])
+    lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+    pa, pc, py = points @ along, points @ across, points[:, 1]
+    for i in range(len(line)):
+        sel = (pc >= lo[i]) & (pc <= hi[i]) & (py >= 0.02) & (py <= line[i, 1])
+        if sel.any():
+            need = float(pa[sel].max()) + clearance - float(line[i] @ along)
+            if need > 0:
+                line[i] += need * along
+
+
+def add_border(grid: GridMesh, *, width: float, margin: float, min_spacing: float, meta: dict, bodies=()) -> GridMesh:
+    """The grid with two border rings, the outer one on a ground rectangle.
+
+    Parameters
+    ----------
+    grid : GridMesh
+        (R, C) faces.
+    width : float
+        Extension of the first ring, m.
+    margin : float
+        Ground rectangle margin around the surface, m.
+    min_spacing : float
+        Smallest spacing of ground vertices, m.
+    meta : dict
+        Receives ``border`` facts (rectangle, convexity per side).
+    bodies : sequence of Body
+        The walls from the ring down to the ground pass outside them.
+
+    Returns
+    -------
+    GridMesh
+        (R + 4, C + 4) faces; ``ground`` marks the outer ring.
+    """
+    V = grid.vertices.copy()
+    R, C = grid.shape
+    # rectangle axes: the body faces +Z, so the rectangle is axis-aligned:
+    # side = +-X (along the columns), front = +-Z (towards row 0)
+    side = np.array([1.0, 0.0, 0.0]) if (V[:, -1] - V[:, 0]).sum(0)[0] >= 0 else np.array([-1.0, 0.0, 0.0])
+    front = np.array([0.0, 0.0, 1.0]) if (V[0] - V[-1]).sum(0)[2] >= 0 else np.array([0.0, 0.0, -1.0])
+    # the grid's side columns must run monotonically from the front row to
+    # the back row: a side that doubles back (an outer back face wrapping
+    # forward past the seat's edge) would make the walls below it overlap
+    _monotone(V, axis=0, direction=-front, step=min_spacing)
+    ring = np.full((R + 3, C + 3, 3), np.nan)  # ring-1 grid: original at [1:-1, 1:-1]
+    ring[1:-1, 1:-1] = V
+    ring[1:-1, 0] = V[:, 0] - width * side
+    ring[1:-1, -1] = V[:, -1] + width * side
+    ring[0, 1:-1] = V[0] + width * unit(V[0] - V[1])
+    ring[-1, 1:-1] = V[-1] + width * unit(V[-1] - V[-2])
+    # the ring envelops the grid: its back row lies behind every grid vertex
+    # of the same column (a wall hanging from a backrest that wraps forward
+    # would cut the back), its front row in front, its sides outside the rows
+    _envelop(ring[-1, 1:-1], V.transpose(1, 0, 2), -front)
+    _envelop(ring[0, 1:-1], V.transpose(1, 0, 2), front)
+    _envelop(ring[1:-1, 0], V, -side)
+    _envelop(ring[1:-1, -1], V, side)
+    pts = np.concatenate([np.asarray(b.vertices, dtype=np.float64) for b in bodies]) if len(bodies) else np.zeros((0, 3))
+    _clear_bodies(ring[-1, 1:-1], -front, side, pts, min_spacing)
+    _clear_bodies(ring[0, 1:-1], front, side, pts, min_spacing)
+    _clear_bodies(ring[1:-1, 0], -side, front, pts, min_spacing)
+    _clear_bodies(ring[1:-1, -1], side, front, pts, min_spacing)
+    for i, k, ii in ((0, 0, 1), (0, -1, 1), (-1, 0, -2), (-1, -1, -2)):
+        kk = 1 if k == 0 else -2
+        ring[i, k] = ring[i, kk] + (ring[ii, k] - ring[ii, kk])
+    ring[..., 1] = np.maximum(ring[..., 1], 0.0)
+
+    # the same for the ring, and its front and back rows from right to left
+    _monotone(ring, axis=0, direction=-front, step=min_spacing)
+    _monotone(ring, axis=1, direction=side, step=min_spacing)
+    flat = ring.reshape(-1, 3)
+    s_all, f_all = flat @ side, flat @ front
+    s0, s1 = s_all.min() - margin, s_all.max() + margin
+    f0, f1 = f_all.min() - margin, f_all.max() + margin
+
+    out = np.zeros((R + 5, C + 5, 3))
+    out[1:-1, 1:-1] = ring
+
+    def point(s, f):
+        return np.outer(s, side) + np.outer(f, front)
+
+    convex = {}
+    # right side (column 0): from the front corner (f1) backwards; t = f1 - f
+    prof = ring[:, 0]
+    t, convex["right"] = place_ground_side(f1 - prof @ front, prof[:, 1], prof @ side - s0, f1 - f0, min_spacing)
+    out[1:-1, 0] = point(np.full(len(t), s0), f1 - t)
+    prof = ring[:, -1]
+    t, convex["left"] = place_ground_side(f1 - prof @ front, prof[:, 1], s1 - prof @ side, f1 - f0, min_spacing)
+    out[1:-1, -1] = point(np.full(len(t), s1), f1 - t)
+    prof = ring[0]
+    t, convex["front"] = place_ground_side(prof @ side - s0, prof[:, 1], f1 - prof @ front, s1 - s0, min_spacing)
+    out[0, 1:-1] = point(s0 + t, np.full(len(t), f1))
+    prof = ring[-1]
+    t, convex["back"] = place_ground_side(prof @ side - s0, prof[:, 1], prof @ front - f0, s1 - s0, min_spacing)
+    out[-1, 1:-1] = point(s0 + t, np.full(len(t), f0))
+    out[0, 0], out[0, -1] = point([s0], [f1])[0], point([s1], [f1])[0]
+    out[-1, 0], out[-1, -1] = point([s0], [f0])[0], point([s1], [f0])[0]
+    ground = np.zeros(out.shape[:2], bool)
+    ground[0, :] = ground[-1, :] = ground[:, 0] = ground[:, -1] = True
+    out[ground, 1] = 0.0
+
+    def pad(a, fill):
+        shape = (R + 4, C + 4) + a.shape[2:]
+        res = np.full(shape, fill, dtype=a.dtype)
+        res[2:-2, 2:-2] = a
+        return res
+
+    label = pad(grid.label, "border")
+    meta["border"] = {
+        "rectangle": [[float(x) for x in point([s], [f])[0]] for s, f in ((s0, f1), (s1, f1), (s1, f0), (s0, f0))],
+        "convex_sides": convex,
+        "width": width,
+        "margin": margin,
+    }
+    return GridMesh(
+        out,
+        pad(grid.segment, -1),
+        pad(grid.person, -1),
+        label,
+        pad(grid.plane_point, np.nan),
+        pad(grid.plane_normal, np.nan),
+        pad(grid.face_weight, 0.0),
+        ground,
+    )

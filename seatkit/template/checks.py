@@ -1,0 +1,538 @@
+"""Checks of a fitted cage: topology, self-intersection, body crossing, supportability.
+
+Non-planar quads are checked as four triangles around their centre (a close
+stand-in for the bilinear patch). Triangle-triangle intersection is tested
+edge against triangle (two triangles intersect iff an edge of one crosses the
+other, coplanar overlaps aside), vectorised in numpy over candidate pairs
+found with scipy's k-d tree, for the cage against itself and against the
+body (no open3d: its import alone costs about 1.3 s).
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from seatkit.errors import UnsupportedPoseError
+from seatkit.model import Body, ControlMesh
+from seatkit.skeleton import PARENTS, SEGMENT_INDEX, SEGMENTS
+from seatkit.template.planes import unit
+
+__all__ = [
+    "quad_triangles",
+    "topology_problems",
+    "self_intersecting_faces",
+    "crossing_faces",
+    "faces_cross_body",
+    "check_cage",
+    "check_supportability",
+    "cast_parallel",
+    "segments_cross_triangles",
+    "vertex_normals",
+    "body_vertex_normals",
+]
+
+
+def quad_triangles(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Split each quad into four triangles around its centre.
+
+    Returns
+    -------
+    points : (v + f, 3) float64
+        The vertices, then one centre per quad.
+    triangles : (4 f, 3) int64
+    owner : (4 f,) int64
+        Quad of each triangle.
+    """
+    nv, nf = len(vertices), len(quads)
+    centres = vertices[quads].mean(1)
+    points = np.vstack([vertices, centres])
+    c = nv + np.arange(nf)
+    tris = np.concatenate([np.stack([quads[:, i], quads[:, (i + 1) % 4], c], 1) for i in range(4)])
+    owner = np.tile(np.arange(nf), 4)
+    return points, tris.astype(np.int64), owner
+
+
+def topology_problems(quads: np.ndarray, n_vertices: int) -> list:
+    """What keeps ``quads`` from being a connected, consistently oriented manifold.
+
+    Returns
+    -------
+    list of str
+        Empty for a good cage.
+    """
+    problems = []
+    q = np.asarray(quads)
+    if (np.sort(q, 1)[:, 1:] == np.sort(q, 1)[:, :-1]).any():
+        problems.append("a face repeats a vertex")
+    directed = np.stack([q, np.roll(q, -1, axis=1)], -1).reshape(-1, 2)
+    d_unique, d_count = np.unique(directed, axis=0, return_counts=True)
+    if (d_count > 1).any():
+        problems.append(f"{int((d_count > 1).sum())} edges have inconsistent orientation or are shared by more than two faces")
+    undirected = np.sort(directed, 1)
+    _, u_count = np.unique(undirected, axis=0, return_counts=True)
+    if (u_count > 2).any():
+        problems.append(f"{int((u_count > 2).sum())} edges are shared by more than two faces (non-manifold)")
+    used = np.unique(q)
+    if len(used) != n_vertices:
+        problems.append(f"{n_vertices - len(used)} vertices belong to no face")
+    g = coo_matrix((np.ones(len(directed)), (directed[:, 0], directed[:, 1])), shape=(n_vertices, n_vertices))
+    n_comp, labels = connected_components(g, directed=False)
+    if len(np.unique(labels[used])) > 1:
+        problems.append(f"the cage has {len(np.unique(labels[used]))} connected parts")
+    # vertex manifoldness: the faces around each vertex form one fan
+    return problems
+
+
+def _pairs_within(tree: cKDTree, centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(i, j) index pairs: point j of ``tree`` within ``radii[i]`` of ``centres[i]``."""
+    if len(centres) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    hits = tree.query_ball_point(centres, radii, return_sorted=False)
+    counts = np.fromiter((len(h) for h in hits), dtype=np.int64, count=len(hits))
+    if counts.sum() == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    i = np.repeat(np.arange(len(centres)), counts)
+    j = np.fromiter((x for h in hits for x in h), dtype=np.int64, count=int(counts.sum()))
+    return i, j
+
+
+def segments_cross_triangles(p0: np.ndarray, p1: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray, *, eps: float = 1e-9) -> np.ndarray:
+    """(k,) bool: segment ``p0 -> p1`` crosses triangle ``(a, b, c)`` strictly inside, pairwise.
+
+    Möller-Trumbore on k (segment, triangle) pairs, every argument (k, 3).
+    Touching (an end point on the triangle, a hit on its border) does not count.
+    """
+    e1, e2 = b - a, c - a
+    d = p1 - p0
+    pvec = np.cross(d, e2)
+    det = np.einsum("ij,ij->i", pvec, e1)
+    ok = np.abs(det) > 1e-14
+    inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
+    tvec = p0 - a
+    u = np.einsum("ij,ij->i", tvec, pvec) * inv
+    qvec = np.cross(tvec, e1)
+    v = np.einsum("ij,ij->i", d, qvec) * inv
+    t = np.einsum("ij,ij->i", e2, qvec) * inv
+    return ok & (u > eps) & (v > eps) & (u + v < 1 - eps) & (t > eps) & (t < 1 - eps)
+
+
+def _triangle_spheres(points: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centroid (t, 3) and bounding radius (t,) of each triangle."""
+    P = points[tris]
+    c = P.mean(1)
+    return c, np.linalg.norm(P - c[:, None], axis=2).max(1)
+
+
+def _close_pairs(queries: np.ndarray, reach: float, targets: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(i, j) pairs with ``|queries[i] - targets[j]| <= reach + radii[j]`` (a superset).
+
+    Targets are split by radius (the smallest 60 %, up to 95 %, the rest),
+    so that one large target does not widen every query (scipy k-d trees,
+    ``sparse_distance_matrix``).
+    """
+    if len(queries) == 0 or len(targets) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    qtree = cKDTree(queries)
+    cuts = np.quantile(radii, [0.6, 0.95])
+    out_i, out_j = [], []
+    for sel in (np.flatnonzero(radii <= cuts[0]), np.flatnonzero((radii > cuts[0]) & (radii <= cuts[1])), np.flatnonzero(radii > cuts[1])):
+        if len(sel) == 0:
+            continue
+        res = qtree.sparse_distance_matrix(cKDTree(targets[sel]), reach + float(radii[sel].max()), output_type="ndarray")
+        out_i.append(res["i"].astype(np.int64))
+        out_j.append(sel[res["j"]])
+    return np.concatenate(out_i), np.concatenate(out_j)
+
+
+def _sample_triangles(points: np.ndarray, tris: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points covering each triangle at about ``spacing`` (vertices, edges, inside), and their triangle."""
+    P = points[tris]
+    longest = np.linalg.norm(P - np.roll(P, 1, axis=1), axis=2).max(1)
+    n = np.maximum(np.ceil(longest / spacing).astype(np.int64), 1)
+    samples, owner = [], []
+    for k in np.unique(n):
+        sel = np.flatnonzero(n == k)
+        i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+        keep = i + j <= k
+        bary = np.stack([k - i[keep] - j[keep], i[keep], j[keep]], 1) / k  # (m, 3)
+        samples.append(np.einsum("mk,tkd->tmd", bary, P[sel]).reshape(-1, 3))
+        owner.append(np.repeat(sel, len(bary)))
+    return np.concatenate(samples), np.concatenate(owner)
+
+
+def _sample_segments(p0: np.ndarray, p1: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points every ``spacing`` or less along each segment (end points included), and their segment."""
+    length = np.linalg.norm(p1 - p0, axis=1)
+    n = np.maximum(np.ceil(length / spacing).astype(np.int64), 1)
+    seg = np.repeat(np.arange(len(p0)), n + 1)
+    start = np.repeat(np.cumsum(n + 1) - (n + 1), n + 1)
+    frac = (np.arange(len(seg)) - start) / n[seg]
+    return p0[seg] + frac[:, None] * (p1 - p0)[seg], seg
+
+
+def _unique_pairs(a: np.ndarray, b: np.ndarray, nb: int) -> tuple[np.ndarray, np.ndarray]:
+    key = np.unique(a * nb + b)
+    return key // nb, key % nb
+
+
+def self_intersecting_faces(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """(k, 2) int64 pairs of quads that intersect (quads sharing a vertex are not compared)."""
+    if len(quads) < 2:
+        return np.zeros((0, 2), np.int64)
+    points, tris, owner = quad_triangles(vertices, quads)
+    centres, radius = _triangle_spheres(points, tris)
+    # triangle pairs whose bounding spheres overlap
+    tree = cKDTree(centres)
+    i, j = _pairs_within(tree, centres, radius + radius.max())
+    keep = (owner[i] < owner[j]) & (np.linalg.norm(centres[i] - centres[j], axis=1) <= radius[i] + radius[j])
+    i, j = i[keep], j[keep]
+    # quads sharing a vertex are neighbours, not intersections
+    shared = (quads[owner[i]][:, :, None] == quads[owner[j]][:, None, :]).any((1, 2))
+    i, j = i[~shared], j[~shared]
+    hit = np.zeros(len(i), bool)
+    for a_, b_ in ((i, j), (j, i)):
+        E = tris[a_]
+        T = points[tris[b_]]
+        for e0, e1 in ((0, 1), (1, 2), (2, 0)):
+            hit |= segments_cross_triangles(points[E[:, e0]], points[E[:, e1]], T[:, 0], T[:, 1], T[:, 2])
+    pairs = np.unique(np.sort(np.stack([owner[i[hit]], owner[j[hit]]], 1), 1), axis=0)
+    return pairs.reshape(-1, 2).astype(np.int64)
+
+
+_BODY_CACHE: dict = {}
+
+
+def _cached(body: Body, name: str, make):
+    """``make(body)``, computed once per body object (bodies are immutable)."""
+    key = id(body)
+    hit = _BODY_CACHE.get(key)
+    if hit is None or hit[0]() is not body:
+        hit = (weakref.ref(body, lambda _ref, k=key: _BODY_CACHE.pop(k, None)), {})
+        _BODY_CACHE[key] = hit
+    data = hit[1]
+    if name not in data:
+        data[name] = make(body)
+    return data[name]
+
+
+def body_edges(body: Body) -> np.ndarray:
+    """(e, 2) int64 unique edges of the body's triangles."""
+
+    def make(body):
+        f = np.asarray(body.faces)
+        n = len(body.vertices)
+        e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), 1)
+        key = np.unique(e[:, 0] * n + e[:, 1])
+        return np.stack([key // n, key % n], 1)
+
+    return _cached(body, "edges", make)
+
+
+def body_tree(body: Body) -> cKDTree:
+    """k-d tree of the body's vertices."""
+    return _cached(body, "tree", lambda b: cKDTree(np.asarray(b.vertices, dtype=np.float64)))
+
+
+def body_vertex_normals(body: Body) -> np.ndarray:
+    """(n, 3) float64 area-weighted outward vertex normals of a body."""
+
+    def make(body):
+        V = np.asarray(body.vertices, dtype=np.float64)
+        F = np.asarray(body.faces)
+        fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
+        vn = np.zeros_like(V)
+        for i in range(3):
+            np.add.at(vn, F[:, i], fn)
+        return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-12)
+
+    return _cached(body, "vertex_normals", make)
+
+
+def _body_triangle_spheres(body: Body) -> tuple[np.ndarray, np.ndarray]:
+    return _cached(body, "spheres", lambda b: _triangle_spheres(np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces)))
+
+
+def vertex_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """(v, 3) float64 unit normals of a quad cage (mean of the faces' diagonal-cross normals)."""
+    fn = np.cross(vertices[quads[:, 2]] - vertices[quads[:, 0]], vertices[quads[:, 3]] - vertices[quads[:, 1]])
+    fn = fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
+    vn = np.zeros_like(vertices)
+    for i in range(4):
+        np.add.at(vn, quads[:, i], fn)
+    return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-12)
+
+
+def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, tolerance: float) -> np.ndarray:
+    """(k,) int64 quads that cross the body deeper than ``tolerance``.
+
+    Every quad is moved back by ``tolerance`` along its own normal (away
+    from the body) so that faces resting in the skin within the allowed
+    sink depth do not count; then every body edge is tested against the
+    cage's triangles and every cage edge against the body's triangles.
+    Only numpy and scipy's k-d tree.
+    """
+    if len(quads) == 0:
+        return np.zeros(0, np.int64)
+    V = np.asarray(vertices, dtype=np.float64)
+    # every quad moved back along its own normal (quads come apart, which is
+    # fine here): a face may rest ``tolerance`` deep in the skin
+    Q = V[quads]
+    fn = np.cross(Q[:, 2] - Q[:, 0], Q[:, 3] - Q[:, 1])
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
+    Q = Q - tolerance * fn[:, None, :]
+    points, tris, owner = quad_triangles(Q.reshape(-1, 3), np.arange(4 * len(quads)).reshape(-1, 4))
+    bv = np.asarray(body.vertices, dtype=np.float64)
+    bf = np.asarray(body.faces)
+    bad = np.zeros(len(quads), bool)
+    spacing = 0.03
+    # only cage triangles near the body can cross it
+    centres, radius = _triangle_spheres(points, tris)
+    d, _ = body_tree(body).query(centres, distance_upper_bound=float(radius.max()) + 0.1)
+    near = np.flatnonzero(d <= radius + 0.05)
+    if len(near) == 0:
+        return np.zeros(0, np.int64)
+    # body edges against cage triangles: candidates from samples of the triangles
+    be = body_edges(body)
+    e0, e1 = bv[be[:, 0]], bv[be[:, 1]]
+    samples, s_owner = _sample_triangles(points, tris[near], spacing)
+    si, ej = _close_pairs(samples, spacing, 0.5 * (e0 + e1), 0.5 * np.linalg.norm(e1 - e0, axis=1))
+    ti, ej = _unique_pairs(near[s_owner[si]], ej, len(be))
+    T = points[tris[ti]]
+    hit = segments_cross_triangles(e0[ej], e1[ej], T[:, 0], T[:, 1], T[:, 2])
+    bad[owner[ti[hit]]] = True
+    # edges of those cage triangles against body triangles
+    sub = tris[near]
+    edges = np.concatenate([sub[:, [0, 1]], sub[:, [1, 2]], sub[:, [2, 0]]])
+    eo = np.tile(owner[near], 3)
+    p0, p1 = points[edges[:, 0]], points[edges[:, 1]]
+    es, e_owner = _sample_segments(p0, p1, spacing)
+    bc, br = _body_triangle_spheres(body)
+    si, tj = _close_pairs(es, spacing, bc, br)
+    ei, tj = _unique_pairs(e_owner[si], tj, len(bf))
+    B = bv[bf[tj]]
+    hit = segments_cross_triangles(p0[ei], p1[ei], B[:, 0], B[:, 1], B[:, 2])
+    bad[eo[ei[hit]]] = True
+    return np.flatnonzero(bad).astype(np.int64)
+
+
+def faces_cross_body(vertices: np.ndarray, quads: np.ndarray, body: Body, tolerance: float) -> bool:
+    """Whether any of ``quads`` crosses ``body`` (see :func:`crossing_faces`)."""
+    return len(crossing_faces(vertices, quads, body, tolerance)) > 0
+
+
+def cast_parallel(body: Body, origins: np.ndarray, direction: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """First body triangle hit by parallel rays.
+
+    Parameters
+    ----------
+    origins : (k, 3) float64
+    direction : (3,) float64
+        Common unit direction of the rays.
+    lengths : (k,) float64
+        Length of each ray, m.
+
+    Returns
+    -------
+    t : (k,) float64
+        Distance to the first hit (inf where none within the length).
+    triangle : (k,) int64
+        Triangle hit (-1 where none).
+    """
+    d = np.asarray(direction, dtype=np.float64)
+    d = d / np.linalg.norm(d)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(d, helper)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(d, e1)
+    B = np.asarray(body.vertices, dtype=np.float64)
+    F = np.asarray(body.faces)
+    t_hit = np.full(len(origins), np.inf)
+    tri = np.full(len(origins), -1, np.int64)
+    if len(origins) == 0:
+        return t_hit, tri
+    # only triangles in the box swept by the rays
+    proj = B @ np.stack([e1, e2, d], 1)
+    o3 = origins @ np.stack([e1, e2, d], 1)
+    lo = np.minimum(o3.min(0), (o3 + np.outer(lengths, [0.0, 0.0, 1.0])).min(0))
+    hi = np.maximum(o3.max(0), (o3 + np.outer(lengths, [0.0, 0.0, 1.0])).max(0))
+    P = proj[F]
+    inbox = ((P.max(1) >= lo) & (P.min(1) <= hi)).all(1)
+    F = F[inbox]
+    P = P[inbox]
+    if len(F) == 0:
+        return t_hit, tri
+    T = P[:, :, :2]
+    c = T.mean(1)
+    r = np.linalg.norm(T - c[:, None], axis=2).max(1)
+    o = o3[:, :2]
+    k, t = _close_pairs(o, 0.0, c, r)
+    if len(k) == 0:
+        return t_hit, tri
+    a, b, cc = T[t, 0], T[t, 1], T[t, 2]
+    v0, v1, v2 = b - a, cc - a, o[k] - a
+    den = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
+    ok = np.abs(den) > 1e-16
+    den = np.where(ok, den, 1.0)
+    beta = (v2[:, 0] * v1[:, 1] - v2[:, 1] * v1[:, 0]) / den
+    gamma = (v0[:, 0] * v2[:, 1] - v0[:, 1] * v2[:, 0]) / den
+    alpha = 1 - beta - gamma
+    inside = ok & (alpha >= 0) & (beta >= 0) & (gamma >= 0)
+    depth = P[t, :, 2]
+    hit_depth = alpha * depth[:, 0] + beta * depth[:, 1] + gamma * depth[:, 2] - o3[k, 2]
+    good = inside & (hit_depth > 0) & (hit_depth <= lengths[k])
+    k, t, h = k[good], t[good], hit_depth[good]
+    if len(k) == 0:
+        return t_hit, tri
+    order = np.lexsort((h, k))
+    k, t, h = k[order], t[order], h[order]
+    first = np.r_[True, k[1:] != k[:-1]]
+    t_hit[k[first]] = h[first]
+    tri[k[first]] = np.flatnonzero(inbox)[t[first]]
+    return t_hit, tri
+
+
+def check_cage(mesh: ControlMesh, bodies, *, tolerance: float) -> None:
+    """Raise unless ``mesh`` is a connected manifold that crosses neither itself nor a body.
+
+    Raises
+    ------
+    UnsupportedPoseError
+        Naming the faces (and the body segments they support) at fault.
+    """
+    problems = topology_problems(mesh.faces, len(mesh.vertices))
+    if problems:
+        msg = f"the fitted cage is not a connected manifold: {'; '.join(problems)}"
+        raise UnsupportedPoseError(msg, diagnostics={"topology": problems, **mesh.meta})
+    pairs = self_intersecting_faces(mesh.vertices, mesh.faces)
+    if len(pairs):
+        names = sorted({mesh.face_labels[i] for i in pairs.ravel()})
+        msg = f"the fitted cage intersects itself at faces {', '.join(names)}: this topology cannot support the pose"
+        raise UnsupportedPoseError(msg, parts=_parts(mesh, pairs.ravel()), diagnostics={"self_intersections": pairs.tolist(), **mesh.meta})
+    for person, body in enumerate(bodies):
+        bad = crossing_faces(mesh.vertices, mesh.faces, body, tolerance)
+        if len(bad):
+            names = sorted({mesh.face_labels[i] for i in bad})
+            msg = f"person {person}: the fitted cage crosses the body at faces {', '.join(names)}: this topology cannot support the pose"
+            raise UnsupportedPoseError(msg, parts=_parts(mesh, bad), diagnostics={"crossing_faces": bad.tolist(), **mesh.meta})
+
+
+def _parts(mesh: ControlMesh, faces) -> list:
+    segs = sorted({int(mesh.face_segments[i]) for i in faces if mesh.face_segments[i] >= 0})
+    return [SEGMENTS[s] for s in segs] or sorted({mesh.face_labels[i] for i in faces})
+
+
+def check_supportability(state, max_occluded_fraction: float, max_roll: float, joint_reach: float = 0.1) -> None:
+    """Detect poses this topology cannot support (paper Secs. 5.1 and 6).
+
+    Two tests per person: the body's left-right axis (hips and shoulders)
+    must be within ``max_roll`` of horizontal (a side-lying body would stack
+    the grid's columns), and for every fitted face, the important vertices
+    of its segments must reach the support without crossing another body
+    part: straight down to the ground under seat-like faces (normal within
+    45 deg of up, the paper's "shortest line to the ground"), along the
+    face normal to the plane otherwise. A part adjacent in the skeleton may
+    be crossed within ``joint_reach`` (m) of the joint (skin folds); in rows where the crossed-legs case merged the legs, the legs may
+    rest on each other.
+
+    Raises
+    ------
+    UnsupportedPoseError
+        Naming the segments, with per-segment diagnostics.
+    """
+    p = state.params
+    legs = {s for s in range(len(PARENTS)) if SEGMENTS[s].endswith(("UpLeg", "Leg", "Foot"))}
+    for block in state.blocks:
+        body = block.body
+        j = body.joints
+        lat = [j[SEGMENT_INDEX["LeftUpLeg"]] - j[SEGMENT_INDEX["RightUpLeg"]], j[SEGMENT_INDEX["LeftArm"]] - j[SEGMENT_INDEX["RightArm"]]]
+        lat = np.mean([v / max(np.linalg.norm(v), 1e-9) for v in lat], axis=0)
+        roll = float(np.arcsin(min(1.0, abs(lat[1]) / max(np.linalg.norm(lat), 1e-9))))
+        diag = {"person": block.person, "roll_deg": float(np.degrees(roll)), "max_roll_deg": float(np.degrees(max_roll)), "segments": {}}
+        merged = set(block.cases.get("merged_rows", []))
+        # the important vertices of every fitted face and the direction of their line to the support
+        tests = []
+        for (r, c), face in sorted(block.faces.items()):
+            if r not in block.rows or face.plane is None:
+                continue
+            imp = np.flatnonzero((block.importance >= p["important_threshold"]) & np.isin(block.segment, list(face.segments)))
+            if face.spec.role == "outer":
+                # an outer face answers for the important vertices it supports
+                imp = np.intersect1d(imp, face.supported)
+            if len(imp) == 0:
+                continue
+            allowed = set(face.segments)
+            if r in merged:
+                allowed |= legs
+            vertical = face.plane.normal[1] >= np.cos(np.pi / 4)
+            tests.append((face, imp, allowed, vertical))
+        # one cast straight down for every seat-like face, one along the normal for each other face
+        down = np.unique(np.concatenate([t[1] for t in tests if t[3]] or [np.zeros(0, np.int64)]))
+        hit_down = np.full(len(body.vertices), -1, np.int64)
+        t_down = np.full(len(body.vertices), np.inf)
+        up = np.array([0.0, 1.0, 0.0])
+        if len(down):
+            t_down[down], hit_down[down] = cast_parallel(body, body.vertices[down] - 2e-3 * up, -up, np.maximum(body.vertices[down, 1], 1e-6))
+        bad = []
+        # faces of a row that are not seat-like share one direction (their mean normal)
+        row_normal = {}
+        for face, imp, allowed, vertical in tests:
+            if not vertical:
+                row_normal.setdefault(face.spec.row, []).append(face.plane.normal)
+        row_cast = {}
+        for r, normals in row_normal.items():
+            n = unit(np.mean(normals, axis=0))
+            verts = np.unique(np.concatenate([t[1] for t in tests if not t[3] and t[0].spec.row == r]))
+            planes = [t[0].plane for t in tests if not t[3] and t[0].spec.row == r]
+            depth = np.max([np.maximum(pl.signed_distance(body.vertices[verts]), 1e-6) for pl in planes], axis=0)
+            t_r, tri_r = cast_parallel(body, body.vertices[verts] - 2e-3 * n, -n, depth)
+            row_cast[r] = (n, verts, t_r, tri_r)
+        for face, imp, allowed, vertical in tests:
+            if vertical:
+                n = up
+                t, tri = t_down[imp], hit_down[imp]
+            else:
+                n, verts, t_r, tri_r = row_cast[face.spec.row]
+                at = np.searchsorted(verts, imp)
+                t, tri = t_r[at], tri_r[at]
+            hit = tri >= 0
+            seg = block.segment[body.faces[np.where(hit, tri, 0), 0]]
+            occluded = hit & ~np.isin(seg, list(allowed))
+            # skin folds at a joint: an adjacent segment hit near the joint does not count
+            for s in set(block.neighbours_of(face.segments)) - allowed:
+                on = occluded & (seg == s)
+                if on.any():
+                    joint = block.joint_between(set(face.segments), {s})
+                    point = body.vertices[imp[on]] - (t[on] + 2e-3)[:, None] * n
+                    occluded[np.flatnonzero(on)[np.linalg.norm(point - joint, axis=1) <= joint_reach]] = False
+            w = block.importance[imp]
+            frac = float(w[occluded].sum() / w.sum()) if w.sum() > 0 else 0.0
+            for s in face.segments:
+                diag["segments"].setdefault(SEGMENTS[s], []).append({"face": state.face_name(face), "occluded_fraction": frac})
+            if frac > max_occluded_fraction:
+                bad.append((state.face_name(face), frac, face.segments))
+        state.meta.setdefault("supportability", []).append(diag)
+        if roll > max_roll:
+            parts = ["Hips", "Spine", "RightUpLeg", "LeftUpLeg"]
+            diag["supportable"] = []
+            msg = (
+                f"person {block.person}: the body lies on its side (left-right axis tilted {np.degrees(roll):.0f} deg, "
+                f"at most {np.degrees(max_roll):.0f} allowed): the {state.spec.name} template cannot support {', '.join(parts)} in this pose "
+                f"(its columns would stack on top of each other)"
+            )
+            raise UnsupportedPoseError(msg, parts=parts, diagnostics=diag)
+        if bad:
+            parts = sorted({SEGMENTS[s] for _, _, segs in bad for s in segs})
+            ok = sorted(set(diag["segments"]) - set(parts))
+            detail = ", ".join(f"{name} {100 * f:.0f}%" for name, f, _ in bad)
+            msg = (
+                f"person {block.person}: cannot support {', '.join(parts)}: their important vertices lie above other body parts "
+                f"(occluded share: {detail}); a support there would cross the body. Supportable: {', '.join(ok) or 'nothing'}"
+            )
+            diag["supportable"] = ok
+            raise UnsupportedPoseError(msg, parts=parts, diagnostics=diag)
+        diag["supportable"] = sorted(diag["segments"])

@@ -1,0 +1,283 @@
+"""Lift a fitted cage off the bodies by one small linear programme.
+
+Each face's plane is pushed to touch its own segment, but the face itself
+spans more than its segment (up to the row and column lines) and can cut
+into a neighbouring one (the lumbar face into the buttocks, the foot face
+into the ankle). Pushing faces one by one moves shared corners in
+conflicting directions; instead every movable cage vertex ``k`` gets one
+unknown ``t_k >= 0``, a distance along its own direction ``-m_k`` (``m_k``
+is the vertex normal, pointing at the body), and one linear programme
+(:func:`scipy.optimize.linprog`, HiGHS) finds the smallest total move that
+puts every body vertex above every face it lies over at least ``target``
+above the face (negative: an allowed sink into the soft skin).
+
+Faces are the four triangles around each quad's centre, as in
+:mod:`seatkit.template.checks`. A body vertex ``b`` over triangle ``T``
+(its projection along the triangle normal ``n_T`` falls inside ``T``, with
+barycentric weights giving each quad corner a share ``phi_k``) at height
+``s = (b - a_T) . n_T`` in ``(-depth, target)`` whose skin faces the
+triangle (body vertex normal . n_T < ``facing``) gives the row, provided
+some body vertex lies over the triangle on its normal's side (else the
+triangle faces away from the body, a border wall folded over the feet)
+
+    sum_k phi_k (m_k . n_T) t_k >= target - s.
+
+Heights deeper than ``depth`` belong to body parts on the far side of the
+face (a calf below the seat's front edge) and are left to the final check.
+The constraint is linear in the moves for fixed barycentric weights; a few
+rounds re-linearise it at the moved cage.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.optimize import linprog
+from scipy.spatial import cKDTree
+
+from seatkit.template.checks import _sample_triangles, _triangle_spheres, body_tree, body_vertex_normals, quad_triangles, vertex_normals
+
+__all__ = ["ClearanceResult", "lift_off_bodies"]
+
+_FLOOR_BAND = 0.02  # m: vertices this low (the ground is y = 0) may also slide along the floor
+_SPACING = 0.05  # m: samples of the cage used to find the triangles over a body vertex
+_NEAREST = 6  # nearest samples whose triangles are tested for each body vertex
+
+
+
+@dataclass(frozen=True)
+class ClearanceResult:
+    """What :func:`lift_off_bodies` did.
+
+    Attributes
+    ----------
+    vertices : (v, 3) float64
+        The moved cage vertices, m.
+    moves : (v,) float64
+        Distance each vertex moved (raised to the floor, then away from the bodies), m.
+    rows : int
+        Constraints of the last round.
+    rounds : int
+        Rounds run.
+    feasible : bool
+        Whether every round's programme was feasible within ``max_move``.
+    worst : float
+        Deepest remaining sink below ``target`` over the constrained body vertices, m (0 if none).
+    """
+
+    vertices: np.ndarray
+    moves: np.ndarray
+    rows: int
+    rounds: int
+    feasible: bool
+    worst: float
+
+
+def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, depth, facing, cache):
+    """Rows (A, rhs) of ``A t >= rhs`` over the move columns, and the deepest sink.
+
+    Column ``j`` moves vertex ``col_vertex[j]`` along ``col_dir[j]`` (the
+    constraint is ``s + sum_k phi_k (d_k . n_T)``, written with ``d`` pointing
+    away from the body, hence the minus sign). ``cache`` keeps each body's
+    vertices near the cage from the first round (later rounds move the cage
+    by centimetres).
+    """
+    points, tris, owner = quad_triangles(V, quads)
+    nq = len(quads)
+    T = points[tris]
+    n_t = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+    area2 = np.linalg.norm(n_t, axis=1)
+    good = area2 > 1e-10
+    n_t = n_t / np.maximum(area2, 1e-12)[:, None]
+    centres, radius = _triangle_spheres(points, tris)
+    rows, cols, vals, rhs = [], [], [], []
+    worst = 0.0
+    for person, (body, bn) in enumerate(zip(bodies, normals)):
+        B = np.asarray(body.vertices, dtype=np.float64)
+        # cage triangles that come within ``depth`` of the body
+        d, _ = body_tree(body).query(centres, distance_upper_bound=float(radius.max()) + depth)
+        close = np.flatnonzero(good & (d <= radius + depth))
+        if len(close) == 0:
+            continue
+        samples, s_owner = _sample_triangles(points, tris[close], _SPACING)
+        s_owner = close[s_owner]
+        stree = cKDTree(samples)
+        # body vertices near those triangles, and the triangles of their nearest samples
+        if person not in cache:
+            lo, hi = samples.min(0) - depth, samples.max(0) + depth
+            cand = np.flatnonzero(((B >= lo) & (B <= hi)).all(1))
+            d, _ = stree.query(B[cand], distance_upper_bound=depth + _SPACING + 0.02)
+            cache[person] = cand[np.isfinite(d)]
+        near = cache[person]
+        if len(near) == 0:
+            continue
+        k = min(_NEAREST, len(samples))
+        _, nearest = stree.query(B[near], k=k)
+        key = np.unique(np.repeat(near, k) * len(tris) + s_owner[nearest.ravel()])
+        bi, ti = key // len(tris), key % len(tris)
+        keep = good[ti]
+        bi, ti = bi[keep], ti[keep]
+        a, e1, e2, n = T[ti, 0], T[ti, 1] - T[ti, 0], T[ti, 2] - T[ti, 0], n_t[ti]
+        rel = B[bi] - a
+        s = np.einsum("ij,ij->i", rel, n)
+        sel = (s < depth) & (s > -depth)
+        bi, ti, s, rel, e1, e2, n = bi[sel], ti[sel], s[sel], rel[sel], e1[sel], e2[sel], n[sel]
+        # barycentric coordinates of the projection
+        d00, d01, d11 = np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e1, e2), np.einsum("ij,ij->i", e2, e2)
+        d20, d21 = np.einsum("ij,ij->i", rel, e1), np.einsum("ij,ij->i", rel, e2)
+        den = d00 * d11 - d01 * d01
+        beta = (d11 * d20 - d01 * d21) / den
+        gamma = (d00 * d21 - d01 * d20) / den
+        alpha = 1.0 - beta - gamma
+        inside = (alpha >= -1e-9) & (beta >= -1e-9) & (gamma >= -1e-9)
+        # a triangle with no body above it (on its normal's side) faces away
+        # from the body (a border wall folded over the feet): it is left to
+        # the final check
+        above = np.zeros(len(tris), bool)
+        above[ti[inside & (s >= target)]] = True
+        sinks = inside & (s < target) & above[ti] & (np.einsum("ij,ij->i", bn[bi], n) < facing)
+        if not sinks.any():
+            continue
+        ti, s, n = ti[sinks], s[sinks], n[sinks]
+        alpha, beta, gamma = alpha[sinks], beta[sinks], gamma[sinks]
+        worst = max(worst, float((target - s).max()))
+        q = owner[ti]
+        corner = (ti // nq)  # triangle i of a quad joins corners i and i+1 and the centre
+        k0 = quads[q, corner]
+        k1 = quads[q, (corner + 1) % 4]
+        m = len(ti)
+        base = sum(len(r) for r in rhs)
+        # phi: alpha on k0, beta on k1, gamma / 4 on each corner
+        ks = np.stack([k0, k1, quads[q, 0], quads[q, 1], quads[q, 2], quads[q, 3]], 1)
+        ph = np.stack([alpha, beta] + [gamma / 4.0] * 4, 1)
+        rows.append(np.repeat(np.arange(m), 6) + base)
+        cols.append(ks.ravel())
+        vals.append((ph[:, :, None] * n[:, None, :]).reshape(-1, 3))
+        rhs.append(target - s)
+    if not rhs:
+        return None, None, 0.0
+    rhs = np.concatenate(rhs)
+    r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
+    # row . (phi_k n_T) per vertex and axis, times each move column's direction
+    A = None
+    for axis in range(3):
+        P = sp.csr_matrix((v[:, axis], (r, c)), shape=(len(rhs), len(V)))
+        D = sp.csr_matrix((col_dir[:, axis], (col_vertex, np.arange(len(col_vertex)))), shape=(len(V), len(col_vertex)))
+        term = P @ D
+        A = term if A is None else A + term
+    return -A, rhs, worst
+
+
+def lift_off_bodies(
+    vertices: np.ndarray,
+    quads: np.ndarray,
+    bodies,
+    movable: np.ndarray,
+    *,
+    target: float,
+    depth: float = 0.08,
+    facing: float = -0.1,
+    max_move: float = 0.15,
+    rounds: int = 2,
+    weights: np.ndarray | None = None,
+    floor: float | None = None,
+) -> ClearanceResult:
+    """Move cage vertices away from the bodies so that no face sinks deeper than ``-target``.
+
+    Parameters
+    ----------
+    vertices : (v, 3) float64
+        Cage vertices, m.
+    quads : (f, 4) int64
+        Faces, counter-clockwise seen from the body (normals at the body).
+    bodies : sequence of Body
+    movable : (v,) bool
+        Vertices that may move (the ground ring stays).
+    target : float
+        Required height of every covered body vertex above its face, m
+        (negative: the allowed sink into the skin).
+    depth : float
+        Body vertices deeper than this below a face are on its far side, m.
+    facing : float
+        Only body vertices whose outward normal has a dot product with the
+        face normal below this count (the skin turned towards the face).
+    max_move : float
+        Largest move of one vertex, m.
+    rounds : int
+        Linear programmes solved, each at the cage moved by the previous.
+    weights : (v,) float64, optional
+        Cost of moving each vertex by 1 m (default 1): heavier vertices
+        (those carrying importance) move less.
+    floor : float, optional
+        No movable vertex ends below this height, m (the ground, less the
+        allowed sink): vertices below it are raised first, and no move
+        takes one below it.
+
+    Returns
+    -------
+    ClearanceResult
+    """
+    V = np.array(vertices, dtype=np.float64)
+    quads = np.asarray(quads, dtype=np.int64)
+    start = V.copy()
+    if floor is not None:
+        V[movable, 1] = np.maximum(V[movable, 1], floor)
+    directions = -vertex_normals(V, quads)
+    normals = [body_vertex_normals(b) for b in bodies]
+    cost = np.ones(len(V)) if weights is None else np.asarray(weights, dtype=np.float64)
+    # move columns: every movable vertex along its direction; a vertex on the
+    # floor may also slide along it, away from the walls it bounds (the heel
+    # line of a chair moves back under the calves when it cannot go down)
+    col_vertex = np.flatnonzero(movable)
+    col_dir = directions[col_vertex]
+    if floor is not None:
+        Q = V[quads]
+        fn = np.cross(Q[:, 2] - Q[:, 0], Q[:, 3] - Q[:, 1])
+        fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
+        wall = np.where((np.abs(fn[:, 1]) < 0.8)[:, None], fn * [1.0, 0.0, 1.0], 0.0)
+        push = np.zeros_like(V)
+        for i in range(4):
+            np.add.at(push, quads[:, i], -wall)
+        length = np.linalg.norm(push, axis=1)
+        slide = np.flatnonzero(movable & (V[:, 1] <= _FLOOR_BAND) & (length > 1e-6))
+        col_vertex = np.concatenate([col_vertex, slide])
+        col_dir = np.vstack([col_dir, push[slide] / length[slide, None]])
+    col_cost = cost[col_vertex]
+    cache: dict = {}
+    total = np.zeros(len(col_vertex))
+    feasible = True
+    rows = 0
+    worst = 0.0
+    done = 0
+    for done in range(1, rounds + 1):
+        A, rhs, worst = _constraints(V, quads, col_vertex, col_dir, bodies, normals, target=target, depth=depth, facing=facing, cache=cache)
+        if A is None:
+            worst = 0.0
+            break
+        rows = A.shape[0]
+        ub = np.maximum(max_move - total, 0.0)
+        if floor is not None:
+            down = col_dir[:, 1] < -1e-9
+            room = np.maximum(V[col_vertex, 1] - floor, 0.0) / np.where(down, -col_dir[:, 1], 1.0)
+            ub = np.where(down, np.minimum(ub, room), ub)
+        nc = len(col_vertex)
+        res = linprog(col_cost, A_ub=-A, b_ub=-rhs, bounds=np.stack([np.zeros(nc), ub], 1), method="highs")
+        if res.status != 0:
+            # infeasible within max_move: satisfy what can be, by a penalised version
+            feasible = False
+            m = A.shape[0]
+            c = np.concatenate([col_cost, np.full(m, 1e3)])
+            A2 = sp.hstack([-A, -sp.identity(m, format="csr")], format="csr")
+            bounds = np.vstack([np.stack([np.zeros(nc), ub], 1), np.stack([np.zeros(m), np.full(m, np.inf)], 1)])
+            res = linprog(c, A_ub=A2, b_ub=-rhs, bounds=bounds, method="highs")
+            if res.status != 0:
+                break
+        t = res.x[:nc]
+        np.add.at(V, col_vertex, t[:, None] * col_dir)
+        total += t
+        if t.max() < 1e-3:
+            break
+    moves = np.linalg.norm(V - start, axis=1)
+    return ClearanceResult(V, moves, rows, done, feasible, worst)

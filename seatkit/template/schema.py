@@ -1,0 +1,281 @@
+"""The template YAML format: JSON schema, parameters with units, semantic checks.
+
+A template file is read with :func:`seatkit.yamlio.load_yaml`, which keeps
+the line of every key, validated against :data:`TEMPLATE_SCHEMA` and then
+checked for meaning (segment names, grid shape, step names). Every problem
+is reported as ``file:line: key.path: what was expected``, before any
+geometry work. ``docs/templates.md`` describes every key.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+from seatkit.errors import RecipeError
+from seatkit.skeleton import SEGMENT_INDEX, SEGMENTS
+from seatkit.yamlio import Document, load_yaml, parse_yaml, validate
+
+__all__ = [
+    "PARAMETERS",
+    "TEMPLATE_SCHEMA",
+    "FaceSpec",
+    "TemplateSpec",
+    "read_template",
+    "resolve_parameters",
+]
+
+#: Every template parameter: default, unit, meaning. A template's
+#: ``parameters:`` overrides the default, a recipe's ``template_params``
+#: overrides the template. Angles are degrees here (``*_deg``) and radians
+#: inside the code.
+PARAMETERS: dict[str, tuple[float, str, str]] = {
+    "ransac_iterations": (300, "count", "candidate planes drawn per face"),
+    "support_distance": (0.02, "m", "a body vertex this close to a plane is supported"),
+    "max_penetration": (0.006, "m", "how far a plane may sink into the skin"),
+    "lambda_r": (0.5, "1", "weight of the PCA-normal penalty p^r"),
+    "lambda_d": (0.5, "1", "weight of the row-direction penalty p^d"),
+    "m_alpha_deg": (30.0, "deg", "deviation of d^ir from d^side where p^d reaches 0"),
+    "max_row_angle_deg": (60.0, "deg", "row line deviation that would degenerate a face (rejected)"),
+    "max_side_angle_deg": (30.0, "deg", "a fitted face's d_side may deviate this much from the body's right-to-left axis"),
+    "max_wrap_deg": (60.0, "deg", "an outer face's d_side may deviate this much from the right-to-left axis (it wraps around the body)"),
+    "min_dihedral_deg": (10.0, "deg", "planes closer than this meet at the joint, not at their intersection"),
+    "max_line_offset": (0.12, "m", "a row line farther than this from its joint is replaced by the joint line"),
+    "importance_floor": (1e-3, "1", "added to the importance so that unloaded segments still get a plane"),
+    "max_neighbour_cut": (0.02, "1", "fraction of adjacent-segment vertices a plane may cut under its patch"),
+    "important_threshold": (0.05, "1", "importance (fraction of the peak) above which a vertex is important"),
+    "end_margin": (0.03, "m", "how far the first and last rows reach beyond their segment"),
+}
+
+_NAME = {"type": "string", "pattern": "^[A-Za-z][A-Za-z0-9_.-]*$"}
+_SEGMENT = {"type": "string", "enum": list(SEGMENTS)}
+
+_FACE = {
+    "type": "object",
+    "additionalProperties": False,
+    "properties": {
+        "role": {"enum": ["fit", "bridge", "outer"], "description": "fit: own RANSAC plane; bridge: joins its neighbours; outer: plane through the inner column's vertices"},
+        "segments": {"type": "array", "items": _SEGMENT, "minItems": 1, "uniqueItems": True},
+        "label": {"type": "string"},
+        "width_fraction": {"type": "number", "exclusiveMinimum": 0, "maximum": 1},
+    },
+}
+
+TEMPLATE_SCHEMA: dict = {
+    "$schema": "https://json-schema.org/draft/2020-12/schema",
+    "type": "object",
+    "additionalProperties": False,
+    "required": ["name", "columns", "rows", "steps"],
+    "properties": {
+        "name": _NAME,
+        "description": {"type": "string"},
+        "people": {
+            "type": "object",
+            "additionalProperties": False,
+            "properties": {"min": {"type": "integer", "minimum": 1}, "max": {"type": "integer", "minimum": 1}},
+        },
+        "parameters": {
+            "type": "object",
+            "additionalProperties": False,
+            "properties": {k: ({"type": "integer", "minimum": 1} if u == "count" else {"type": "number", "minimum": 0}) for k, (_, u, _) in PARAMETERS.items()},
+        },
+        "columns": {"type": "array", "items": _NAME, "minItems": 1, "uniqueItems": True},
+        "rows": {
+            "type": "array",
+            "minItems": 1,
+            "items": {
+                "type": "object",
+                "additionalProperties": False,
+                "required": ["name", "faces"],
+                "properties": {
+                    "name": _NAME,
+                    "faces": {"type": "object", "additionalProperties": _FACE},
+                },
+            },
+        },
+        "steps": {
+            "type": "array",
+            "minItems": 1,
+            "items": {
+                "type": "object",
+                "required": ["step"],
+                "properties": {"step": _NAME},
+            },
+        },
+    },
+}
+
+
+@dataclass(frozen=True)
+class FaceSpec:
+    """One face of the grid as declared.
+
+    Attributes
+    ----------
+    row, column : int
+        Grid position (rows from the first listed, columns along d_side).
+    role : str
+        ``fit``, ``bridge`` or ``outer``.
+    segments : tuple of int
+        Body segments it supports (indices into :data:`seatkit.skeleton.SEGMENTS`).
+    label : str
+        Role shown in reports (``thigh.right``).
+    width_fraction : float
+        Fraction of the segment's width the face spans (fit faces).
+    """
+
+    row: int
+    column: int
+    role: str
+    segments: tuple
+    label: str
+    width_fraction: float = 1.0
+
+
+@dataclass
+class TemplateSpec:
+    """A validated template document.
+
+    Attributes
+    ----------
+    name, description : str
+    source : str
+        File it came from.
+    columns, rows : list of str
+        Column names (along d_side) and row names (from the first row up).
+    faces : dict of (int, int) to FaceSpec
+    steps : list of dict
+        Each ``{"step": name, **options}`` as written.
+    parameters : dict of str to float
+        Declared parameter values (degrees as written).
+    people : (int, int)
+        Fewest and most bodies the template fits.
+    doc : Document
+        The parsed document, for located error messages at fit time.
+    """
+
+    name: str
+    description: str
+    source: str
+    columns: list
+    rows: list
+    faces: dict
+    steps: list
+    parameters: dict
+    people: tuple
+    doc: Document = field(repr=False, default=None)
+
+    def where(self, path) -> str:
+        """``file:line: key.path`` of a key of this template."""
+        return self.doc.where(path)
+
+
+def read_template(source: str | Path, *, text: str | None = None) -> TemplateSpec:
+    """Read, validate and check a template.
+
+    Parameters
+    ----------
+    source : str or Path
+        File to read (or, with ``text``, the name used in messages).
+    text : str, optional
+        YAML text to parse instead of reading ``source``.
+
+    Returns
+    -------
+    TemplateSpec
+
+    Raises
+    ------
+    RecipeError
+        ``file:line: key.path: problem`` for every schema or meaning error.
+    """
+    doc = parse_yaml(text, source=str(source)) if text is not None else load_yaml(source)
+    if not isinstance(doc.data, dict):
+        raise doc.error((), f"a template must be a mapping (name, columns, rows, steps), got {type(doc.data).__name__}")
+    validate(doc, TEMPLATE_SCHEMA)
+    data = doc.data
+    columns = list(data["columns"])
+    rows = [r["name"] for r in data["rows"]]
+    if len(set(rows)) != len(rows):
+        dup = next(n for n in rows if rows.count(n) > 1)
+        raise doc.error(("rows", rows.index(dup, rows.index(dup) + 1), "name"), f"row {dup!r} is declared twice")
+    faces: dict = {}
+    for r, row in enumerate(data["rows"]):
+        declared = row["faces"]
+        for name in declared:
+            if name not in columns:
+                raise doc.error(("rows", r, "faces", name), f"unknown column {name!r}; the columns are {', '.join(columns)}")
+        for c, col in enumerate(columns):
+            if col not in declared:
+                raise doc.error(("rows", r, "faces"), f"row {row['name']!r} has no face for column {col!r}; every row needs one face per column ({', '.join(columns)})")
+            f = declared[col]
+            role = f.get("role", "fit")
+            segs = f.get("segments", [])
+            if role in ("fit", "outer") and not segs:
+                raise doc.error(("rows", r, "faces", col), f"a {role!r} face needs 'segments' (body segments it supports, e.g. [RightUpLeg])")
+            if role == "bridge" and segs:
+                raise doc.error(("rows", r, "faces", col, "segments"), "a 'bridge' face supports no segment of its own; remove 'segments' or use role 'fit'")
+            label = f.get("label", f"{row['name']}.{col}")
+            faces[(r, c)] = FaceSpec(r, c, role, tuple(SEGMENT_INDEX[s] for s in segs), label, float(f.get("width_fraction", 1.0)))
+    people = data.get("people", {})
+    lo, hi = int(people.get("min", 1)), int(people.get("max", 1))
+    if hi < lo:
+        raise doc.error(("people", "max"), f"people.max ({hi}) is smaller than people.min ({lo})")
+    steps = []
+    for i, s in enumerate(data["steps"]):
+        steps.append(dict(s))
+        for key in ("rows", "columns"):
+            if key in s:
+                names = rows if key == "rows" else columns
+                vals = s[key]
+                if not isinstance(vals, list) or not all(isinstance(v, str) for v in vals):
+                    raise doc.error(("steps", i, key), f"expected a list of {key[:-1]} names, got {vals!r}")
+                for j, v in enumerate(vals):
+                    if v not in names:
+                        raise doc.error(("steps", i, key, j), f"unknown {key[:-1]} {v!r}; expected one of {', '.join(names)}")
+    params = dict(data.get("parameters", {}))
+    return TemplateSpec(
+        name=data["name"],
+        description=data.get("description", ""),
+        source=str(source),
+        columns=columns,
+        rows=rows,
+        faces=faces,
+        steps=steps,
+        parameters=params,
+        people=(lo, hi),
+        doc=doc,
+    )
+
+
+def resolve_parameters(spec: TemplateSpec, overrides: Mapping[str, Any] | None) -> dict:
+    """Defaults, then the template's values, then ``overrides``; angles to radians.
+
+    Returns
+    -------
+    dict
+        Every parameter of :data:`PARAMETERS`; ``*_deg`` keys are also given
+        in radians under the name without the suffix (``m_alpha``).
+
+    Raises
+    ------
+    RecipeError
+        For an unknown parameter or a value of the wrong type.
+    """
+    values = {k: v for k, (v, _, _) in PARAMETERS.items()}
+    values.update(spec.parameters)
+    for key, value in (overrides or {}).items():
+        if key not in PARAMETERS:
+            msg = f"template_params.{key}: unknown parameter of template {spec.name!r}; expected one of {', '.join(PARAMETERS)}"
+            raise RecipeError(msg)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
+            msg = f"template_params.{key}: expected a non-negative number ({PARAMETERS[key][1]}), got {value!r}"
+            raise RecipeError(msg)
+        values[key] = value
+    values["ransac_iterations"] = int(values["ransac_iterations"])
+    for key in list(values):
+        if key.endswith("_deg"):
+            values[key[: -len("_deg")]] = math.radians(values[key])
+    return values

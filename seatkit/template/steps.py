@@ -1,0 +1,415 @@
+"""The built-in fitting steps a template lists under ``steps:``.
+
+Each step is a :class:`seatkit.interfaces.TemplateStep`: a ``name``, a
+``description``, an ``options`` dict of accepted keys with their meaning,
+and ``run(state, *, options)``, which advances the :class:`FitState` in
+place. Steps that fit faces run once per person (block); ``join``,
+``armrests`` and ``border`` work on the joined grid. A plugin adds a step by
+returning an object of this shape from ``seatkit_register_template_steps``.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+import numpy as np
+
+from seatkit.errors import RecipeError
+from seatkit.template.border import add_border
+from seatkit.template.checks import check_supportability
+from seatkit.template.clearance import lift_off_bodies
+from seatkit.template.grid import FitState, GridMesh
+from seatkit.template.planes import fit_support_plane
+from seatkit.template.special_cases import add_armrests, fit_outer_face, merge_crossed_legs
+
+__all__ = ["BUILTIN_STEPS", "builtin_steps"]
+
+
+def _rows(state: FitState, options, block) -> list:
+    names = options.get("rows", state.spec.rows)
+    return [state.spec.rows.index(n) for n in names if state.spec.rows.index(n) in block.rows]
+
+
+def _columns(state: FitState, options) -> list:
+    return [state.spec.columns.index(n) for n in options.get("columns", state.spec.columns)]
+
+
+def fit_face(state: FitState, block, face, *, direction_penalty: bool, segments=None) -> None:
+    """RANSAC-fit the plane of one face and give it its frame (paper Sec. 5.2)."""
+    p = state.params
+    segs = tuple(segments or face.segments)
+    idx = block.vertices_of(segs)
+    if len(idx) < 3:
+        msg = f"{state.spec.source}: face {state.face_name(face)!r}: segments {state.segment_names(segs)} have {len(idx)} body vertices; at least 3 are needed"
+        raise RecipeError(msg)
+    pts = block.body.vertices[idx]
+    neigh = block.vertices_of(block.neighbours_of(segs))
+    # an even subset is enough to tell whether a candidate cuts a neighbour
+    neigh = neigh[:: max(1, -(-len(neigh) // 500))]
+    prev = None
+    i = block.rows.index(face.spec.row)
+    if direction_penalty and i > 0:
+        q = block.neighbour_plane(block.rows[i - 1], face.spec.column)
+        prev = None if q is None else q.normal
+    res = fit_support_plane(
+        pts,
+        block.importance[idx],
+        rng=state.rng,
+        iterations=p["ransac_iterations"],
+        support_distance=p["support_distance"],
+        max_penetration=p["max_penetration"],
+        body_side=pts.mean(0),
+        bone=block.row_axis(segs, face.spec.row),
+        reference=block.frame_normal(segs, face.spec.row),
+        side_hint=block.lateral(),
+        max_side_angle=p["max_side_angle"],
+        lambda_r=p["lambda_r"],
+        lambda_d=p["lambda_d"] if prev is not None else 0.0,
+        m_alpha=p["m_alpha"],
+        previous_normal=prev,
+        max_row_angle=p["max_row_angle"],
+        neighbours=block.body.vertices[neigh],
+        max_neighbour_cut=p["max_neighbour_cut"],
+        importance_floor=p["importance_floor"],
+    )
+    face.segments = segs
+    block.set_frame(face, res.plane)
+    face.supported = idx[res.supported]
+    face.weight = float(block.importance[face.supported].sum())
+    face.info = {"candidates": res.candidates, "rejected": res.rejected, "quality": res.plane.quality}
+
+
+class FitPlanesStep:
+    """Importance-weighted RANSAC plane per ``fit`` face, row after row."""
+
+    name = "fit-planes"
+    description = "RANSAC supporting plane for each 'fit' face of the given rows and columns (paper Sec. 5.2)"
+    options = {
+        "rows": "rows to fit, in order (default: all)",
+        "columns": "columns to fit (default: all)",
+        "direction_penalty": "use p^d against the previous row's plane (bool, default false)",
+    }
+
+    def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        for block in state.blocks:
+            for r in _rows(state, options, block):
+                for c in _columns(state, options):
+                    face = block.faces[(r, c)]
+                    if face.spec.role == "fit":
+                        fit_face(state, block, face, direction_penalty=bool(options.get("direction_penalty", False)))
+
+
+class BridgeStep:
+    """Checks a bridge column has fitted neighbours; its corners are theirs."""
+
+    name = "bridge"
+    description = "connect two fitted columns by a bridge column (its corners are its neighbours' inner corners)"
+    options = {"rows": "rows of the bridge (default: all)", "columns": "bridge columns (default: every bridge face)"}
+
+    def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        C = len(state.spec.columns)
+        for block in state.blocks:
+            for r in _rows(state, options, block):
+                for c in _columns(state, options):
+                    face = block.faces[(r, c)]
+                    if face.spec.role != "bridge":
+                        continue
+                    for cc in (c - 1, c + 1):
+                        if not 0 <= cc < C or block.faces[(r, cc)].spec.role != "fit":
+                            msg = f"{state.spec.source}: bridge face {state.face_name(face)!r} needs a 'fit' face on both sides"
+                            raise RecipeError(msg)
+
+
+class CornersStep:
+    """Corner vertices from row and column lines, averaged over adjacent faces."""
+
+    name = "corners"
+    description = "intersect row and column lines of every fitted face and average the corner estimates"
+    options = {}
+
+    def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        for block in state.blocks:
+            block.estimates = {}
+            for (r, c), face in sorted(block.faces.items()):
+                if r in block.rows and face.spec.role == "fit" and face.plane is not None:
+                    block.add_estimates(face, block.corners(face, state.params))
+
+
+class OuterColumnsStep:
+    """Outer faces through the inner column's fixed vertices (paper Sec. 5.2, step 4)."""
+
+    name = "outer-columns"
+    description = "fit the outer column faces with their two inner vertices fixed, then shift them outwards"
+    options = {
+        "rows": "rows with outer faces (default: all)",
+        "columns": "outer columns (default: first and last)",
+        "min_width": "narrowest outer face, m (default 0.06)",
+        "margin": "width beyond the segment's extent, m (default 0.02)",
+        "candidates": "body vertices tried as the third point (count, default 400)",
+    }
+
+    def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        cols = _columns(state, options) if "columns" in options else [0, len(state.spec.columns) - 1]
+        for block in state.blocks:
+            for r in _rows(state, options, block):
+                for c in cols:
+                    face = block.faces[(r, c)]
+                    if face.spec.role == "outer":
+                        fit_outer_face(state, block, face, options)
+
+
+class CrossedLegsStep:
+    """One plane for both legs when their faces come too close (paper Sec. 5.2)."""
+
+    name = "crossed-legs"
+    description = "merge the two leg faces of a row into one plane when they are closer than min_distance"
+    options = {
+        "rows": "leg rows (default: all)",
+        "columns": "the two leg columns, right then left",
+        "min_distance": "smallest gap between the two faces, m (default 0.02)",
+    }
+
+    def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        cols = _columns(state, options)
+        if len(cols) != 2:
+            msg = f"{state.spec.source}: step crossed-legs: 'columns' must name the two leg columns, got {options.get('columns')!r}"
+            raise RecipeError(msg)
+        for block in state.blocks:
+            merge_crossed_legs(state, block, _rows(state, options, block), cols, float(options.get("min_distance", 0.02)), fit_face)
+
+
+class NoBackrestStep:
+    """Drop the backrest rows when the back carries (almost) no load from behind.
+
+    The load is the reaction force on the rows' segments along the torso's
+    front direction (the body's left-right axis crossed with the hips-to-
+    upper-back axis), so that a chest resting on the thighs does not count
+    as a back needing a backrest.
+    """
+
+    name = "no-backrest"
+    description = "remove the given end rows when the load pushing their segments forwards is below min_load_fraction of the total"
+    options = {
+        "rows": "the backrest rows (must be the last or first rows)",
+        "min_load_fraction": "share of the total normal reaction, pushing the back forwards, below which the back needs no support (default 0.01)",
+    }
+
+    def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        names = options.get("rows", [])
+        thr = float(options.get("min_load_fraction", 0.01))
+        for block in state.blocks:
+            rows = [state.spec.rows.index(n) for n in names]
+            segs = {s for r in rows for s in block.row_segments(r)}
+            # load from behind: reaction force along the torso's front direction
+            front = block.torso_front()
+            on = np.isin(block.segment, list(segs))
+            load = float(np.clip(block.force[on] @ front, 0.0, None).sum())
+            total = float(block.normal_force.sum()) or 1.0
+            share = load / total
+            record = {"case": "no-backrest", "person": block.person, "load_fraction": share, "threshold": thr, "taken": share < thr}
+            if share < thr:
+                keep = [r for r in block.rows if r not in rows]
+                if not keep or keep != list(range(keep[0], keep[-1] + 1)):
+                    msg = f"{state.spec.source}: step no-backrest: rows {names} are not at the end of the grid"
+                    raise RecipeError(msg)
+                block.rows = keep
+                record["rows_removed"] = names
+            state.meta.setdefault("special_cases", []).append(record)
+
+
+class SupportabilityStep:
+    """Detect poses the topology cannot support (paper Sec. 5.1 and 6)."""
+
+    name = "supportability"
+    description = "raise UnsupportedPoseError when important vertices cannot reach their face without crossing the body"
+    options = {
+        "max_occluded_fraction": "share of a segment's importance that may be occluded (default 0.2)",
+        "max_roll_deg": "largest tilt of the body's left-right axis from horizontal, deg (default 45)",
+        "joint_reach": "an adjacent segment crossed within this distance of the joint does not count, m (default 0.1)",
+    }
+
+    def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        check_supportability(
+            state,
+            float(options.get("max_occluded_fraction", 0.2)),
+            np.radians(float(options.get("max_roll_deg", 45.0))),
+            float(options.get("joint_reach", 0.1)),
+        )
+
+
+class JoinStep:
+    """Join the people's blocks into one grid, with connector columns between them."""
+
+    name = "join"
+    description = "assemble every person's block into one grid; neighbours are joined by a connector column"
+    options = {}
+
+    def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        state.grid = join_blocks(state)
+
+
+def join_blocks(state: FitState) -> GridMesh:
+    """The grid of all blocks side by side (seat order along +d_side)."""
+    parts = []
+    nrows = {len(b.rows) for b in state.blocks}
+    if len(nrows) != 1:
+        msg = "people's blocks have different row counts after special cases " + str([len(b.rows) for b in state.blocks]) + "; they cannot share one grid"
+        raise RecipeError(msg)
+    for block in state.blocks:
+        V = block.vertex_grid()
+        if np.isnan(V).any():
+            miss = [(int(i), int(k)) for i, k in zip(*np.nonzero(np.isnan(V).any(2)))]
+            msg = f"{state.spec.source}: template {state.spec.name!r}: vertices {miss} (row boundary, column line) were not placed by any step"
+            raise RecipeError(msg)
+        R, C = len(block.rows), block.n_columns
+        seg = np.full((R, C), -1, np.int64)
+        lab = np.empty((R, C), object)
+        pp = np.full((R, C, 3), np.nan)
+        pn = np.full((R, C, 3), np.nan)
+        fw = np.zeros((R, C))
+        for i, r in enumerate(block.rows):
+            for c in range(C):
+                f = block.faces[(r, c)]
+                lab[i, c] = f.spec.label
+                if f.spec.segments:
+                    seg[i, c] = f.spec.segments[0]
+                if f.plane is not None:
+                    pp[i, c], pn[i, c] = f.plane.point, f.plane.normal
+                    fw[i, c] = f.weight
+        parts.append((V, seg, lab, pp, pn, fw, np.full((R, C), block.person, np.int64)))
+    V, seg, lab, pp, pn, fw, per = parts[0]
+    for Vn, sn, ln, ppn, pnn, fwn, pen in parts[1:]:
+        R = sn.shape[0]
+        # connector column: the faces between the last vertex column and the next block's first
+        V = np.concatenate([V, Vn], axis=1)
+        seg = np.concatenate([seg, np.full((R, 1), -1), sn], axis=1)
+        lab = np.concatenate([lab, np.full((R, 1), "connector", object), ln], axis=1)
+        pp = np.concatenate([pp, np.full((R, 1, 3), np.nan), ppn], axis=1)
+        pn = np.concatenate([pn, np.full((R, 1, 3), np.nan), pnn], axis=1)
+        fw = np.concatenate([fw, np.zeros((R, 1)), fwn], axis=1)
+        per = np.concatenate([per, np.full((R, 1), -1), pen], axis=1)
+    peak = fw.max() if fw.size and fw.max() > 0 else 1.0
+    return GridMesh(V, seg, per, lab, pp, pn, fw / peak, np.zeros(V.shape[:2], bool))
+
+
+class ArmrestsStep:
+    """Armrests: PCA + RANSAC plane and minimal spanning rectangle, two columns per side."""
+
+    name = "armrests"
+    description = "add an armrest column and a connector column on each side when the arms can rest on one"
+    options = {
+        "right": "segments of the right arm (default [RightArm, RightForeArm])",
+        "left": "segments of the left arm (default [LeftArm, LeftForeArm])",
+        "min_load_fraction": "share of the load the arm must carry to get an armrest (default 0.02)",
+        "min_distance": "smallest distance between armrest and grid, m (default 0.04)",
+        "max_tilt_deg": "steepest armrest plane, deg from horizontal (default 30)",
+        "reach_below": "grid row lines this far below the armrest (and reach_above above it) are spread along it, m (default 0.35)",
+        "reach_above": "see reach_below, m (default 0.1)",
+    }
+
+    def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        if state.grid is None:
+            state.grid = join_blocks(state)
+        add_armrests(state, options)
+
+
+class BorderStep:
+    """Two rings of border faces; the outer ring on a ground rectangle (Sec. 5.2 refinement)."""
+
+    name = "border"
+    description = "extend the grid by two rows/columns on every side down to a ground rectangle at y = 0"
+    options = {
+        "width": "how far the first border ring extends the surface, m (default 0.05)",
+        "margin": "ground rectangle margin around the surface, m (default 0.05)",
+        "min_spacing": "smallest spacing of ground vertices along the rectangle, m (default 0.02)",
+        "clearance": "lift the finished cage off the bodies (the clearance step), bool (default true)",
+    }
+
+    def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        if state.grid is None:
+            state.grid = join_blocks(state)
+        state.grid = add_border(
+            state.grid,
+            width=float(options.get("width", 0.05)),
+            margin=float(options.get("margin", 0.05)),
+            min_spacing=float(options.get("min_spacing", 0.02)),
+            meta=state.meta,
+            bodies=[b.body for b in state.blocks],
+        )
+        if options.get("clearance", True):
+            lift_grid(state, {})
+
+
+def grid_quads(shape: tuple[int, int]) -> np.ndarray:
+    """(R*C, 4) int64 quads of a structured grid of (R, C) faces, as in :func:`grid_to_mesh`."""
+    R, C = shape
+    ids = np.arange((R + 1) * (C + 1)).reshape(R + 1, C + 1)
+    return np.stack([ids[:-1, :-1], ids[:-1, 1:], ids[1:, 1:], ids[1:, :-1]], axis=-1).reshape(-1, 4)
+
+
+def lift_grid(state: FitState, options: Mapping[str, Any]) -> None:
+    """Lift the joined grid off the bodies (:func:`seatkit.template.clearance.lift_off_bodies`)."""
+    grid = state.grid
+    p = state.params
+    quads = grid_quads(grid.shape)
+    V = grid.vertices.reshape(-1, 3)
+    movable = ~grid.ground.ravel()
+    res = lift_off_bodies(
+        V,
+        quads,
+        [b.body for b in state.blocks],
+        movable,
+        target=-float(options.get("sink", 0.5 * p["max_penetration"])),
+        depth=float(options.get("depth", 0.08)),
+        max_move=float(options.get("max_move", 0.3)),
+        floor=-float(options.get("below_ground", 0.03)),
+        rounds=int(options.get("rounds", 2)),
+    )
+    grid.vertices = res.vertices.reshape(grid.vertices.shape)
+    state.meta["clearance"] = {
+        "moved_vertices": int((res.moves > 1e-6).sum()),
+        "max_move": float(res.moves.max()),
+        "constraints": res.rows,
+        "rounds": res.rounds,
+        "feasible": res.feasible,
+    }
+
+
+class ClearanceStep:
+    """Lift the cage off the bodies by one linear programme (see :mod:`seatkit.template.clearance`)."""
+
+    name = "clearance"
+    description = "move cage vertices along their normals, as little as possible, until no face sinks into a body"
+    options = {
+        "sink": "deepest allowed sink of a face into the skin, m (default: half of max_penetration)",
+        "depth": "body vertices deeper than this below a face are on its far side, m (default 0.08)",
+        "max_move": "largest move of one vertex, m (default 0.3)",
+        "below_ground": "deepest a vertex may end below the ground (y = 0), m (default 0.03)",
+        "rounds": "linear programmes solved, each re-linearised at the moved cage (count, default 2)",
+    }
+
+    def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        if state.grid is None:
+            state.grid = join_blocks(state)
+        lift_grid(state, options)
+
+
+def builtin_steps() -> list:
+    """A fresh instance of every built-in step."""
+    return [
+        FitPlanesStep(),
+        BridgeStep(),
+        CornersStep(),
+        OuterColumnsStep(),
+        CrossedLegsStep(),
+        NoBackrestStep(),
+        SupportabilityStep(),
+        JoinStep(),
+        ArmrestsStep(),
+        BorderStep(),
+        ClearanceStep(),
+    ]
+
+
+#: The built-in steps by name.
+BUILTIN_STEPS: dict = {s.name: s for s in builtin_steps()}

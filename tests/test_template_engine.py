@@ -1,0 +1,101 @@
+"""Template engine pieces: schema errors, RANSAC planes, rectangle, border LP, topology."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from seatkit.errors import RecipeError
+from seatkit.resources import template_path
+from seatkit.template import load_template
+from seatkit.template.border import place_ground_side
+from seatkit.template.checks import self_intersecting_faces, topology_problems
+from seatkit.template.planes import fit_support_plane
+from seatkit.template.special_cases import minimal_rectangle
+
+
+def test_chair_template_loads():
+    t = load_template(template_path("chair.yaml"))
+    assert t.name == "chair"
+    assert len(t.spec.rows) == 7 and len(t.spec.columns) == 3
+    assert len(t.spec.faces) == 21
+
+
+BAD = """\
+name: stool
+columns: [a, b]
+rows:
+  - name: seat
+    faces:
+      a: {segments: [Hips]}
+      b: {segments: [Thigh]}
+steps:
+  - step: fit-planes
+"""
+
+
+def test_schema_error_names_file_line_and_key():
+    with pytest.raises(RecipeError) as e:
+        load_template(text=BAD, source="stool.yaml")
+    msg = str(e.value)
+    assert "stool.yaml:7" in msg and "rows[0].faces.b.segments[0]" in msg
+
+
+def test_unknown_step_option_is_located():
+    text = BAD.replace("Thigh", "LeftUpLeg") + "    colour: red\n"
+    with pytest.raises(RecipeError) as e:
+        load_template(text=text, source="stool.yaml")
+    assert "stool.yaml:10" in str(e.value) and "colour" in str(e.value)
+
+
+def test_ransac_finds_the_supporting_plane_of_a_box_bottom():
+    rng = np.random.default_rng(1)
+    # points on a box 0.4 x 0.1 x 0.2, importance on the bottom face (y = 0.3)
+    pts = rng.uniform([-0.2, 0.3, -0.1], [0.2, 0.4, 0.1], size=(2000, 3))
+    face = rng.integers(0, 3, len(pts))
+    pts[face == 0, 1] = 0.3
+    imp = (pts[:, 1] < 0.301).astype(float)
+    res = fit_support_plane(
+        pts, imp, rng=np.random.default_rng(0), iterations=200, support_distance=0.01, max_penetration=0.002,
+        body_side=pts.mean(0), bone=np.array([1.0, 0, 0]), lambda_r=0.5,
+    )
+    assert abs(res.plane.normal[1]) > 0.999 and res.plane.normal[1] > 0
+    assert abs(res.plane.signed_distance(np.array([[0.0, 0.3, 0.0]]))[0]) <= 0.004
+    # same seed, same plane
+    res2 = fit_support_plane(
+        pts, imp, rng=np.random.default_rng(0), iterations=200, support_distance=0.01, max_penetration=0.002,
+        body_side=pts.mean(0), bone=np.array([1.0, 0, 0]), lambda_r=0.5,
+    )
+    np.testing.assert_array_equal(res.plane.normal, res2.plane.normal)
+
+
+def test_minimal_rectangle_of_a_rotated_rectangle():
+    a = np.radians(30)
+    R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])
+    pts = np.random.default_rng(0).uniform([0, 0], [0.4, 0.1], size=(500, 2))
+    pts = np.vstack([pts, [[0, 0], [0.4, 0], [0.4, 0.1], [0, 0.1]]]) @ R.T
+    box = minimal_rectangle(pts)
+    edges = np.linalg.norm(np.diff(np.vstack([box, box[:1]]), axis=0), axis=1)
+    np.testing.assert_allclose(sorted(edges), [0.1, 0.1, 0.4, 0.4], atol=1e-9)
+
+
+def test_ground_side_is_ordered_and_convex():
+    # a profile that goes up and back over itself (a backrest above a seat)
+    P = np.array([0.05, 0.3, 0.31, 0.6, 0.58, 0.62])
+    H = np.array([0.0, 0.0, 0.45, 0.45, 0.9, 1.1])
+    U = np.full(6, 0.05)
+    t, convex = place_ground_side(P, H, U, 0.8, 0.02)
+    assert convex
+    assert np.all(np.diff(np.concatenate([[0], t, [0.8]])) >= 0.02 - 1e-9)
+
+
+def test_topology_and_self_intersection_checks():
+    ids = np.arange(9).reshape(3, 3)
+    quads = np.stack([ids[:-1, :-1], ids[:-1, 1:], ids[1:, 1:], ids[1:, :-1]], -1).reshape(-1, 4)
+    xs, ys = np.meshgrid(np.arange(3.0), np.arange(3.0))
+    V = np.stack([xs.ravel(), np.zeros(9), ys.ravel()], 1)
+    assert topology_problems(quads, 9) == []
+    assert len(self_intersecting_faces(V, quads)) == 0
+    # inconsistent winding is reported
+    flipped = quads[:, ::-1]
+    assert topology_problems(np.vstack([quads[:2], flipped[2:]]), 9)
