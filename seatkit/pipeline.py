@@ -80,7 +80,9 @@ def make_bodies(recipe: Mapping, registry) -> list[Body]:
         bodies.append(model.pose(rig, pose, ground=True))
     offsets = [e.get("offset") for e in recipe["bodies"]]
     if all(o is not None for o in offsets):
-        return [b.translated(o) for b, o in zip(bodies, offsets)]
+        placed = [b.translated(o) for b, o in zip(bodies, offsets)]
+        check_overlap(placed)
+        return placed
     if any(o is not None for o in offsets):
         msg = "bodies: give an offset for every person or for none (automatic spacing)"
         raise SeatkitError(msg)
@@ -94,6 +96,30 @@ def make_bodies(recipe: Mapping, registry) -> list[Body]:
         x += (hi - lo) + gap
     centre = 0.5 * (placed[0].vertices[:, 0].min() + placed[-1].vertices[:, 0].max())
     return [b.translated([-centre, 0.0, 0.0]) for b in placed]
+
+
+#: Two people closer than this anywhere overlap, m.
+MIN_PERSON_GAP = 0.01
+
+
+def check_overlap(bodies: list[Body]) -> None:
+    """Refuse people who overlap (closer than :data:`MIN_PERSON_GAP`), naming them."""
+    from scipy.spatial import cKDTree
+
+    for i in range(len(bodies)):
+        for j in range(i + 1, len(bodies)):
+            a, b = bodies[i], bodies[j]
+            lo = np.maximum(a.vertices.min(0), b.vertices.min(0)) - MIN_PERSON_GAP
+            hi = np.minimum(a.vertices.max(0), b.vertices.max(0)) + MIN_PERSON_GAP
+            if np.any(lo > hi):
+                continue  # bounding boxes apart
+            near = cKDTree(b.vertices, balanced_tree=False, compact_nodes=False).query(a.vertices, distance_upper_bound=MIN_PERSON_GAP)[0]
+            if np.isfinite(near).any():
+                msg = (
+                    f"person {i + 1} ({a.name}) and person {j + 1} ({b.name}) overlap: their bodies come within "
+                    f"{MIN_PERSON_GAP * 100:.0f} cm of each other; move them apart with bodies[].offset or use automatic spacing"
+                )
+                raise SeatkitError(msg)
 
 
 def _versions() -> dict:

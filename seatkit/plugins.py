@@ -47,6 +47,7 @@ BUILTIN_PLUGINS: dict[str, str] = {
     "bodies": "seatkit_bodies",
     "qp": "seatkit_qp",
     "chair": "seatkit_chair",
+    "bench": "seatkit_bench",
     "refiners": "seatkit_refiners",
     "exporters": "seatkit_exporters",
     "anny": "seatkit_anny",

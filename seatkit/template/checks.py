@@ -37,6 +37,12 @@ __all__ = [
 ]
 
 
+
+def person_label(index: int, body) -> str:
+    """``person 2 (default-female:reclined-sitting)``: 1-based seat number and body name, for messages."""
+    name = getattr(body, "name", "")
+    return f"person {index + 1}" + (f" ({name})" if name else "")
+
 def quad_triangles(vertices: np.ndarray, quads: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Split each quad into four triangles around its centre.
 
@@ -417,7 +423,7 @@ def check_cage(mesh: ControlMesh, bodies, *, tolerance: float) -> None:
         bad = crossing_faces(mesh.vertices, mesh.faces, body, tolerance)
         if len(bad):
             names = sorted({mesh.face_labels[i] for i in bad})
-            msg = f"person {person}: the fitted cage crosses the body at faces {', '.join(names)}: this topology cannot support the pose"
+            msg = f"{person_label(person, body)}: the fitted cage crosses the body at faces {', '.join(names)}: this topology cannot support the pose"
             raise UnsupportedPoseError(msg, parts=_parts(mesh, bad), diagnostics={"crossing_faces": bad.tolist(), **mesh.meta})
 
 
@@ -520,7 +526,7 @@ def check_supportability(state, max_occluded_fraction: float, max_roll: float, j
             parts = ["Hips", "Spine", "RightUpLeg", "LeftUpLeg"]
             diag["supportable"] = []
             msg = (
-                f"person {block.person}: the body lies on its side (left-right axis tilted {np.degrees(roll):.0f} deg, "
+                f"{person_label(block.person, block.body)}: the body lies on its side (left-right axis tilted {np.degrees(roll):.0f} deg, "
                 f"at most {np.degrees(max_roll):.0f} allowed): the {state.spec.name} template cannot support {', '.join(parts)} in this pose "
                 f"(its columns would stack on top of each other)"
             )
@@ -530,7 +536,7 @@ def check_supportability(state, max_occluded_fraction: float, max_roll: float, j
             ok = sorted(set(diag["segments"]) - set(parts))
             detail = ", ".join(f"{name} {100 * f:.0f}%" for name, f, _ in bad)
             msg = (
-                f"person {block.person}: cannot support {', '.join(parts)}: their important vertices lie above other body parts "
+                f"{person_label(block.person, block.body)}: cannot support {', '.join(parts)}: their important vertices lie above other body parts "
                 f"(occluded share: {detail}); a support there would cross the body. Supportable: {', '.join(ok) or 'nothing'}"
             )
             diag["supportable"] = ok

@@ -253,8 +253,18 @@ def join_blocks(state: FitState) -> GridMesh:
     parts = []
     nrows = {len(b.rows) for b in state.blocks}
     if len(nrows) != 1:
-        msg = "people's blocks have different row counts after special cases " + str([len(b.rows) for b in state.blocks]) + "; they cannot share one grid"
-        raise RecipeError(msg)
+        from seatkit.errors import UnsupportedPoseError
+        from seatkit.template.checks import person_label
+
+        full = max(nrows)
+        short = [b for b in state.blocks if len(b.rows) < full]
+        names = ", ".join(person_label(b.person, b.body) for b in short)
+        msg = (
+            f"{names}: a special case removed rows ({', '.join(str(len(b.rows)) for b in short)} of {full}, e.g. no backrest "
+            "when leaning forward) that the neighbours need; one bench grid joins blocks with the same rows: "
+            "seat such people at the end of the bench in a separate design, or choose a pose with back support"
+        )
+        raise UnsupportedPoseError(msg, parts=[person_label(b.person, b.body) for b in short])
     for block in state.blocks:
         V = block.vertex_grid()
         if np.isnan(V).any():
