@@ -19,7 +19,11 @@ supported body regions. ICP-like:
    ``penetration_weight`` once the body vertex has been found on the wrong
    side of the surface (inside: ``n_c . (b - x_c) < 0``; it stays marked in
    later iterations, so the active set does not flip-flop); for those the
-   target is ``clearance`` below the skin (``o_b``). A vertex still deeper
+   target is ``clearance`` below the skin (``o_b``). Every *other* body
+   vertex (hands, arms, the top of the thighs...) enters the same term with
+   the median importance of the supported vertices as soon as it is found
+   inside, so the surface is pushed away from any body part it passes
+   through, not only from the supported ones. A vertex still deeper
    than half ``max_penetration`` has its own weight doubled at every
    iteration until it comes out. The first part is the point-to-plane ICP distance, ``mu``
    a small point-to-point share that keeps the tangential drift in check;
@@ -71,11 +75,11 @@ __all__ = [
 CCFIT_DEFAULTS: dict[str, Any] = {
     "level": 3,  # subdivision level of the limit samples
     "importance_threshold": 0.02,  # body vertices with importance above this are supported
-    "fairness": 0.5,  # weight of |G (P - P0)|^2 per control point
+    "fairness": 0.05,  # weight of |G (P - P0)|^2 per control point
     "damping": 1e-4,  # weight of |P - P_k|^2 per control point (Levenberg step)
     "point_to_point": 0.1,  # share of the point-to-point distance
     "penetration_weight": 20.0,  # extra weight of body vertices found inside
-    "clearance": 0.002,  # m, target gap below a penetrating body vertex
+    "clearance": 0.004,  # m, target gap below a penetrating body vertex
     "max_penetration": 0.005,  # m, allowed depth of a body vertex inside the surface
     "max_distance": 1.0,  # m, correspondences farther than this are ignored
     "max_iterations": 40,
@@ -291,8 +295,17 @@ def fit_cage(
     damp = p["damping"] / n * sp.identity(m, format="csr")
     limit_moving = (limit @ select).tocsr()
 
-    b = targets.points
-    w_base = targets.weights
+    # every other body vertex only counts once found inside (penetration over the whole body)
+    k_sup = len(targets.points)
+    others = []
+    for k, body in enumerate(bodies):
+        rest = np.ones(len(body.vertices), bool)
+        rest[targets.vertex[targets.body == k]] = False
+        others.append(np.asarray(body.vertices, dtype=np.float64)[rest])
+    b = np.concatenate([targets.points, *others])
+    is_target = np.arange(len(b)) < k_sup
+    w_base = np.concatenate([targets.weights, np.zeros(len(b) - k_sup)])
+    w_inside = float(np.median(targets.weights))
     w_sum = float(w_base.sum())
 
     def measure(P):
@@ -307,7 +320,7 @@ def fit_cage(
     X, N, closest, dist, signed, depth, mean = measure(P)
     before = {
         "mean_distance": mean,
-        "mean_euclidean_distance": float(dist.mean()),
+        "mean_euclidean_distance": float(dist[:k_sup].mean()),
         "max_penetration": float(depth.max()),
     }
     history = [mean]
@@ -327,7 +340,7 @@ def fit_cage(
         deep = depth > 0.5 * p["max_penetration"]
         multiplier = np.where(deep & (iterations > 1), np.minimum(2.0 * multiplier, cap), multiplier)
         use = dist <= p["max_distance"]
-        w = multiplier * w_base * use
+        w = multiplier * np.where(is_target, w_base, w_inside * sticky) * use
         # the data term keeps unit total weight, so the fairness keeps its say
         w = w / max(float(w.sum()), 1e-300)
         # target offset along the normal: those points aim at clearance below the skin
@@ -398,10 +411,10 @@ def fit_cage(
         "before": before,
         "after": {
             "mean_distance": mean,
-            "mean_euclidean_distance": float(dist.mean()),
+            "mean_euclidean_distance": float(dist[:k_sup].mean()),
             "max_penetration": float(depth.max()),
         },
-        "supported_vertices": int(len(b)),
+        "supported_vertices": int(k_sup),
         "supported_segments": [list(s) for s in targets.segments],
         "iterations": int(iterations),
         "history": history,
