@@ -21,7 +21,13 @@ the paper's quantities are reported:
 ``avg_loaded_pressure_pa``
     Mean over the vertices that actually carry load (above 1 Pa), Pa.
 ``max_penetration_m``
-    Deepest body vertex on the far side of the surface (0 when none), m.
+    How deep the surface reaches into the body, m (0 when it stays outside):
+    the largest depth below the skin of any surface point (tessellation
+    vertices and triangle centres), measured along the outward normal of the
+    nearest skin vertex. Measured from the body side because the closed
+    skin has a well-defined inside, where a folded support surface does not;
+    a body vertex more than this deep "inside the surface" would need the
+    surface to be at least as deep inside the body.
 ``contact_vertices``, ``contact_area_m2``
     Size of the recomputed contact set.
 
@@ -187,6 +193,20 @@ class SurfaceQuery:
         return distance, side
 
 
+def surface_depth_in_body(surface: Surface, body: Body) -> float:
+    """Largest depth of the surface below the skin of ``body``, m (see ``max_penetration_m``)."""
+    from seatkit.pressure.areas import vertex_normals
+
+    v = np.asarray(surface.vertices, dtype=np.float64)
+    f = np.asarray(surface.faces, dtype=np.int64)
+    points = np.concatenate([v, v[f].mean(axis=1)])
+    skin = np.asarray(body.vertices, dtype=np.float64)
+    normals = vertex_normals(skin, body.faces)
+    _, near = cKDTree(skin, balanced_tree=False, compact_nodes=False).query(points)
+    depth = -np.einsum("ij,ij->i", normals[near], points - skin[near])
+    return float(max(depth.max(), 0.0)) if depth.size else 0.0
+
+
 def evaluate_person(
     body: Body,
     importance: PressureField,
@@ -210,13 +230,12 @@ def evaluate_person(
     settings = dict(pressure_settings or {})
     query = query if query is not None else SurfaceQuery(surface)
     supported = supported_vertices(importance, body, segments)
-    dist, side = query.query(body.vertices)
-    behind = np.where(side < 0, dist, 0.0)
+    dist, _ = query.query(body.vertices)
     contact = dist <= support_distance
     out: dict[str, Any] = {
         "avg_distance_m": float(dist[supported].mean()) if supported.any() else float("nan"),
         "supported_vertices": int(supported.sum()),
-        "max_penetration_m": float(behind.max()) if behind.size else 0.0,
+        "max_penetration_m": surface_depth_in_body(surface, body),
         "contact_vertices": int(contact.sum()),
         "contact_area_m2": float(importance.area[contact].sum()),
     }

@@ -18,15 +18,25 @@ def height_field(x, z):
 
 
 def synthetic_body(n_side: int = 40, segment: int = 0) -> tuple[Body, PressureField]:
-    """Points sampled from ``height_field`` as a 'body' with uniform importance."""
+    """The underside of a 'body': a sheet sampled from ``height_field``, uniform importance.
+
+    Its triangles face down (-y): the body is above the sheet, so a surface
+    point above it is inside the body.
+    """
     x, z = np.meshgrid(np.linspace(-0.2, 0.2, n_side), np.linspace(-0.25, 0.45, n_side), indexing="ij")
     pts = np.column_stack([x.ravel(), height_field(x, z).ravel(), z.ravel()])
     n = len(pts)
+    idx = np.arange(n).reshape(n_side, n_side)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel(), idx[:-1, 1:].ravel()
+    faces = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    tri = pts[faces]
+    if np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])[:, 1].mean() > 0:
+        faces = faces[:, ::-1]
     weights = np.zeros((n, 21))
     weights[:, segment] = 1.0
     body = Body(
         vertices=pts,
-        faces=np.zeros((0, 3), np.int64),
+        faces=faces,
         weights=weights,
         joints=np.zeros((21, 3)),
         tips=np.zeros((21, 3)),

@@ -2,47 +2,41 @@
 
 Moves the cage's control points so that its Catmull-Clark *limit surface*
 (OpenSubdiv-conformant operators of :mod:`seatkit.subdivision`) meets the
-supported body regions. ICP-like:
+supported body regions without passing through the body. ICP-like:
 
 1. the limit surface is sampled at the refined vertices of ``level``
    (``X = L P``, ``L`` sparse) with limit normals ``N``;
-2. every supported body vertex ``b`` (importance above
-   ``importance_threshold``, on a body segment that some face of the cage
-   supports) takes its closest sample ``c`` (a k-d tree);
-3. one sparse linear least-squares solve for the moving control points::
+2. every supported body vertex (importance above ``importance_threshold``,
+   on a body segment that some face of the cage supports) is a target
+   ``b = v + clearance * n_v``: the skin offset outwards by the clearance
+   along its normal; it takes its closest sample ``c`` (a k-d tree);
+3. penetration is measured from the body side: a sample whose nearest skin
+   vertex ``s`` sees it behind the skin (``n_s . (x - s) < 0``) is inside
+   the body. The closed skin has a well-defined inside, so this stays right
+   where the support surface folds or wraps around the body (the surface's
+   own normals do not; an earlier version used them and diverged on the
+   lounger). Checked against open3d's ray-parity occupancy: every flagged
+   sample was truly inside;
+4. one sparse linear least-squares solve for the moving control points::
 
-       min  sum_b w_b [ (n_c . (L_c P - b) + o_b)^2 + mu (|L_c P - b|^2) ]  / sum_b w_b
-          + fairness * |G (P - P_0)|^2 / v
-          + damping  * |P - P_k|^2 / v
+       min  sum_b w_b [ (n_c . (L_c P - b))^2 + mu |L_c P - b|^2 ] / sum_b w_b
+          + sum_{x in A} w_pen (1 + min(depth_x / clearance, 4)) (n_s . (L_x P - s) - clearance)^2 / sum_b w_b
+          + fairness * |G (P - P_0)|^2 / v  +  damping * |P - P_k|^2 / v
 
-   ``w_b`` is the body vertex's importance, multiplied by
-   ``penetration_weight`` once the body vertex has been found on the wrong
-   side of the surface (inside: ``n_c . (b - x_c) < 0``; it stays marked in
-   later iterations, so the active set does not flip-flop); for those the
-   target is ``clearance`` below the skin (``o_b``). Every *other* body
-   vertex (hands, arms, the top of the thighs...) enters the same term with
-   the median importance of the supported vertices as soon as it is found
-   inside, so the surface is pushed away from any body part it passes
-   through, not only from the supported ones. A vertex still deeper
-   than half ``max_penetration`` has its own weight doubled at every
-   iteration until it comes out. The first part is the point-to-plane ICP distance, ``mu``
-   a small point-to-point share that keeps the tangential drift in check;
-   ``G`` is the cage's graph Laplacian, so the fairness term asks for a
-   smooth *displacement* of the template's cage ``P_0`` (it keeps the shape
-   the template designed where the body does not pull);
-4. repeat until the weighted mean distance stops improving by more than
-   ``tolerance`` (m) and no supported vertex is deeper inside than
-   ``max_penetration``.
+   ``w_b`` is the importance, ``A`` the samples inside the body or closer
+   to the skin than the clearance, pulled out to the clearance along the
+   skin normal with ``w_pen = penetration_weight * mean importance`` (deeper
+   samples weigh more); ``G`` is the cage's graph Laplacian, so the fairness
+   asks for a smooth *displacement* of the template's cage ``P_0``;
+5. repeat until the weighted mean distance stops improving by more than
+   ``tolerance`` (m) and no sample is deeper in the body than
+   ``max_penetration``, or ``max_iterations``.
 
 Ground and fixed control points do not move. The best iterate (smallest
-mean distance among those that meet the penetration limit, else the last
-one) is returned; the penetration left is reported in ``meta``, and with
-``raise_on_penetration`` a penetration above the limit is a
+mean distance among those within the penetration limit, else the
+shallowest) is returned; the penetration left is reported in ``meta``, and
+with ``raise_on_penetration`` a penetration above the limit is a
 :class:`~seatkit.errors.SolverError`.
-
-Distances are measured between body vertices and the limit-surface samples
-projected onto the sample's tangent plane (point-to-plane); with level 3 the
-samples of a 15 cm face are about 2 cm apart.
 """
 
 from __future__ import annotations
@@ -78,9 +72,9 @@ CCFIT_DEFAULTS: dict[str, Any] = {
     "fairness": 0.05,  # weight of |G (P - P0)|^2 per control point
     "damping": 1e-4,  # weight of |P - P_k|^2 per control point (Levenberg step)
     "point_to_point": 0.1,  # share of the point-to-point distance
-    "penetration_weight": 20.0,  # extra weight of body vertices found inside
-    "clearance": 0.004,  # m, target gap below a penetrating body vertex
-    "max_penetration": 0.005,  # m, allowed depth of a body vertex inside the surface
+    "penetration_weight": 100.0,  # weight of a surface sample inside the body, relative to the mean importance
+    "clearance": 0.006,  # m, gap kept between the surface and the skin
+    "max_penetration": 0.005,  # m, allowed depth of the surface inside the body
     "max_distance": 1.0,  # m, correspondences farther than this are ignored
     "max_iterations": 40,
     "tolerance": 1e-4,  # m, stop when the mean distance improves less than this
@@ -295,80 +289,83 @@ def fit_cage(
     damp = p["damping"] / n * sp.identity(m, format="csr")
     limit_moving = (limit @ select).tocsr()
 
-    # every other body vertex only counts once found inside (penetration over the whole body)
-    k_sup = len(targets.points)
-    others = []
-    for k, body in enumerate(bodies):
-        rest = np.ones(len(body.vertices), bool)
-        rest[targets.vertex[targets.body == k]] = False
-        others.append(np.asarray(body.vertices, dtype=np.float64)[rest])
-    b = np.concatenate([targets.points, *others])
-    is_target = np.arange(len(b)) < k_sup
-    w_base = np.concatenate([targets.weights, np.zeros(len(b) - k_sup)])
-    w_inside = float(np.median(targets.weights))
+    # The body side of the fit. Penetration is measured from the body, whose
+    # closed skin has well-defined outward normals: a surface sample whose
+    # nearest skin vertex sees it behind the skin (negative offset along the
+    # skin normal) is inside the body. This stays meaningful where the
+    # surface folds or wraps (the surface's own normals do not).
+    from seatkit.pressure.areas import vertex_normals
+
+    skin = np.concatenate([np.asarray(bd.vertices, dtype=np.float64) for bd in bodies])
+    skin_n = np.concatenate([vertex_normals(bd.vertices, bd.faces) for bd in bodies])
+    skin_tree = cKDTree(skin, balanced_tree=False, compact_nodes=False)
+    # supported targets: the skin offset by the clearance along its normal
+    owner_offset = np.cumsum([0] + [len(bd.vertices) for bd in bodies])[:-1]
+    target_n = skin_n[owner_offset[targets.body] + targets.vertex]
+    b = targets.points + p["clearance"] * target_n
+    k_sup = len(b)
+    w_base = targets.weights
     w_sum = float(w_base.sum())
+    w_pen = p["penetration_weight"] * float(np.mean(w_base))
+
+    # penetration probes: the limit points (a probe inside the body means the
+    # surface passes through it)
+    probe = limit
+    probe_moving = limit_moving
 
     def measure(P):
         X = limit @ P
         N = ops.limit_normals(P)
         closest, dist, signed = surface_distances(X, N, b, boundary=on_boundary)
-        depth = np.maximum(-signed, 0.0)
-        mean = float(np.sum(w_base * np.abs(signed)) / w_sum)
-        return X, N, closest, dist, signed, depth, mean
+        mean = float(np.sum(w_base * dist) / w_sum)
+        Y = probe @ P
+        _, near = skin_tree.query(Y, workers=1)
+        depth = -np.einsum("ij,ij->i", skin_n[near], Y - skin[near])  # > 0: probe inside the body
+        return X, N, closest, dist, mean, near, depth
 
     P = p0.copy()
-    X, N, closest, dist, signed, depth, mean = measure(P)
-    before = {
-        "mean_distance": mean,
-        "mean_euclidean_distance": float(dist[:k_sup].mean()),
-        "max_penetration": float(depth.max()),
-    }
+    X, N, closest, dist, mean, near, depth = measure(P)
+    before = {"mean_distance": mean, "max_penetration": float(max(depth.max(), 0.0))}
     history = [mean]
-    pen_weight = p["penetration_weight"]
-    best = (P.copy(), mean, float(depth.max()))
+    best = (P.copy(), mean, float(max(depth.max(), 0.0)))
     stall = 0
     iterations = 0
-    sticky = np.zeros(len(b), bool)
-    multiplier = np.ones(len(b))
-    cap = 64.0 * pen_weight
+    P_m = select.T @ P
+    P0_m = select.T @ p0
+    fair_rhs = fair @ P0_m
     for iterations in range(1, p["max_iterations"] + 1):
-        # a body vertex once found inside keeps its extra weight (no flip-flop
-        # of the active set between iterations)
-        sticky |= signed < 0.0
-        multiplier = np.where(sticky, np.maximum(multiplier, pen_weight), multiplier)
-        # vertices still too deep: double their own weight (capped)
-        deep = depth > 0.5 * p["max_penetration"]
-        multiplier = np.where(deep & (iterations > 1), np.minimum(2.0 * multiplier, cap), multiplier)
         use = dist <= p["max_distance"]
-        w = multiplier * np.where(is_target, w_base, w_inside * sticky) * use
-        # the data term keeps unit total weight, so the fairness keeps its say
-        w = w / max(float(w.sum()), 1e-300)
-        # target offset along the normal: those points aim at clearance below the skin
-        offset = np.where(sticky, p["clearance"], 0.0)
+        w = w_base * use
+        # data: point-to-plane along the surface normal at the correspondence,
+        # plus a share of point-to-point (tangential stability)
         n_c = N[closest]
-        L_c = limit_moving[closest]  # (k, m)
-        fixed_part = limit[closest] @ (P - select @ (select.T @ P))  # contribution of fixed points
-        # point-to-plane rows: sum_d n_d (L_c P_d) = n . b - offset - n . fixed
-        rhs_plane = np.einsum("kc,kc->k", n_c, b - fixed_part) - offset
+        L_c = limit_moving[closest]
+        fixed_part = limit[closest] @ (P - select @ (select.T @ P))
+        rhs_plane = np.einsum("kc,kc->k", n_c, b - fixed_part)
         J_plane = sp.hstack([sp.diags(n_c[:, d]) @ L_c for d in range(3)]).tocsr()
-        sqw = sp.diags(np.sqrt(w))
-        Jw = sqw @ J_plane
+        sw = np.sqrt(w / w_sum)
+        Jw = sp.diags(sw) @ J_plane
         A = (Jw.T @ Jw).tocsr()
-        rhs = Jw.T @ (np.sqrt(w) * rhs_plane)
-        # point-to-point share, per coordinate (block diagonal)
-        Lw = (sp.diags(np.sqrt(p["point_to_point"] * w)) @ L_c).tocsr()
+        rhs = Jw.T @ (sw * rhs_plane)
+        Lw = (sp.diags(np.sqrt(p["point_to_point"]) * sw) @ L_c).tocsr()
         LtL = (Lw.T @ Lw).tocsr()
-        target_pp = b - fixed_part - offset[:, None] * n_c
-        P_m = select.T @ P
-        P0_m = select.T @ p0
-        # fairness on the displacement from the template, damping to the current iterate
-        # (fixed points never move, so G (P - P0) = G_m (P_m - P0_m))
-        fair_rhs = fair @ P0_m
+        target_pp = b - fixed_part
+        rhs_pp = [Lw.T @ (np.sqrt(p["point_to_point"]) * sw * target_pp[:, d]) for d in range(3)]
+        # probes inside the body, or closer to the skin than the clearance,
+        # are pulled out along the skin normal (a strong penalty)
+        idx = np.flatnonzero(depth > -p["clearance"])
+        if idx.size:
+            nn = skin_n[near[idx]]
+            fixed_a = probe[idx] @ (P - select @ (select.T @ P))
+            goal = np.einsum("kc,kc->k", nn, skin[near[idx]] - fixed_a) + p["clearance"]
+            J_pen = sp.hstack([sp.diags(nn[:, d]) @ probe_moving[idx] for d in range(3)]).tocsr()
+            wp = np.sqrt(w_pen / w_sum * (1.0 + np.minimum(depth[idx].clip(0) / p["clearance"], 4.0)))
+            Jp = sp.diags(wp) @ J_pen
+            A = A + (Jp.T @ Jp).tocsr()
+            rhs = rhs + Jp.T @ (wp * goal)
         blocks = sp.block_diag([LtL + fair + damp] * 3, format="csr")
         system = (A + blocks).tocsc()
-        rhs_full = rhs + np.concatenate(
-            [Lw.T @ (np.sqrt(p["point_to_point"] * w) * target_pp[:, d]) + fair_rhs[:, d] + (p["damping"] / n) * P_m[:, d] for d in range(3)]
-        )
+        rhs_full = rhs + np.concatenate([rhs_pp[d] + fair_rhs[:, d] + (p["damping"] / n) * P_m[:, d] for d in range(3)])
         try:
             solution = spla.spsolve(system, rhs_full)
         except RuntimeError as exc:  # singular factorisation
@@ -379,14 +376,14 @@ def fit_cage(
             raise SolverError(msg)
         P = P.copy()
         P[cols] = solution.reshape(3, m).T
-        X, N, closest, dist, signed, depth, mean = measure(P)
+        P_m = select.T @ P
+        X, N, closest, dist, mean, near, depth = measure(P)
         history.append(mean)
-        max_depth = float(depth.max())
+        max_depth = float(max(depth.max(), 0.0))
         ok = max_depth <= p["max_penetration"]
         best_ok = best[2] <= p["max_penetration"]
-        # keep the closest iterate that meets the penetration limit; until one
-        # does, the latest iterate
-        if (ok and (not best_ok or mean < best[1])) or not best_ok:
+        # the closest iterate within the penetration limit; until one is, the shallowest
+        if (ok and (not best_ok or mean < best[1])) or (not best_ok and max_depth < best[2]):
             best = (P.copy(), mean, max_depth)
         improving = history[-2] - mean > p["tolerance"]
         stall = 0 if improving else stall + 1
@@ -401,19 +398,15 @@ def fit_cage(
         raise SolverError(msg)
     if p["raise_on_penetration"] and depth_best > p["max_penetration"]:
         msg = (
-            f"catmull-clark-fit: a supported body vertex stays {depth_best * 1000:.1f} mm inside the "
-            f"surface (max_penetration {p['max_penetration'] * 1000:.1f} mm) after {iterations} iterations"
+            f"catmull-clark-fit: the surface stays {depth_best * 1000:.1f} mm inside the body "
+            f"(max_penetration {p['max_penetration'] * 1000:.1f} mm) after {iterations} iterations"
         )
         raise SolverError(msg)
-    X, N, closest, dist, signed, depth, mean = measure(P_best)
+    X, N, closest, dist, mean, near, depth = measure(P_best)
     meta = dict(mesh.meta)
     meta["catmull-clark-fit"] = {
         "before": before,
-        "after": {
-            "mean_distance": mean,
-            "mean_euclidean_distance": float(dist[:k_sup].mean()),
-            "max_penetration": float(depth.max()),
-        },
+        "after": {"mean_distance": mean, "max_penetration": float(max(depth.max(), 0.0))},
         "supported_vertices": int(k_sup),
         "supported_segments": [list(s) for s in targets.segments],
         "iterations": int(iterations),
@@ -467,9 +460,9 @@ def fit_report(
     dict
         ``mean_distance`` (m, importance-weighted point-to-plane distance of
         the supported vertices), ``mean_euclidean_distance`` (m, unweighted
-        distance to the closest limit sample), ``max_penetration`` (m, the
-        deepest *any* body vertex lies behind the surface; vertices whose
-        closest sample is on the surface boundary are not inside),
+        distance to the closest limit sample), ``max_penetration`` (m, how deep
+        the limit surface reaches into any body, measured from the closed
+        skin: :func:`seatkit.evaluate.surface_depth_in_body`),
         ``supported_vertices``.
     """
     from seatkit.subdivision import Cage, build_operators
@@ -480,11 +473,14 @@ def fit_report(
     N = ops.limit_normals(mesh.vertices)
     boundary = _boundary_samples(ops)
     _, dist, signed = surface_distances(X, N, targets.points, boundary=boundary)
-    every = np.concatenate([np.asarray(b.vertices, dtype=np.float64) for b in bodies])
-    _, _, signed_all = surface_distances(X, N, every, boundary=boundary)
+    from seatkit.evaluate import surface_depth_in_body
+    from seatkit.model import Surface
+
+    surface = Surface(X, N, ops.faces, level)
     return {
         "mean_distance": float(np.sum(targets.weights * np.abs(signed)) / targets.weights.sum()),
         "mean_euclidean_distance": float(dist.mean()),
-        "max_penetration": float(max(0.0, -signed_all.min())),
+        # how deep the surface reaches into any body (measured from the closed skin)
+        "max_penetration": max(surface_depth_in_body(surface, b) for b in bodies),
         "supported_vertices": int(len(targets.points)),
     }
