@@ -144,7 +144,7 @@ class SurfaceQuery:
     interpolated from the surface's vertex normals.
     """
 
-    CANDIDATE_VERTICES = 3
+    CANDIDATE_VERTICES = 8
 
     def __init__(self, surface: Surface):
         v = np.asarray(surface.vertices, dtype=np.float64)

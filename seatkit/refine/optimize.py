@@ -24,10 +24,26 @@ put; fixed non-ground vertices do not move) and every edge is at least
 
 Lengths are measured in units of the cage's mean edge length inside the
 solver, so the weights are dimensionless and independent of the cage's size.
-The ground constraints are met exactly by construction: a sliding vertex has
-one unknown, its position along its rectangle edge (with bounds), so only the
-edge-length inequalities go to the solver (scipy's SLSQP, with the analytic
-gradient and constraint Jacobian).
+The ground constraints are met exactly by construction: a free vertex has
+three unknowns, a sliding vertex one, its position ``t`` along its rectangle
+side (y = 0; bounds keep it on the side and, next to a corner vertex, at least
+the minimal edge length from it), a corner or fixed vertex none. The energy's
+analytic gradient reaches the unknowns by the chain rule through this affine
+map. The edge-length inequalities are the only constraints left; they go into
+the objective as an augmented-Lagrangian term on ``c_e = 1 - l^2 / |e|^2 >= 0``
+(aimed at ``l (1 + 1e-4)``, so that what the penalty leaves unmet still meets
+``l``; unbounded as an edge shrinks, so sliding vertices cannot pass each
+other) and the bound-constrained problem is solved by scipy's L-BFGS-B, with
+multiplier updates until every edge is long enough (usually 1-5 rounds). The
+result is then checked: an edge shorter than ``min_edge_length`` by more than
+a relative 1e-6 (of its square) is a ``SolverError``.
+
+Every step costs O(v) (sparse products, vectorised per-face terms, limited
+memory quasi-Newton), and the number of iterations does not grow with the
+cage: about 0.08 s for the 96-point chair cage and 0.1-0.15 s for benches of
+2 to 6 people (144-336 points), one BLAS thread. The SLSQP solver used before
+(dense QP subproblems, O(v^3)) took 0.9 s and 3.7 s (3-person bench) to reach
+the same energies.
 
 Departures from the paper, and why:
 
@@ -67,8 +83,8 @@ OPTIMIZE_DEFAULTS: dict[str, Any] = {
     "laplacian_weight_floor": 0.1,  # smallest neighbour weight in the Laplacian average
     "min_edge_length": 0.02,  # m, hard constraint
     "slide_border": True,  # ground vertices slide along their rectangle edge
-    "max_iterations": 300,
-    "tolerance": 1e-9,  # SLSQP's ftol on the (dimensionless) energy
+    "max_iterations": 300,  # per L-BFGS-B run (one per penalty round)
+    "tolerance": 1e-9,  # L-BFGS-B's ftol: relative energy decrease that stops a run
 }
 
 #: Relative tolerance when checking that a vertex lies on the ground rectangle.
@@ -274,13 +290,16 @@ def _ground_rectangle(points_xz: np.ndarray, tol: float):
     Returns (origin (2,), axes (2, 2) rows u and w, lo (2,), hi (2,)) in the
     rectangle frame ``p = origin + u * axes[0] + w * axes[1]``.
     """
-    candidates = [np.eye(2)]
-    if len(points_xz) >= 3:
-        import trimesh
 
-        transform, _ = trimesh.bounds.oriented_bounds_2D(points_xz)
-        candidates.append(transform[:2, :2])
-    for axes in candidates:
+    def candidates():
+        yield np.eye(2)
+        if len(points_xz) >= 3:  # only when the axis-aligned one does not fit
+            import trimesh
+
+            transform, _ = trimesh.bounds.oriented_bounds_2D(points_xz)
+            yield transform[:2, :2]
+
+    for axes in candidates():
         local = points_xz @ axes.T
         lo, hi = local.min(axis=0), local.max(axis=0)
         on_side = np.abs(local - lo) <= tol
@@ -290,8 +309,16 @@ def _ground_rectangle(points_xz: np.ndarray, tol: float):
     return None
 
 
-def _build_border(x: np.ndarray, ground: np.ndarray, fixed: np.ndarray, *, slide: bool, scale: float) -> _Border:
-    """Reduced parametrisation meeting the ground constraints exactly."""
+def _build_border(
+    x: np.ndarray, ground: np.ndarray, fixed: np.ndarray, *, slide: bool, scale: float, gap: float = 0.0
+) -> _Border:
+    """Reduced parametrisation meeting the ground constraints exactly.
+
+    A sliding vertex's bounds stop ``gap`` short of an end of its side where a
+    corner vertex stands (it could never come closer than the minimal edge
+    length to it, and a bound on the corner would let the solver put both at
+    the same point).
+    """
     n = len(x)
     tol = _RECT_TOL
     frozen = fixed & ~ground
@@ -336,6 +363,20 @@ def _build_border(x: np.ndarray, ground: np.ndarray, fixed: np.ndarray, *, slide
             t = np.where(on_u_side, snapped[:, 1], snapped[:, 0])
             t_lo = np.where(on_u_side, lo[1], lo[0])
             t_hi = np.where(on_u_side, hi[1], hi[0])
+            # the side's ends (local coordinates) and whether a corner vertex stands there
+            fixed_coord = np.where(on_u_side, snapped[:, 0], snapped[:, 1])
+            end_lo = np.where(on_u_side[:, None], np.column_stack([fixed_coord, t_lo]), np.column_stack([t_lo, fixed_coord]))
+            end_hi = np.where(on_u_side[:, None], np.column_stack([fixed_coord, t_hi]), np.column_stack([t_hi, fixed_coord]))
+            corner_pts = snapped[corner]
+
+            def has_corner(ends):
+                return (np.abs(ends[:, None, :] - corner_pts[None, :, :]) <= tol).all(axis=-1).any(axis=1)
+
+            t_lo = t_lo + gap * has_corner(end_lo)
+            t_hi = t_hi - gap * has_corner(end_hi)
+            # a side exactly (count - 1) * gap long: meet in the middle
+            crossed = t_lo > t_hi
+            t_lo[crossed] = t_hi[crossed] = 0.5 * (t_lo[crossed] + t_hi[crossed])
             sl = gi[slides]
             sliding[sl] = True
             slide_dirs[sl] = np.column_stack([along[slides, 0], np.zeros(slides.sum()), along[slides, 1]])
@@ -394,6 +435,138 @@ def _check_sides(border: _Border, x0: np.ndarray, ground: np.ndarray, min_len: f
                 raise SolverError(msg)
 
 
+#: The penalty aims at ``min_edge_length * (1 + _EDGE_MARGIN)``, so that what it
+#: leaves unmet of that target still meets ``min_edge_length``.
+_EDGE_MARGIN = 1e-4
+#: Accepted relative violation of ``|e|^2 >= min_edge_length^2`` after the solve.
+_EDGE_TOL = 1e-6
+#: Augmented Lagrangian: first penalty weight, its growth when the violation
+#: does not drop fourfold in a round, and the most rounds.
+_PENALTY_START = 1.0
+_PENALTY_GROWTH = 10.0
+_MAX_ROUNDS = 10
+#: L-BFGS-B: stop when every projected gradient component is below this
+#: (dimensionless units); number of correction pairs kept.
+_GTOL = 1e-6
+_MEMORY = 10
+
+
+class _EdgeLengthPenalty:
+    """Augmented-Lagrangian term for ``|x_a - x_b| >= target`` on edges.
+
+    The constraint is written ``c_e = 1 - target^2 / |e|^2 >= 0``; with
+    multipliers ``lam`` and penalty weight ``mu`` the term is ``sum_e
+    (max(0, lam_e - mu c_e)^2 - lam_e^2) / (2 mu)``: continuously
+    differentiable, zero on edges that are long enough and carry no
+    multiplier, and unbounded as an edge shrinks to nothing, so two vertices
+    sliding along the same rectangle side cannot pass through each other
+    (a penalty on ``|e|^2 - target^2`` is bounded there and let them cross).
+
+    Parameters
+    ----------
+    edges : (m, 2) int64
+    n : int
+        Number of vertices.
+    target : float
+        Length aimed at (normalised units).
+    """
+
+    def __init__(self, edges: np.ndarray, n: int, target: float):
+        m = len(edges)
+        self.edges = edges
+        self.size = m
+        self.target_sq = target**2
+        # signed incidence (n, m): +1 at an edge's first end, -1 at its second
+        self.incidence = sp.csr_matrix(
+            (np.concatenate([np.ones(m), -np.ones(m)]), (edges.T.ravel(), np.tile(np.arange(m), 2))),
+            shape=(n, m),
+        )
+
+    def constraint(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``c`` (m,), the edge vectors (m, 3) and squared lengths (m,) at ``x`` (n, 3)."""
+        d = x[self.edges[:, 0]] - x[self.edges[:, 1]]
+        # floored so that coinciding ends give a huge finite value, not inf
+        sq = np.maximum(np.einsum("ec,ec->e", d, d), 1e-12 * self.target_sq)
+        return 1.0 - self.target_sq / sq, d, sq
+
+    def value_and_grad(self, x: np.ndarray, lam: np.ndarray, mu: float) -> tuple[float, np.ndarray]:
+        """Penalty value and its gradient (n, 3) at ``x``."""
+        c, d, sq = self.constraint(x)
+        q = np.maximum(lam - mu * c, 0.0)  # -dP/dc
+        value = float(q @ q - lam @ lam) / (2.0 * mu)
+        # dc/dx_a = 2 target^2 e / |e|^4 = -dc/dx_b; skip the inactive edges
+        factor = np.zeros_like(q)
+        active = q > 0.0
+        factor[active] = -2.0 * self.target_sq * q[active] / sq[active] ** 2
+        grad = self.incidence @ (factor[:, None] * d)
+        return value, grad
+
+
+def _solve(energy: CageEnergy, penalty: _EdgeLengthPenalty, unpack, basis_t, z0, bounds, p):
+    """Minimise the energy over the reduced unknowns under the edge lengths.
+
+    L-BFGS-B (bounds keep sliding vertices on their side) on the energy plus
+    the augmented-Lagrangian edge term; the multipliers are updated and the
+    weight raised until every edge meets the penalty's target to within
+    ``_EDGE_MARGIN``, i.e. ``min_edge_length`` itself.
+
+    Returns
+    -------
+    z : ndarray
+        Reduced unknowns.
+    result : OptimizeResult
+        Of the last L-BFGS-B run.
+    iterations, rounds : int
+        L-BFGS-B iterations in total, penalty rounds.
+    """
+    m = penalty.size
+    lam = np.zeros(m)
+    mu = _PENALTY_START
+
+    def fun(z):
+        x = unpack(z)
+        value, grad = energy.value_and_grad(x)
+        if m:
+            pv, pg = penalty.value_and_grad(x, lam, mu)
+            value += pv
+            grad += pg
+        return value, basis_t @ grad.ravel()
+
+    z = z0
+    iterations = 0
+    rounds = 0
+    previous = np.inf
+    max_it = int(p["max_iterations"])
+    while True:
+        rounds += 1
+        result = scipy.optimize.minimize(
+            fun,
+            z,
+            jac=True,
+            method="L-BFGS-B",
+            bounds=bounds,
+            options={
+                "maxiter": max_it,
+                "ftol": p["tolerance"],
+                "gtol": _GTOL,
+                "maxcor": _MEMORY,
+            },
+        )
+        iterations += int(result.nit)
+        z = result.x
+        if not m:
+            break
+        g = penalty.constraint(unpack(z))[0]
+        violation = max(0.0, -float(g.min()))
+        if violation <= _EDGE_MARGIN or rounds >= _MAX_ROUNDS:
+            break
+        lam = np.maximum(lam - mu * g, 0.0)
+        if violation > 0.25 * previous:
+            mu *= _PENALTY_GROWTH
+        previous = violation
+    return z, result, iterations, rounds
+
+
 def optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None = None) -> ControlMesh:
     """Run the paper's mesh optimisation on ``mesh``.
 
@@ -409,7 +582,8 @@ def optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None = None) ->
     -------
     ControlMesh
         Same topology; ``meta["optimize"]`` holds the quality figures before
-        and after, the energy terms, iterations, status and time.
+        and after, the energy terms, L-BFGS-B iterations (all rounds),
+        penalty rounds, the last run's status and message, and the time.
 
     Raises
     ------
@@ -451,72 +625,73 @@ def optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None = None) ->
     )
     ground = np.asarray(mesh.ground, bool)
     fixed = np.asarray(mesh.fixed, bool)
-    border, z0 = _build_border(x0, ground, fixed, slide=p["slide_border"], scale=scale)
+    border, z0 = _build_border(
+        x0, ground, fixed, slide=p["slide_border"], scale=scale, gap=min_len * (1.0 + _EDGE_MARGIN)
+    )
     _check_sides(border, x0, ground, min_len, scale)
 
     # edge-length inequalities on edges with a moving end
     moving_edge = border.moving[edges[:, 0]] | border.moving[edges[:, 1]]
     c_edges = edges[moving_edge]
-    m = len(c_edges)
-    jac_rows = np.repeat(np.arange(m), 6)
-    jac_cols = np.concatenate(
-        [3 * c_edges[:, [0]] + np.arange(3), 3 * c_edges[:, [1]] + np.arange(3)], axis=1
-    ).ravel()
     basis = border.basis
     basis_t = basis.T.tocsr()
+    lower = np.array([-np.inf if b[0] is None else b[0] for b in border.bounds], dtype=np.float64)
+    upper = np.array([np.inf if b[1] is None else b[1] for b in border.bounds], dtype=np.float64)
+    bounds = scipy.optimize.Bounds(lower, upper)
+    z0 = np.clip(z0, lower, upper)
+    penalty = _EdgeLengthPenalty(c_edges, n, min_len * (1.0 + _EDGE_MARGIN))
 
     def unpack(z):
         return (border.base + basis @ z).reshape(n, 3)
 
-    def fun(z):
-        e, g = energy.value_and_grad(unpack(z))
-        return e, basis_t @ g.ravel()
-
-    def cons(z):
-        x = unpack(z)
-        e = x[c_edges[:, 0]] - x[c_edges[:, 1]]
-        return (np.einsum("ec,ec->e", e, e) - min_len**2) / min_len**2
-
-    def cons_jac(z):
-        x = unpack(z)
-        e = 2.0 * (x[c_edges[:, 0]] - x[c_edges[:, 1]]) / min_len**2
-        vals = np.concatenate([e, -e], axis=1).ravel()
-        jx = sp.csr_matrix((vals, (jac_rows, jac_cols)), shape=(m, 3 * n))
-        return (jx @ basis).toarray()
-
     x_start = unpack(z0)
+    start_edges = x_start[c_edges[:, 0]] - x_start[c_edges[:, 1]]
+    start_lengths = np.linalg.norm(start_edges, axis=1)
+    if np.any(start_lengths <= 1e-9):
+        a, b = c_edges[np.argmin(start_lengths)]
+        msg = f"optimize: the cage has a zero-length edge between vertices {a} and {b}; cannot optimise it"
+        raise SolverError(msg)
+
+    def slack(x):
+        """Relative slack of |e|^2 >= l^2 on the constrained edges (>= 0: met)."""
+        e = x[c_edges[:, 0]] - x[c_edges[:, 1]]
+        return np.einsum("ec,ec->e", e, e) / min_len**2 - 1.0
+
     e_start, _ = energy.value_and_grad(x_start)
     quality_before = cage_quality(vertices, faces)
-    constraints = [{"type": "ineq", "fun": cons, "jac": cons_jac}] if m else []
-    result = scipy.optimize.minimize(
-        fun,
-        z0,
-        jac=True,
-        method="SLSQP",
-        bounds=border.bounds,
-        constraints=constraints,
-        options={"maxiter": p["max_iterations"], "ftol": p["tolerance"]},
-    )
-    z = result.x
+    z, result, iterations, outer = _solve(energy, penalty, unpack, basis_t, z0, bounds, p)
     x = unpack(z)
     e_end = energy.terms(x)
     e_total = float(sum(e_end.values()))
     if not np.all(np.isfinite(x)) or not np.isfinite(e_total):
-        msg = f"optimize: the solver diverged (non-finite result; SLSQP status {result.status}: {result.message})"
+        msg = f"optimize: the solver diverged (non-finite result; L-BFGS-B status {result.status}: {result.message})"
         raise SolverError(msg)
-    worst = float(cons(z).min()) if m else 0.0
+    m = len(c_edges)
+    worst = float(slack(x).min()) if m else 0.0
     # relative violation of |e|^2 >= l^2, as a length: |e| >= l (1 - tol)
-    if m and worst < -1e-6:
+    if m and worst < -_EDGE_TOL:
         short = float(np.sqrt(max(worst + 1.0, 0.0)) * p["min_edge_length"])
         msg = (
             f"optimize: hard constraint not met: an edge is {short:.4g} m long, "
-            f"min_edge_length is {p['min_edge_length']:.4g} m (SLSQP status {result.status}: {result.message})"
+            f"min_edge_length is {p['min_edge_length']:.4g} m after {outer} penalty rounds, "
+            f"{iterations} L-BFGS-B iterations (max_iterations {p['max_iterations']}; "
+            f"status {result.status}: {result.message})"
         )
         raise SolverError(msg)
-    if e_total > e_start * (1 + 1e-9) and worst >= 0 and (cons(z0).min() if m else 0.0) >= 0:
+    # sliding vertices keep their order along their side (the edge term is a
+    # barrier at zero length; this guards against a line-search step over it)
+    on_side = border.sliding[c_edges[:, 0]] | border.sliding[c_edges[:, 1]]
+    on_side &= ground[c_edges[:, 0]] & ground[c_edges[:, 1]]
+    end_edges = x[c_edges[:, 0]] - x[c_edges[:, 1]]
+    reversed_ = on_side & (np.einsum("ec,ec->e", start_edges, end_edges) <= 0.0)
+    if reversed_.any():
+        a, b = c_edges[np.flatnonzero(reversed_)[0]]
+        msg = f"optimize: ground vertices {a} and {b} passed each other on their rectangle side (solver failure)"
+        raise SolverError(msg)
+    if e_total > e_start * (1 + 1e-9) and worst >= 0 and (slack(x_start).min() if m else 0.0) >= 0:
         msg = (
             f"optimize: the solver diverged: energy rose from {e_start:.6g} to {e_total:.6g} "
-            f"(SLSQP status {result.status}: {result.message})"
+            f"(L-BFGS-B status {result.status}: {result.message})"
         )
         raise SolverError(msg)
 
@@ -531,7 +706,8 @@ def optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None = None) ->
         "energy_before": float(e_start),
         "energy_after": e_total,
         "terms_after": e_end,
-        "iterations": int(result.nit),
+        "iterations": int(iterations),
+        "penalty_rounds": int(outer),
         "status": int(result.status),
         "message": str(result.message),
         "seconds": time.perf_counter() - start,
@@ -544,7 +720,7 @@ class OptimizeRefiner:
     """The ``optimize`` refiner: the paper's Section 5.3 mesh optimisation."""
 
     name = "optimize"
-    description = "Mesh optimisation of the paper (Laplacian, angle, vertex and plane terms; SLSQP)"
+    description = "Mesh optimisation of the paper (Laplacian, angle, vertex and plane terms; L-BFGS-B)"
 
     def refine(
         self,
