@@ -144,7 +144,9 @@ class SurfaceQuery:
     interpolated from the surface's vertex normals.
     """
 
-    CANDIDATE_VERTICES = 8
+    CANDIDATE_VERTICES = 6
+    #: Points closer than this (m) get the wider candidate search.
+    EXACT_WITHIN = 0.10
 
     def __init__(self, surface: Surface):
         v = np.asarray(surface.vertices, dtype=np.float64)
@@ -165,6 +167,12 @@ class SurfaceQuery:
     def query(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Distance to the surface and signed offset along its normal.
 
+        Candidates are the triangles around the 3 nearest tessellation
+        vertices; points that end up within :data:`EXACT_WITHIN` of the
+        surface (where contact and the average distance are decided) are
+        searched again with :attr:`CANDIDATE_VERTICES` vertices, which agrees
+        with open3d's exact closest points to 2e-5 m (tests).
+
         Returns
         -------
         distance : (k,) float64
@@ -174,7 +182,14 @@ class SurfaceQuery:
             normals point to (the body side), negative behind the surface.
         """
         points = np.asarray(points, dtype=np.float64)
-        _, near = self.tree.query(points, k=self.CANDIDATE_VERTICES)
+        distance, side = self._query(points, 3)
+        near = np.flatnonzero(distance < self.EXACT_WITHIN)
+        if near.size:
+            distance[near], side[near] = self._query(points[near], self.CANDIDATE_VERTICES)
+        return distance, side
+
+    def _query(self, points: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        _, near = self.tree.query(points, k=k)
         cand = self.rings[near].reshape(len(points), -1)  # (k, c)
         valid = cand >= 0
         tri = self.triangles[np.where(valid, cand, 0)]  # (k, c, 3)

@@ -8,7 +8,14 @@ import pytest
 from seatkit.errors import RecipeError, SolverError
 from seatkit.model import ControlMesh
 from seatkit.refine.grid import grid_faces, grid_ring
-from seatkit.refine.optimize import OPTIMIZE_DEFAULTS, CageEnergy, OptimizeRefiner, optimize_cage
+from seatkit.refine.optimize import (
+    OPTIMIZE_DEFAULTS,
+    CageEnergy,
+    OptimizeRefiner,
+    _build_border,
+    _EdgeLengthPenalty,
+    optimize_cage,
+)
 from seatkit.refine.quality import cage_quality, mesh_edges
 
 ROWS, COLS = 11, 7  # faces, like the chair: 7 x 3 grid plus two border rings
@@ -33,30 +40,32 @@ PROFILE = np.array(
 XS = np.array([-0.35, -0.25, -0.15, -0.05, 0.05, 0.15, 0.25, 0.35])
 
 
-def chair_cage(noise: float = 0.0, seed: int = 0) -> ControlMesh:
+def chair_cage(noise: float = 0.0, seed: int = 0, xs: np.ndarray = XS) -> ControlMesh:
     """A synthetic chair-like cage (12 x 8 vertices) with planes per face.
 
     Planes are fitted to the unperturbed faces; ``noise`` (m) then perturbs
-    every non-ground vertex.
+    every non-ground vertex. ``xs`` (m) are the vertex columns' x (wider:
+    a bench-like cage with the same profile).
     """
-    z = np.repeat(PROFILE[:, 0][:, None], len(XS), axis=1)
-    y = np.repeat(PROFILE[:, 1][:, None], len(XS), axis=1)
-    x = np.repeat(XS[None, :], len(PROFILE), axis=0)
-    # ground columns: on the x = +-0.35 sides, y = 0
+    rows, cols = len(PROFILE) - 1, len(xs) - 1
+    z = np.repeat(PROFILE[:, 0][:, None], len(xs), axis=1)
+    y = np.repeat(PROFILE[:, 1][:, None], len(xs), axis=1)
+    x = np.repeat(xs[None, :], len(PROFILE), axis=0)
+    # ground columns: on the x = xs[0] and xs[-1] sides, y = 0
     y[:, [0, -1]] = 0.0
     vertices = np.stack([x, y, z], axis=-1).reshape(-1, 3)
-    faces = grid_faces(ROWS, COLS)
-    ground = grid_ring(ROWS, COLS, 0)
+    faces = grid_faces(rows, cols)
+    ground = grid_ring(rows, cols, 0)
     # best-fit plane of each unperturbed face
     corners = vertices[faces]
     centre = corners.mean(axis=1)
     _, _, vt = np.linalg.svd(corners - centre[:, None, :])
     normals = vt[:, 2, :]
     normals *= np.sign(normals[:, 1:2] + 1e-12)
-    weights = np.where(ground, 0.0, np.where(grid_ring(ROWS, COLS, 1), 0.3, 1.0))
+    weights = np.where(ground, 0.0, np.where(grid_ring(rows, cols, 1), 0.3, 1.0))
     rng = np.random.default_rng(seed)
     moved = vertices + np.where(ground[:, None], 0.0, noise * rng.standard_normal(vertices.shape))
-    segments = np.where(grid_ring(ROWS, COLS, 0)[faces].all(axis=1), -1, 0)
+    segments = np.where(grid_ring(rows, cols, 0)[faces].all(axis=1), -1, 0)
     structural = np.zeros(len(faces), bool)
     structural[np.flatnonzero(ground[faces].any(axis=1))] = True
     planes_p = np.where(structural[:, None], np.nan, centre)
@@ -202,3 +211,103 @@ def test_unknown_parameter_is_a_recipe_error():
         optimize_cage(chair_cage(), {"lambda_laplace": 1.0})
     with pytest.raises(RecipeError, match="expected float"):
         optimize_cage(chair_cage(), {"lambda_plane": "big"})
+
+
+def test_edge_length_penalty_gradient_matches_central_differences():
+    rng = np.random.default_rng(7)
+    x = rng.standard_normal((12, 3))
+    edges = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [8, 9], [9, 10], [10, 11], [0, 11]])
+    lengths = np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1)
+    target = float(np.median(lengths))  # about half the edges too short
+    penalty = _EdgeLengthPenalty(edges, len(x), target)
+    c = penalty.constraint(x)[0]
+    assert np.all((c >= 0) == (lengths >= target))
+    # multipliers on some edges, zero on others; an edge long enough with a multiplier too
+    lam = np.where(np.arange(len(edges)) % 3 == 0, 0.0, 0.7)
+    mu = 3.0
+    value, grad = penalty.value_and_grad(x, lam, mu)
+    assert np.isfinite(value)
+    h = 1e-6
+    numeric = np.zeros_like(x)
+    for i in range(x.shape[0]):
+        for k in range(3):
+            xp, xm = x.copy(), x.copy()
+            xp[i, k] += h
+            xm[i, k] -= h
+            numeric[i, k] = (penalty.value_and_grad(xp, lam, mu)[0] - penalty.value_and_grad(xm, lam, mu)[0]) / (2 * h)
+    rel = np.linalg.norm(grad - numeric) / np.linalg.norm(numeric)
+    assert rel < 1e-6, f"relative gradient error {rel:.2e}"
+    # zero for edges long enough and without multiplier; unbounded as an edge shrinks
+    assert penalty.value_and_grad(x * 10.0, np.zeros(len(edges)), mu)[0] == 0.0
+    y = x.copy()
+    y[1] = y[0] + 1e-4 * (y[1] - y[0])
+    assert penalty.value_and_grad(y, np.zeros(len(edges)), mu)[0] > 1e6
+
+
+def test_reduced_gradient_through_the_border_parametrisation():
+    mesh = chair_cage(noise=0.02, seed=2)
+    energy = _energy(mesh)
+    border, z0 = _build_border(mesh.vertices, mesh.ground, mesh.fixed, slide=True, scale=1.0, gap=0.02)
+    n = len(mesh.vertices)
+    sliding = np.flatnonzero(border.sliding)
+    assert sliding.size == mesh.ground.sum() - 4  # every ground vertex but the 4 corners
+    assert np.array_equal(border.moving, ~mesh.ground | border.sliding)
+
+    def unpack(z):
+        return (border.base + border.basis @ z).reshape(n, 3)
+
+    assert np.allclose(unpack(z0), mesh.vertices, atol=1e-12)
+    # a sliding vertex's bounds stop the minimal edge length short of a corner vertex
+    lower = np.array([b[0] for b in border.bounds[-sliding.size :]])
+    upper = np.array([b[1] for b in border.bounds[-sliding.size :]])
+    assert np.allclose(np.sort(np.unique(np.round(lower, 9))), [-0.4 + 0.02, -0.35 + 0.02])
+    assert np.allclose(np.sort(np.unique(np.round(upper, 9))), [0.35 - 0.02, 0.7 - 0.02])
+    basis_t = border.basis.T.tocsr()
+    _, grad_x = energy.value_and_grad(unpack(z0))
+    grad_z = basis_t @ grad_x.ravel()
+    h = 1e-6
+    numeric = np.zeros_like(z0)
+    for i in range(z0.size):
+        zp, zm = z0.copy(), z0.copy()
+        zp[i] += h
+        zm[i] -= h
+        numeric[i] = (energy.value_and_grad(unpack(zp))[0] - energy.value_and_grad(unpack(zm))[0]) / (2 * h)
+    rel = np.linalg.norm(grad_z - numeric) / np.linalg.norm(numeric)
+    assert rel < 1e-5, f"relative gradient error {rel:.2e}"
+    # moving a sliding unknown moves its vertex along its side only, at y = 0
+    z = z0.copy()
+    z[-1] += 0.05
+    moved = np.linalg.norm(unpack(z) - unpack(z0), axis=1)
+    assert np.flatnonzero(moved > 0).tolist() == [sliding[-1]]
+    assert unpack(z)[sliding[-1], 1] == 0.0
+
+
+def test_sliding_vertices_keep_their_order_when_the_edge_length_pushes():
+    mesh = chair_cage(noise=0.02, seed=4)
+    out = optimize_cage(mesh, {"min_edge_length": 0.09})
+    e = mesh_edges(mesh.faces)
+    on_ground = e[mesh.ground[e[:, 0]] & mesh.ground[e[:, 1]]]
+    before = mesh.vertices[on_ground[:, 1]] - mesh.vertices[on_ground[:, 0]]
+    after = out.vertices[on_ground[:, 1]] - out.vertices[on_ground[:, 0]]
+    assert np.all(np.einsum("ec,ec->e", before, after) > 0.0)
+    lengths = np.linalg.norm(out.vertices[e[:, 0]] - out.vertices[e[:, 1]], axis=1)
+    assert lengths.min() >= 0.09 * (1 - 1e-6)
+    report = out.meta["optimize"]
+    assert report["penalty_rounds"] >= 1
+    assert report["iterations"] >= report["penalty_rounds"]
+    assert report["seconds"] > 0.0
+    assert report["energy_after"] < report["energy_before"]
+
+
+def test_iterations_do_not_grow_with_the_cage_width():
+    """A cage three times as wide (bench-like) needs about as many iterations."""
+    narrow = optimize_cage(chair_cage(noise=0.02, seed=6))
+    wide_xs = np.linspace(-1.05, 1.05, 22)  # 0.1 m columns, like XS
+    wide = optimize_cage(chair_cage(noise=0.02, seed=6, xs=wide_xs))
+    n_narrow, n_wide = narrow.meta["optimize"]["iterations"], wide.meta["optimize"]["iterations"]
+    assert n_wide <= 2 * n_narrow, (n_narrow, n_wide)
+    after = wide.meta["optimize"]["after"]
+    before = wide.meta["optimize"]["before"]
+    assert after["planarity_mean"] < before["planarity_mean"]
+    assert after["regularity_deg"] < before["regularity_deg"]
+    assert after["min_edge_length"] >= 0.02 * (1 - 1e-6)
