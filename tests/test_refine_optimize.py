@@ -219,9 +219,23 @@ def test_edge_length_penalty_gradient_matches_central_differences():
     edges = np.array([[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [8, 9], [9, 10], [10, 11], [0, 11]])
     lengths = np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1)
     target = float(np.median(lengths))  # about half the edges too short
-    penalty = _EdgeLengthPenalty(edges, len(x), target)
+    # three edges "along a side": put both ends on a line, direction = start orientation
+    directions = np.zeros((len(edges), 3))
+    for k, (a, b) in enumerate(edges[[4, 5, 8]]):
+        s = np.array([1.0, 0.0, 0.0]) if k != 1 else np.array([0.0, 0.0, -1.0])
+        x[b] = x[a] - (0.5 + k) * target * s  # e = x_a - x_b = (0.5 + k) target s
+        directions[[4, 5, 8][k]] = s
+    lengths = np.linalg.norm(x[edges[:, 0]] - x[edges[:, 1]], axis=1)
+    penalty = _EdgeLengthPenalty(edges, len(x), target, directions)
     c = penalty.constraint(x)[0]
     assert np.all((c >= 0) == (lengths >= target))
+    # along a side the constraint is the signed length minus the target
+    assert np.allclose(c[[4, 5, 8]], lengths[[4, 5, 8]] - target)
+    # elsewhere |e| - target to first order at the target
+    near = x.copy()
+    a, b = edges[0]
+    near[b] = near[a] - (1.0 + 1e-6) * target * (x[a] - x[b]) / lengths[0]
+    assert penalty.constraint(near)[0][0] == pytest.approx(1e-6 * target, rel=1e-4)
     # multipliers on some edges, zero on others; an edge long enough with a multiplier too
     lam = np.where(np.arange(len(edges)) % 3 == 0, 0.0, 0.7)
     mu = 3.0
@@ -242,6 +256,13 @@ def test_edge_length_penalty_gradient_matches_central_differences():
     y = x.copy()
     y[1] = y[0] + 1e-4 * (y[1] - y[0])
     assert penalty.value_and_grad(y, np.zeros(len(edges)), mu)[0] > 1e6
+    # a side edge whose end jumped over its neighbour is penalised more than a short one
+    lam0 = np.zeros(len(edges))
+    a, b = edges[8]
+    short, flipped = x.copy(), x.copy()
+    short[b] = x[a] - 0.3 * (x[a] - x[b])  # 0.75 target
+    flipped[b] = x[a] + (x[a] - x[b])
+    assert penalty.value_and_grad(flipped, lam0, mu)[0] > penalty.value_and_grad(short, lam0, mu)[0]
 
 
 def test_reduced_gradient_through_the_border_parametrisation():
@@ -282,16 +303,18 @@ def test_reduced_gradient_through_the_border_parametrisation():
     assert unpack(z)[sliding[-1], 1] == 0.0
 
 
-def test_sliding_vertices_keep_their_order_when_the_edge_length_pushes():
-    mesh = chair_cage(noise=0.02, seed=4)
-    out = optimize_cage(mesh, {"min_edge_length": 0.09})
+@pytest.mark.parametrize(("seed", "min_edge_length"), [(4, 0.09), (1, 0.005), (1, 0.0001)])
+def test_sliding_vertices_keep_their_order(seed, min_edge_length):
+    """Ground vertices pile up at the minimal length; they never pass each other."""
+    mesh = chair_cage(noise=0.02, seed=seed)
+    out = optimize_cage(mesh, {"min_edge_length": min_edge_length})
     e = mesh_edges(mesh.faces)
     on_ground = e[mesh.ground[e[:, 0]] & mesh.ground[e[:, 1]]]
     before = mesh.vertices[on_ground[:, 1]] - mesh.vertices[on_ground[:, 0]]
     after = out.vertices[on_ground[:, 1]] - out.vertices[on_ground[:, 0]]
     assert np.all(np.einsum("ec,ec->e", before, after) > 0.0)
     lengths = np.linalg.norm(out.vertices[e[:, 0]] - out.vertices[e[:, 1]], axis=1)
-    assert lengths.min() >= 0.09 * (1 - 1e-6)
+    assert lengths.min() >= min_edge_length * (1 - 1e-6)
     report = out.meta["optimize"]
     assert report["penalty_rounds"] >= 1
     assert report["iterations"] >= report["penalty_rounds"]

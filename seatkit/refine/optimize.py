@@ -30,20 +30,22 @@ side (y = 0; bounds keep it on the side and, next to a corner vertex, at least
 the minimal edge length from it), a corner or fixed vertex none. The energy's
 analytic gradient reaches the unknowns by the chain rule through this affine
 map. The edge-length inequalities are the only constraints left; they go into
-the objective as an augmented-Lagrangian term on ``c_e = 1 - l^2 / |e|^2 >= 0``
-(aimed at ``l (1 + 1e-4)``, so that what the penalty leaves unmet still meets
-``l``; unbounded as an edge shrinks, so sliding vertices cannot pass each
-other) and the bound-constrained problem is solved by scipy's L-BFGS-B, with
-multiplier updates until every edge is long enough (usually 1-5 rounds). The
-result is then checked: an edge shorter than ``min_edge_length`` by more than
-a relative 1e-6 (of its square) is a ``SolverError``.
+the objective as an augmented-Lagrangian term aimed at ``l (1 + 1e-4)`` (so
+that what the penalty leaves unmet still meets ``l``): linear in the signed
+length for edges along a rectangle side (so sliding vertices keep their order
+whatever the step), ``l/2 (1 - l^2 / |e|^2)`` (unbounded as the edge shrinks)
+for the others. The bound-constrained problem is solved by scipy's L-BFGS-B,
+with multiplier updates until every edge is long enough (usually 5-7 rounds,
+all but the first a few iterations). The result is then checked: an edge
+shorter than ``min_edge_length`` by more than a relative 1e-6 (of its
+square), or two ground vertices that passed each other, is a ``SolverError``.
 
 Every step costs O(v) (sparse products, vectorised per-face terms, limited
-memory quasi-Newton), and the number of iterations does not grow with the
-cage: about 0.08 s for the 96-point chair cage and 0.1-0.15 s for benches of
-2 to 6 people (144-336 points), one BLAS thread. The SLSQP solver used before
-(dense QP subproblems, O(v^3)) took 0.9 s and 3.7 s (3-person bench) to reach
-the same energies.
+memory quasi-Newton), and the number of iterations (200-300) does not grow
+with the cage: about 0.11 s for the 96-point chair cage and 0.09-0.16 s for
+benches of 2 to 6 people (144-336 points), one BLAS thread. The SLSQP solver
+used before (dense QP subproblems, O(v^3)) took 0.7-0.9 s and 4 s (3-person
+bench) to reach the same energies.
 
 Departures from the paper, and why:
 
@@ -89,6 +91,12 @@ OPTIMIZE_DEFAULTS: dict[str, Any] = {
 
 #: Relative tolerance when checking that a vertex lies on the ground rectangle.
 _RECT_TOL = 1e-6
+#: Previous and next corner of each quad corner; cyclic coordinate shifts for
+#: the cross product ``a x b = a[C1] b[C2] - a[C2] b[C1]``.
+_PREV = np.array([3, 0, 1, 2])
+_NEXT = np.array([1, 2, 3, 0])
+_C1 = np.array([1, 2, 0])
+_C2 = np.array([2, 0, 1])
 
 
 def _scatter_matrix(index: np.ndarray, n: int) -> sp.csr_matrix:
@@ -117,6 +125,10 @@ class CageEnergy:
     plane_points, plane_normals : (g, 3) float64
     coeffs : dict of str to float
         The products of global and term weights.
+    corner_scatter : (v, 4 f) csr_matrix
+        Sums per-corner rows (face-major) into their vertices.
+    plane_scatter : (v, 4 g) csr_matrix
+        The same for the corners of the faces with a plane.
     """
 
     faces: np.ndarray
@@ -128,6 +140,7 @@ class CageEnergy:
     plane_normals: np.ndarray
     coeffs: dict
     corner_scatter: sp.csr_matrix
+    plane_scatter: sp.csr_matrix
 
     @classmethod
     def build(
@@ -187,6 +200,7 @@ class CageEnergy:
             plane_normals=normals,
             coeffs=coeffs,
             corner_scatter=_scatter_matrix(np.asarray(faces, dtype=np.int64).ravel(), n),
+            plane_scatter=_scatter_matrix(np.asarray(faces, dtype=np.int64)[plane_faces].ravel(), n),
         )
 
     def terms(self, x: np.ndarray) -> dict[str, float]:
@@ -221,10 +235,10 @@ class CageEnergy:
 
         # S_A: corner angles alpha = angle(a, b), a = prev - v, b = next - v
         corner = x[self.faces]  # (f, 4, 3)
-        a = np.roll(corner, 1, axis=1) - corner
-        b = np.roll(corner, -1, axis=1) - corner
-        cross = np.cross(a, b)
-        sin_part = np.linalg.norm(cross, axis=-1)
+        a = corner[:, _PREV] - corner
+        b = corner[:, _NEXT] - corner
+        cross = a[..., _C1] * b[..., _C2] - a[..., _C2] * b[..., _C1]
+        sin_part = np.sqrt(np.einsum("fkc,fkc->fk", cross, cross))
         cos_part = np.einsum("fkc,fkc->fk", a, b)
         alpha = np.arctan2(sin_part, cos_part)
         sum_err = alpha.sum(axis=1) - 2.0 * np.pi
@@ -243,7 +257,7 @@ class CageEnergy:
             g_b = -a_perp / safe * d_alpha[..., None]  # w.r.t. the next corner
             # corner k gets -(g_a + g_b) from its own angle, g_a from the angle
             # of corner k+1 (k is its previous) and g_b from corner k-1
-            per_corner = -(g_a + g_b) + np.roll(g_a, -1, axis=1) + np.roll(g_b, 1, axis=1)
+            per_corner = -(g_a + g_b) + g_a[:, _NEXT] + g_b[:, _PREV]
             grad += self.corner_scatter @ per_corner.reshape(-1, 3)
 
         # D_V: weighted squared distance to the template positions
@@ -260,7 +274,7 @@ class CageEnergy:
             terms["plane"] = c["plane"] * float(np.sum(w * dist**2))
             if want_grad:
                 g = 2.0 * c["plane"] * (w * dist)[..., None] * self.plane_normals[:, None, :]
-                np.add.at(grad, idx.ravel(), g.reshape(-1, 3))
+                grad += self.plane_scatter @ g.reshape(-1, 3)
         else:
             terms["plane"] = 0.0
 
@@ -365,8 +379,12 @@ def _build_border(
             t_hi = np.where(on_u_side, hi[1], hi[0])
             # the side's ends (local coordinates) and whether a corner vertex stands there
             fixed_coord = np.where(on_u_side, snapped[:, 0], snapped[:, 1])
-            end_lo = np.where(on_u_side[:, None], np.column_stack([fixed_coord, t_lo]), np.column_stack([t_lo, fixed_coord]))
-            end_hi = np.where(on_u_side[:, None], np.column_stack([fixed_coord, t_hi]), np.column_stack([t_hi, fixed_coord]))
+            end_lo = np.where(
+                on_u_side[:, None], np.column_stack([fixed_coord, t_lo]), np.column_stack([t_lo, fixed_coord])
+            )
+            end_hi = np.where(
+                on_u_side[:, None], np.column_stack([fixed_coord, t_hi]), np.column_stack([t_hi, fixed_coord])
+            )
             corner_pts = snapped[corner]
 
             def has_corner(ends):
@@ -398,7 +416,10 @@ def _build_border(
     vals_s = slide_dirs[slide_idx].ravel()
     keep = vals_s != 0.0
     basis = sp.csr_matrix(
-        (np.concatenate([vals_f, vals_s[keep]]), (np.concatenate([rows_f, rows_s[keep]]), np.concatenate([cols_f, cols_s[keep]]))),
+        (
+            np.concatenate([vals_f, vals_s[keep]]),
+            (np.concatenate([rows_f, rows_s[keep]]), np.concatenate([cols_f, cols_s[keep]])),
+        ),
         shape=(3 * n, 3 * n_free + slide_idx.size),
     )
     base_flat = base.ravel().copy()
@@ -440,27 +461,39 @@ def _check_sides(border: _Border, x0: np.ndarray, ground: np.ndarray, min_len: f
 _EDGE_MARGIN = 1e-4
 #: Accepted relative violation of ``|e|^2 >= min_edge_length^2`` after the solve.
 _EDGE_TOL = 1e-6
-#: Augmented Lagrangian: first penalty weight, its growth when the violation
-#: does not drop fourfold in a round, and the most rounds.
-_PENALTY_START = 1.0
+#: Augmented Lagrangian: first penalty weight (per squared normalised length),
+#: its growth when the violation does not drop fourfold in a round, and the
+#: most rounds.
+_PENALTY_START = 100.0
 _PENALTY_GROWTH = 10.0
 _MAX_ROUNDS = 10
 #: L-BFGS-B: stop when every projected gradient component is below this
 #: (dimensionless units); number of correction pairs kept.
 _GTOL = 1e-6
 _MEMORY = 10
+#: Factor on ``tolerance`` for the penalty rounds after the first.
+_LATER_FTOL = 1e-1
 
 
 class _EdgeLengthPenalty:
     """Augmented-Lagrangian term for ``|x_a - x_b| >= target`` on edges.
 
-    The constraint is written ``c_e = 1 - target^2 / |e|^2 >= 0``; with
-    multipliers ``lam`` and penalty weight ``mu`` the term is ``sum_e
-    (max(0, lam_e - mu c_e)^2 - lam_e^2) / (2 mu)``: continuously
-    differentiable, zero on edges that are long enough and carry no
-    multiplier, and unbounded as an edge shrinks to nothing, so two vertices
-    sliding along the same rectangle side cannot pass through each other
-    (a penalty on ``|e|^2 - target^2`` is bounded there and let them cross).
+    Each edge's constraint is written ``c_e >= 0``; with multipliers ``lam``
+    and penalty weight ``mu`` the term is ``sum_e (max(0, lam_e - mu c_e)^2 -
+    lam_e^2) / (2 mu)``: continuously differentiable and zero on edges that
+    are long enough and carry no multiplier.
+
+    - An edge between two ground vertices on the same rectangle side (one at
+      least sliding) has a known direction ``s`` along the side (its start
+      orientation), and its length is ``<e, s>``: the constraint is linear,
+      ``c_e = <e, s> - target``. It keeps the vertices' order along the side
+      whatever the step length (a constraint on ``|e|`` would let the solver
+      jump a vertex over its neighbour).
+    - Any other edge: ``c_e = target / 2 (1 - target^2 / |e|^2)``, unbounded
+      as the edge shrinks.
+
+    Both are ``|e| - target`` to first order at the target: a length, so the
+    penalty's stiffness does not depend on how small ``target`` is.
 
     Parameters
     ----------
@@ -469,13 +502,18 @@ class _EdgeLengthPenalty:
         Number of vertices.
     target : float
         Length aimed at (normalised units).
+    directions : (m, 3) float64
+        Unit ``s`` for the edges along a rectangle side, zero rows otherwise.
     """
 
-    def __init__(self, edges: np.ndarray, n: int, target: float):
+    def __init__(self, edges: np.ndarray, n: int, target: float, directions: np.ndarray):
         m = len(edges)
         self.edges = edges
         self.size = m
+        self.target = target
         self.target_sq = target**2
+        self.directions = directions
+        self.linear = np.any(directions != 0.0, axis=1)
         # signed incidence (n, m): +1 at an edge's first end, -1 at its second
         self.incidence = sp.csr_matrix(
             (np.concatenate([np.ones(m), -np.ones(m)]), (edges.T.ravel(), np.tile(np.arange(m), 2))),
@@ -487,18 +525,22 @@ class _EdgeLengthPenalty:
         d = x[self.edges[:, 0]] - x[self.edges[:, 1]]
         # floored so that coinciding ends give a huge finite value, not inf
         sq = np.maximum(np.einsum("ec,ec->e", d, d), 1e-12 * self.target_sq)
-        return 1.0 - self.target_sq / sq, d, sq
+        along = np.einsum("ec,ec->e", d, self.directions)
+        c = np.where(self.linear, along - self.target, 0.5 * self.target * (1.0 - self.target_sq / sq))
+        return c, d, sq
 
     def value_and_grad(self, x: np.ndarray, lam: np.ndarray, mu: float) -> tuple[float, np.ndarray]:
         """Penalty value and its gradient (n, 3) at ``x``."""
         c, d, sq = self.constraint(x)
         q = np.maximum(lam - mu * c, 0.0)  # -dP/dc
         value = float(q @ q - lam @ lam) / (2.0 * mu)
-        # dc/dx_a = 2 target^2 e / |e|^4 = -dc/dx_b; skip the inactive edges
-        factor = np.zeros_like(q)
-        active = q > 0.0
-        factor[active] = -2.0 * self.target_sq * q[active] / sq[active] ** 2
-        grad = self.incidence @ (factor[:, None] * d)
+        # dP/de = -q dc/de: dc/de = target^3 e / |e|^4, or s
+        dc = np.where(
+            self.linear[:, None],
+            self.directions,
+            (self.target * self.target_sq / sq**2)[:, None] * d,
+        )
+        grad = self.incidence @ (-q[:, None] * dc)
         return value, grad
 
 
@@ -507,8 +549,8 @@ def _solve(energy: CageEnergy, penalty: _EdgeLengthPenalty, unpack, basis_t, z0,
 
     L-BFGS-B (bounds keep sliding vertices on their side) on the energy plus
     the augmented-Lagrangian edge term; the multipliers are updated and the
-    weight raised until every edge meets the penalty's target to within
-    ``_EDGE_MARGIN``, i.e. ``min_edge_length`` itself.
+    weight raised until every edge is within half ``_EDGE_MARGIN`` (relative)
+    of the penalty's target, i.e. longer than ``min_edge_length`` itself.
 
     Returns
     -------
@@ -547,7 +589,9 @@ def _solve(energy: CageEnergy, penalty: _EdgeLengthPenalty, unpack, basis_t, z0,
             bounds=bounds,
             options={
                 "maxiter": max_it,
-                "ftol": p["tolerance"],
+                # later rounds move edges by tiny amounts: their energy changes
+                # are far below the first round's stopping threshold
+                "ftol": p["tolerance"] * (1.0 if rounds == 1 else _LATER_FTOL),
                 "gtol": _GTOL,
                 "maxcor": _MEMORY,
             },
@@ -558,7 +602,8 @@ def _solve(energy: CageEnergy, penalty: _EdgeLengthPenalty, unpack, basis_t, z0,
             break
         g = penalty.constraint(unpack(z))[0]
         violation = max(0.0, -float(g.min()))
-        if violation <= _EDGE_MARGIN or rounds >= _MAX_ROUNDS:
+        # |e| >= target (1 - margin / 2) = min_edge_length (1 + margin / 2) to first order
+        if violation <= 0.5 * _EDGE_MARGIN * penalty.target or rounds >= _MAX_ROUNDS:
             break
         lam = np.maximum(lam - mu * g, 0.0)
         if violation > 0.25 * previous:
@@ -639,7 +684,6 @@ def optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None = None) ->
     upper = np.array([np.inf if b[1] is None else b[1] for b in border.bounds], dtype=np.float64)
     bounds = scipy.optimize.Bounds(lower, upper)
     z0 = np.clip(z0, lower, upper)
-    penalty = _EdgeLengthPenalty(c_edges, n, min_len * (1.0 + _EDGE_MARGIN))
 
     def unpack(z):
         return (border.base + basis @ z).reshape(n, 3)
@@ -651,6 +695,20 @@ def optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None = None) ->
         a, b = c_edges[np.argmin(start_lengths)]
         msg = f"optimize: the cage has a zero-length edge between vertices {a} and {b}; cannot optimise it"
         raise SolverError(msg)
+    # edges along a rectangle side (both ends ground, one sliding, one
+    # rectangle coordinate shared): their direction along the side
+    on_side = border.sliding[c_edges[:, 0]] | border.sliding[c_edges[:, 1]]
+    on_side &= ground[c_edges[:, 0]] & ground[c_edges[:, 1]]
+    directions = np.zeros((len(c_edges), 3))
+    if on_side.any():
+        axes = border.rectangle["axes"]
+        local = start_edges[:, [0, 2]] @ axes.T  # (m, 2) in the rectangle frame
+        along = np.argmax(np.abs(local), axis=1)
+        rows = np.arange(len(c_edges))
+        on_side &= np.abs(local[rows, 1 - along]) <= _RECT_TOL * np.abs(local[rows, along])
+        sign = np.sign(local[rows, along])
+        directions[:, [0, 2]] = (sign[:, None] * axes[along]) * on_side[:, None]
+    penalty = _EdgeLengthPenalty(c_edges, n, min_len * (1.0 + _EDGE_MARGIN), directions)
 
     def slack(x):
         """Relative slack of |e|^2 >= l^2 on the constrained edges (>= 0: met)."""
@@ -678,10 +736,8 @@ def optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None = None) ->
             f"status {result.status}: {result.message})"
         )
         raise SolverError(msg)
-    # sliding vertices keep their order along their side (the edge term is a
-    # barrier at zero length; this guards against a line-search step over it)
-    on_side = border.sliding[c_edges[:, 0]] | border.sliding[c_edges[:, 1]]
-    on_side &= ground[c_edges[:, 0]] & ground[c_edges[:, 1]]
+    # sliding vertices keep their order along their side (the side edges'
+    # constraints are linear in the signed length; a guard all the same)
     end_edges = x[c_edges[:, 0]] - x[c_edges[:, 1]]
     reversed_ = on_side & (np.einsum("ec,ec->e", start_edges, end_edges) <= 0.0)
     if reversed_.any():
