@@ -17,7 +17,7 @@ import time
 from seatkit.pipeline import build
 from seatkit.plugins import get_plugin_manager
 
-POSES = ["upright-sitting", "reclined-sitting", "crossed-legs-knees", "armrest-sitting", "crossed-legs-ankles", "upright-sitting"]
+POSES = ["upright-sitting", "reclined-sitting"]
 BODIES = ["default-male", "default-female"]
 
 
