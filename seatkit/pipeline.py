@@ -26,7 +26,7 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from seatkit.errors import SeatkitError
+from seatkit.errors import SeatkitError, UnsupportedPoseError
 from seatkit.io import RUN_MARKER, mark_complete, write_text_atomic
 from seatkit.model import Body, BuildResult
 from seatkit.recipe import check_recipe, load_recipe
@@ -172,6 +172,30 @@ def _finish_output(staging: Path, target: Path, *, overwrite: bool) -> None:
         shutil.rmtree(trash, ignore_errors=True)
     else:
         os.replace(staging, target)
+
+
+def output_target(recipe: Mapping) -> Path:
+    """The output folder of a recipe (default ``seatkit-out/TEMPLATE``)."""
+    return Path(recipe["output"] or Path("seatkit-out") / recipe["template"])
+
+
+def _save_unsupported(error: UnsupportedPoseError, recipe: Mapping) -> None:
+    """Write what could and could not be supported beside the output folder.
+
+    The file is ``<output>-unsupported.json`` (not inside the folder: no
+    design was made, so no output folder is created); its path is appended
+    to the error's message.
+    """
+    target = output_target(recipe)
+    path = target.parent / f"{target.name}-unsupported.json"
+    data = {
+        "error": str(error),
+        "unsupported_parts": error.parts,
+        "diagnostics": _jsonable(error.diagnostics),
+        "recipe": _jsonable(dict(recipe)),
+    }
+    write_text_atomic(path, json.dumps(data, indent=1, default=str) + "\n")
+    error.args = (f"{error}; diagnostics saved to {path}",)
 
 
 def fit_baseline(recipe: Mapping, bodies, pressures, registry, segments) -> dict:
@@ -330,7 +354,12 @@ def _build(recipe, *, pm, progress, write, overwrite) -> BuildResult:
 
     with timer.stage("template"):
         template = registry.get("template", recipe["template"])
-        initial = template.fit(bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
+        try:
+            initial = template.fit(bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
+        except UnsupportedPoseError as e:
+            if write:
+                _save_unsupported(e, recipe)
+            raise
 
     # The baseline depends only on the bodies and the segments our cage
     # supports: fit it on a second thread while our refiners run (numpy,
@@ -376,7 +405,7 @@ def _build(recipe, *, pm, progress, write, overwrite) -> BuildResult:
                 executor.shutdown(wait=True)
 
     if write:
-        target = Path(recipe["output"] or Path("seatkit-out") / recipe["template"])
+        target = output_target(recipe)
         target.parent.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.staging-", dir=target.parent))
         mask = os.umask(0)

@@ -58,3 +58,16 @@ def test_debug_shows_the_traceback_of_a_user_error(tmp_path):
 
     with pytest.raises(RecipeError, match="unknown template 'sofa'"):
         runner.invoke(app, ["--debug", "build", "--template", "sofa", "--out", str(tmp_path / "o")], catch_exceptions=False)
+
+
+def test_unsupported_pose_is_one_error_and_saves_diagnostics_beside_the_output(tmp_path):
+    import json
+
+    out = tmp_path / "design"
+    result = invoke("build", "--template", "chair", "--pose", "feet-tucked", "--out", str(out))
+    assert result.exit_code == 1
+    lines = [l for l in result.stderr.splitlines() if l.strip()]
+    assert len(lines) == 1 and "cannot support" in lines[0] and "diagnostics saved to" in lines[0]
+    assert not out.exists()  # no design, no output folder
+    saved = json.loads((tmp_path / "design-unsupported.json").read_text())
+    assert saved["unsupported_parts"] and "diagnostics" in saved
