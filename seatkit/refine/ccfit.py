@@ -76,7 +76,7 @@ CCFIT_DEFAULTS: dict[str, Any] = {
     "clearance": 0.006,  # m, gap kept between the surface and the skin
     "max_penetration": 0.005,  # m, allowed depth of the surface inside the body
     "max_distance": 1.0,  # m, correspondences farther than this are ignored
-    "max_iterations": 40,
+    "max_iterations": 20,
     "tolerance": 1e-4,  # m, stop when the mean distance improves less than this
     "raise_on_penetration": False,  # SolverError when max_penetration cannot be met
 }
