@@ -83,3 +83,17 @@ def test_body_spec_parsing(tmp_path):
     assert spec["model"] == "file" and spec["params"]["path"].endswith("me.glb")
     with pytest.raises(RecipeError, match="cannot read 'height'"):
         parse_body_spec("anny:height")
+
+
+def test_example_recipes_validate_and_name_registered_components():
+    from pathlib import Path
+
+    from seatkit.plugins import get_plugin_manager
+    from seatkit.recipe import check_recipe
+
+    examples = sorted((Path(__file__).resolve().parents[1] / "examples" / "recipes").glob("*.yaml"))
+    assert examples
+    registry = get_plugin_manager(autoload=False).registry
+    for path in examples:
+        recipe, doc = load_recipe(path)
+        check_recipe(recipe, registry, document=doc)
