@@ -9,7 +9,11 @@ supported body regions without passing through the body. ICP-like:
 2. every supported body vertex (importance above ``importance_threshold``,
    on a body segment that some face of the cage supports) is a target
    ``b = v + clearance * n_v``: the skin offset outwards by the clearance
-   along its normal; it takes its closest sample ``c`` (a k-d tree);
+   along its normal; it takes its closest sample ``c`` (a k-d tree), and the
+   pair is used only when the skin faces the surface there
+   (``n_v . n_c < -min_facing``): a support holds skin that faces it, and
+   pairing, say, the front of a shin with the seat below the knee would wrap
+   the surface around the limb;
 3. penetration is measured from the body side: a sample whose nearest skin
    vertex ``s`` sees it behind the skin (``n_s . (x - s) < 0``) is inside
    the body. The closed skin has a well-defined inside, so this stays right
@@ -75,6 +79,7 @@ CCFIT_DEFAULTS: dict[str, Any] = {
     "penetration_weight": 100.0,  # weight of a surface sample inside the body, relative to the mean importance
     "clearance": 0.006,  # m, gap kept between the surface and the skin
     "max_penetration": 0.005,  # m, allowed depth of the surface inside the body
+    "min_facing": 0.2,  # a correspondence needs skin normal . surface normal below -min_facing
     "max_distance": 1.0,  # m, correspondences farther than this are ignored
     "max_iterations": 20,
     "tolerance": 1e-4,  # m, stop when the mean distance improves less than this
@@ -334,7 +339,12 @@ def fit_cage(
     P0_m = select.T @ p0
     fair_rhs = fair @ P0_m
     for iterations in range(1, p["max_iterations"] + 1):
-        use = dist <= p["max_distance"]
+        # a support holds skin that faces it: a correspondence whose skin
+        # normal does not oppose the surface normal (the front of a shin
+        # matched to a seat below the knee) would wrap the surface around
+        # the limb, so it is left out
+        facing = np.einsum("kc,kc->k", target_n, N[closest]) < -p["min_facing"]
+        use = (dist <= p["max_distance"]) & facing
         w = w_base * use
         # data: point-to-plane along the surface normal at the correspondence,
         # plus a share of point-to-point (tangential stability)
