@@ -171,7 +171,7 @@ class SurfaceQuery:
         vertices; points that end up within :data:`EXACT_WITHIN` of the
         surface (where contact and the average distance are decided) are
         searched again with :attr:`CANDIDATE_VERTICES` vertices, which agrees
-        with open3d's exact closest points to 2e-5 m (tests).
+        with open3d's exact closest points to 0.1 mm (tests).
 
         Returns
         -------
