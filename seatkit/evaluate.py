@@ -9,7 +9,7 @@ the paper's quantities are reported:
     in the "supported everywhere" importance map: pressure of at least
     :data:`SUPPORTED_FRACTION` of its maximum) to the closest point of the
     surface, m. The paper measures to the closest surface vertex; we measure
-    to the surface itself (exact closest point on the tessellated limit
+    to the surface itself (closest point on the tessellated limit
     surface), which is never larger.
 ``avg_moment_nm``, ``max_moment_nm``
     Mean and largest joint-moment magnitude over the 20 joints, N m.
@@ -138,10 +138,12 @@ def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: n
 class SurfaceQuery:
     """Exact closest points on a tessellated surface (quads split in two triangles).
 
-    Candidates for each query point are the triangles around its
-    :data:`CANDIDATE_VERTICES` nearest tessellation vertices; the distance is
-    then exact (point to triangle), and the normal at the closest point is
-    interpolated from the surface's vertex normals.
+    Candidates for each query point are the triangles around its nearest
+    tessellation vertices (3, then :attr:`CANDIDATE_VERTICES` within
+    :attr:`EXACT_WITHIN` of the surface); the distance to each is exact
+    (point to triangle), so the result is within 0.1 mm of a search over all
+    triangles (tests compare with brute force and open3d). The normal at the
+    closest point is interpolated from the surface's vertex normals.
     """
 
     CANDIDATE_VERTICES = 6
