@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import json
+import zipfile
 from dataclasses import fields
 from pathlib import Path
 
@@ -53,10 +54,26 @@ def save_design(result: BuildResult, path) -> Path:
         for key in _MESH_ARRAYS:
             arrays[f"{role}_{key}"] = np.asarray(getattr(mesh, key))
         header["meshes"][role] = {"face_labels": list(mesh.face_labels), "meta": _jsonable(mesh.meta)}
-    arrays["header"] = np.frombuffer(json.dumps(header).encode("utf-8"), dtype=np.uint8)
+    arrays["header"] = np.frombuffer(json.dumps(_without_timings(header), sort_keys=True).encode("utf-8"), dtype=np.uint8)
+    # byte-identical for the same inputs and seed: fixed zip timestamps, no timings
     buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        for name in sorted(arrays):
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            member = io.BytesIO()
+            np.lib.format.write_array(member, np.asarray(arrays[name]), allow_pickle=False)
+            zf.writestr(info, member.getvalue())
     return write_bytes_atomic(path, buf.getvalue())
+
+
+def _without_timings(value):
+    """``value`` without the ``seconds`` entries (wall times differ run to run)."""
+    if isinstance(value, dict):
+        return {k: _without_timings(v) for k, v in value.items() if k != "seconds"}
+    if isinstance(value, list):
+        return [_without_timings(v) for v in value]
+    return value
 
 
 def load_design(path) -> tuple[dict, list[Body], ControlMesh, ControlMesh | None]:
