@@ -308,6 +308,9 @@ def fit_cage(
     owner_offset = np.cumsum([0] + [len(bd.vertices) for bd in bodies])[:-1]
     target_n = skin_n[owner_offset[targets.body] + targets.vertex]
     b = targets.points + p["clearance"] * target_n
+    # the soles rest on the floor (y = 0): a target offset below it would pull
+    # the surface under the ground
+    b[:, 1] = np.maximum(b[:, 1], 0.0)
     k_sup = len(b)
     w_base = targets.weights
     w_sum = float(w_base.sum())
@@ -364,6 +367,10 @@ def fit_cage(
         # probes inside the body, or closer to the skin than the clearance,
         # are pulled out along the skin normal (a strong penalty)
         idx = np.flatnonzero(depth > -p["clearance"])
+        # skin resting on the floor (soles): the floor holds it; pushing the
+        # surface out along its downward normal would push it underground
+        on_floor = (skin[near[idx], 1] < p["clearance"]) & (skin_n[near[idx], 1] < -0.5)
+        idx = idx[~on_floor]
         if idx.size:
             nn = skin_n[near[idx]]
             fixed_a = probe[idx] @ (P - select @ (select.T @ P))
