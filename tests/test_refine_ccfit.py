@@ -119,4 +119,4 @@ def test_unsupported_segments_give_solver_error():
 def test_unmeetable_penetration_limit_raises():
     body, field = synthetic_body(25)
     with pytest.raises(SolverError, match="inside"):
-        fit_cage(flat_cage(height=0.55), [body], [field], {"max_iterations": 1, "max_penetration": 0.0, "raise_on_penetration": True})
+        fit_cage(flat_cage(height=0.55), [body], [field], {"max_iterations": 1, "polish_iterations": 0, "max_penetration": 0.0, "raise_on_penetration": True})

@@ -82,6 +82,7 @@ CCFIT_DEFAULTS: dict[str, Any] = {
     "min_facing": 0.2,  # a correspondence needs skin normal . surface normal below -min_facing
     "max_distance": 1.0,  # m, correspondences farther than this are ignored
     "max_iterations": 20,
+    "polish_iterations": 8,  # extra iterations with denser penetration probes, when needed
     "tolerance": 1e-4,  # m, stop when the mean distance improves less than this
     "raise_on_penetration": False,  # SolverError when max_penetration cannot be met
 }
@@ -317,9 +318,15 @@ def fit_cage(
     w_pen = p["penetration_weight"] * float(np.mean(w_base))
 
     # penetration probes: the limit points (a probe inside the body means the
-    # surface passes through it)
-    probe = limit
-    probe_moving = limit_moving
+    # surface passes through it); a polishing phase adds the centres of the
+    # refined quads, which catch thin body parts poking through between them
+    q = ops.faces
+    centres = sp.csr_matrix(
+        (np.full(q.size, 0.25), (np.repeat(np.arange(len(q)), 4), q.ravel())), shape=(len(q), limit.shape[0])
+    )
+    dense = sp.vstack([sp.identity(limit.shape[0], format="csr"), centres]).tocsr() @ limit
+    phases = ((limit, limit_moving, p["max_iterations"]), (dense, (dense @ select).tocsr(), p["polish_iterations"]))
+    probe, probe_moving = phases[0][0], phases[0][1]
 
     def measure(P):
         X = limit @ P
@@ -341,71 +348,83 @@ def fit_cage(
     P_m = select.T @ P
     P0_m = select.T @ p0
     fair_rhs = fair @ P0_m
-    for iterations in range(1, p["max_iterations"] + 1):
-        # a support holds skin that faces it: a correspondence whose skin
-        # normal does not oppose the surface normal (the front of a shin
-        # matched to a seat below the knee) would wrap the surface around
-        # the limb, so it is left out
-        facing = np.einsum("kc,kc->k", target_n, N[closest]) < -p["min_facing"]
-        use = (dist <= p["max_distance"]) & facing
-        w = w_base * use
-        # data: point-to-plane along the surface normal at the correspondence,
-        # plus a share of point-to-point (tangential stability)
-        n_c = N[closest]
-        L_c = limit_moving[closest]
-        fixed_part = limit[closest] @ (P - select @ (select.T @ P))
-        rhs_plane = np.einsum("kc,kc->k", n_c, b - fixed_part)
-        J_plane = sp.hstack([sp.diags(n_c[:, d]) @ L_c for d in range(3)]).tocsr()
-        sw = np.sqrt(w / w_sum)
-        Jw = sp.diags(sw) @ J_plane
-        A = (Jw.T @ Jw).tocsr()
-        rhs = Jw.T @ (sw * rhs_plane)
-        Lw = (sp.diags(np.sqrt(p["point_to_point"]) * sw) @ L_c).tocsr()
-        LtL = (Lw.T @ Lw).tocsr()
-        target_pp = b - fixed_part
-        rhs_pp = [Lw.T @ (np.sqrt(p["point_to_point"]) * sw * target_pp[:, d]) for d in range(3)]
-        # probes inside the body, or closer to the skin than the clearance,
-        # are pulled out along the skin normal (a strong penalty)
-        idx = np.flatnonzero(depth > -p["clearance"])
-        # skin resting on the floor (soles): the floor holds it; pushing the
-        # surface out along its downward normal would push it underground
-        on_floor = (skin[near[idx], 1] < p["clearance"]) & (skin_n[near[idx], 1] < -0.5)
-        idx = idx[~on_floor]
-        if idx.size:
-            nn = skin_n[near[idx]]
-            fixed_a = probe[idx] @ (P - select @ (select.T @ P))
-            goal = np.einsum("kc,kc->k", nn, skin[near[idx]] - fixed_a) + p["clearance"]
-            J_pen = sp.hstack([sp.diags(nn[:, d]) @ probe_moving[idx] for d in range(3)]).tocsr()
-            wp = np.sqrt(w_pen / w_sum * (1.0 + np.minimum(depth[idx].clip(0) / p["clearance"], 4.0)))
-            Jp = sp.diags(wp) @ J_pen
-            A = A + (Jp.T @ Jp).tocsr()
-            rhs = rhs + Jp.T @ (wp * goal)
-        blocks = sp.block_diag([LtL + fair + damp] * 3, format="csr")
-        system = (A + blocks).tocsc()
-        rhs_full = rhs + np.concatenate([rhs_pp[d] + fair_rhs[:, d] + (p["damping"] / n) * P_m[:, d] for d in range(3)])
-        try:
-            solution = spla.spsolve(system, rhs_full)
-        except RuntimeError as exc:  # singular factorisation
-            msg = f"catmull-clark-fit: the linear solve failed at iteration {iterations}: {exc}"
-            raise SolverError(msg) from exc
-        if not np.all(np.isfinite(solution)):
-            msg = f"catmull-clark-fit: the fit diverged (non-finite control points at iteration {iterations})"
-            raise SolverError(msg)
-        P = P.copy()
-        P[cols] = solution.reshape(3, m).T
-        P_m = select.T @ P
-        X, N, closest, dist, mean, near, depth = measure(P)
-        history.append(mean)
-        max_depth = float(max(depth.max(), 0.0))
-        ok = max_depth <= p["max_penetration"]
-        best_ok = best[2] <= p["max_penetration"]
-        # the closest iterate within the penetration limit; until one is, the shallowest
-        if (ok and (not best_ok or mean < best[1])) or (not best_ok and max_depth < best[2]):
-            best = (P.copy(), mean, max_depth)
-        improving = history[-2] - mean > p["tolerance"]
-        stall = 0 if improving else stall + 1
-        if ok and stall >= 2:
-            break
+    for phase, (probe, probe_moving, n_iter) in enumerate(phases):
+        if phase == 1:
+            # polish: from the best iterate, with the denser probes
+            P = best[0].copy()
+            P_m = select.T @ P
+            X, N, closest, dist, mean, near, depth = measure(P)
+            if depth.max() <= p["max_penetration"]:
+                break
+            best = (P.copy(), mean, float(max(depth.max(), 0.0)))
+            history.append(mean)
+            stall = 0
+        for _ in range(n_iter):
+            iterations += 1
+            # a support holds skin that faces it: a correspondence whose skin
+            # normal does not oppose the surface normal (the front of a shin
+            # matched to a seat below the knee) would wrap the surface around
+            # the limb, so it is left out
+            facing = np.einsum("kc,kc->k", target_n, N[closest]) < -p["min_facing"]
+            use = (dist <= p["max_distance"]) & facing
+            w = w_base * use
+            # data: point-to-plane along the surface normal at the correspondence,
+            # plus a share of point-to-point (tangential stability)
+            n_c = N[closest]
+            L_c = limit_moving[closest]
+            fixed_part = limit[closest] @ (P - select @ (select.T @ P))
+            rhs_plane = np.einsum("kc,kc->k", n_c, b - fixed_part)
+            J_plane = sp.hstack([sp.diags(n_c[:, d]) @ L_c for d in range(3)]).tocsr()
+            sw = np.sqrt(w / w_sum)
+            Jw = sp.diags(sw) @ J_plane
+            A = (Jw.T @ Jw).tocsr()
+            rhs = Jw.T @ (sw * rhs_plane)
+            Lw = (sp.diags(np.sqrt(p["point_to_point"]) * sw) @ L_c).tocsr()
+            LtL = (Lw.T @ Lw).tocsr()
+            target_pp = b - fixed_part
+            rhs_pp = [Lw.T @ (np.sqrt(p["point_to_point"]) * sw * target_pp[:, d]) for d in range(3)]
+            # probes inside the body, or closer to the skin than the clearance,
+            # are pulled out along the skin normal (a strong penalty)
+            idx = np.flatnonzero(depth > -p["clearance"])
+            # skin resting on the floor (soles): the floor holds it; pushing the
+            # surface out along its downward normal would push it underground
+            on_floor = (skin[near[idx], 1] < p["clearance"]) & (skin_n[near[idx], 1] < -0.5)
+            idx = idx[~on_floor]
+            if idx.size:
+                nn = skin_n[near[idx]]
+                fixed_a = probe[idx] @ (P - select @ (select.T @ P))
+                goal = np.einsum("kc,kc->k", nn, skin[near[idx]] - fixed_a) + p["clearance"]
+                J_pen = sp.hstack([sp.diags(nn[:, d]) @ probe_moving[idx] for d in range(3)]).tocsr()
+                wp = np.sqrt(w_pen / w_sum * (1.0 + np.minimum(depth[idx].clip(0) / p["clearance"], 4.0)))
+                Jp = sp.diags(wp) @ J_pen
+                A = A + (Jp.T @ Jp).tocsr()
+                rhs = rhs + Jp.T @ (wp * goal)
+            blocks = sp.block_diag([LtL + fair + damp] * 3, format="csr")
+            system = (A + blocks).tocsc()
+            rhs_full = rhs + np.concatenate([rhs_pp[d] + fair_rhs[:, d] + (p["damping"] / n) * P_m[:, d] for d in range(3)])
+            try:
+                solution = spla.spsolve(system, rhs_full)
+            except RuntimeError as exc:  # singular factorisation
+                msg = f"catmull-clark-fit: the linear solve failed at iteration {iterations}: {exc}"
+                raise SolverError(msg) from exc
+            if not np.all(np.isfinite(solution)):
+                msg = f"catmull-clark-fit: the fit diverged (non-finite control points at iteration {iterations})"
+                raise SolverError(msg)
+            P = P.copy()
+            P[cols] = solution.reshape(3, m).T
+            P_m = select.T @ P
+            X, N, closest, dist, mean, near, depth = measure(P)
+            history.append(mean)
+            max_depth = float(max(depth.max(), 0.0))
+            ok = max_depth <= p["max_penetration"]
+            best_ok = best[2] <= p["max_penetration"]
+            # the closest iterate within the penetration limit; until one is, the shallowest
+            if (ok and (not best_ok or mean < best[1])) or (not best_ok and max_depth < best[2]):
+                best = (P.copy(), mean, max_depth)
+            improving = history[-2] - mean > p["tolerance"]
+            stall = 0 if improving else stall + 1
+            if ok and stall >= 2:
+                break
     P_best, mean_best, depth_best = best
     if not np.isfinite(mean_best) or mean_best > 10.0 * max(before["mean_distance"], 1e-3):
         msg = (
