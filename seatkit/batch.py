@@ -126,7 +126,7 @@ def collect_items(
             raise RecipeError(f"{p}: no such file or folder")
     items: list[BatchItem] = []
     for f in files:
-        if f.suffix.lower() == ".csv" or f.name.startswith("table") or _is_table(f):
+        if f.suffix.lower() == ".csv" or _is_table(f):
             for i, row in enumerate(_table_rows(f)):
                 name = _safe_name(row.get("name") or f"{i:03d}-{Path(str(row.get('pose', 'pose'))).stem}")
                 pose = str(row.get("pose") or "").strip()
@@ -377,11 +377,9 @@ def sweep_items(
     for combo in itertools.product(*(vary[k] for k in keys)):
         params = ",".join(f"{k}={v:g}" for k, v in zip(keys, combo))
         name = _safe_name("-".join(f"{k}{v:g}" for k, v in zip(keys, combo)))
-        spec = f"{body}:{params}" if body not in ("default-male", "default-female") or set(keys) - {"mass"} else body
-        r = apply_overrides(default_recipe(), template=template, poses=[pose], bodies=[spec])
-        if set(keys) == {"mass"}:
-            for b in r["bodies"]:
-                b["params"]["mass"] = float(combo[0])
+        r = apply_overrides(default_recipe(), template=template, poses=[pose], bodies=[body])
+        for b in r["bodies"]:
+            b["params"].update({k: float(v) for k, v in zip(keys, combo)})
         items.append(BatchItem(name, r, f"sweep:{params}"))
     for it in items:
         it.recipe["output"] = str(Path(out) / it.name)

@@ -2,10 +2,10 @@
 
 A build never leaves a half-written file that looks complete: every file is
 written to a temporary name in the same folder and renamed into place
-(:func:`os.replace` is atomic on POSIX and Windows). An output folder records
-the run that owns it in ``.seatkit-run``; :func:`prepare_output_dir` refuses to
-mix a new run into a folder that holds another run's files unless asked to
-overwrite, in which case the old files are removed first.
+(:func:`os.replace` is atomic on POSIX and Windows). A finished output folder
+records its run in ``.seatkit-run`` (:func:`mark_complete`); the pipeline
+writes a build into a staging folder and moves it onto the target only at
+the end (``seatkit.pipeline._finish_output``), so runs are never mixed.
 """
 
 from __future__ import annotations
@@ -13,11 +13,9 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import shutil
 import tempfile
 from pathlib import Path
 
-from seatkit.errors import SeatkitError
 
 RUN_MARKER = ".seatkit-run"
 
@@ -96,40 +94,6 @@ def atomic_path(path):
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
-
-
-def prepare_output_dir(directory, *, run_id: str, overwrite: bool = False) -> Path:
-    """Make ``directory`` ready for a new run's files.
-
-    An empty or missing folder is used as is. A folder that holds files of
-    another run (or unknown files) is refused with a clear error, unless
-    ``overwrite`` is set: then it is emptied first, so old and new outputs
-    are never mixed.
-
-    Raises
-    ------
-    SeatkitError
-        When the folder holds other files and ``overwrite`` is false.
-    """
-    directory = Path(directory)
-    if directory.exists() and not directory.is_dir():
-        msg = f"output path {directory} exists and is not a folder"
-        raise SeatkitError(msg)
-    if directory.is_dir() and any(directory.iterdir()):
-        if not overwrite:
-            msg = (
-                f"output folder {directory} is not empty; choose another --out "
-                "or pass --overwrite to replace its contents"
-            )
-            raise SeatkitError(msg)
-        for child in directory.iterdir():
-            if child.is_dir() and not child.is_symlink():
-                shutil.rmtree(child)
-            else:
-                child.unlink()
-    directory.mkdir(parents=True, exist_ok=True)
-    write_text_atomic(directory / RUN_MARKER, json.dumps({"run": run_id, "complete": False}) + "\n")
-    return directory
 
 
 def mark_complete(directory, *, run_id: str, files: dict) -> None:

@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from seatkit.skeleton import N_JOINTS, N_SEGMENTS, PARENTS
+from seatkit.skeleton import N_SEGMENTS, PARENTS
 
 __all__ = [
     "Pose",
@@ -375,5 +375,3 @@ class BuildResult:
     files: dict = field(default_factory=dict)
     extra: dict[str, Any] = field(default_factory=dict)
 
-
-_ = N_JOINTS  # documented above: joint arrays are (20, 3)

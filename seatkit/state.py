@@ -27,14 +27,9 @@ _MESH_ARRAYS = tuple(
 )
 
 
-def _jsonable(value):
-    from seatkit.pipeline import _jsonable as convert
-
-    return convert(value)
-
-
 def save_design(result: BuildResult, path) -> Path:
     """Write ``design.npz`` for a build result (atomically)."""
+    from seatkit.pipeline import _jsonable
     arrays: dict[str, np.ndarray] = {}
     header = {
         "format": FORMAT_VERSION,

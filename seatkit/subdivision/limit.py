@@ -90,7 +90,6 @@ def limit_masks(level: MeshLevel) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_
     n = n_faces.astype(np.float64)
     sv = verts[smooth]
     reg = smooth & (n_faces == 4)
-    irr = smooth & (n_faces != 4)
     fw = np.where(reg, 1.0 / 36.0, 1.0 / (n * (n + 5.0)))
     ew = np.where(reg, 1.0 / 9.0, 4.0 * fw)
     vw = np.where(reg, 4.0 / 9.0, 1.0 - n * (ew + fw))
