@@ -105,6 +105,52 @@ def _scatter_matrix(index: np.ndarray, n: int) -> sp.csr_matrix:
     return sp.csr_matrix((np.ones(m), (index, np.arange(m))), shape=(n, m))
 
 
+def _corner_angles(x: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, tuple]:
+    """Interior angle of every corner of the quads ``faces`` at ``x``.
+
+    Returns ``alpha`` (f, 4) = atan2(|a x b|, a . b), ``a`` and ``b`` the edges
+    to the previous and the next corner, and the parts the gradient needs
+    (:func:`_angle_gradient`).
+    """
+    corner = x[faces]  # (f, 4, 3)
+    a = corner[:, _PREV] - corner
+    b = corner[:, _NEXT] - corner
+    cross = a[..., _C1] * b[..., _C2] - a[..., _C2] * b[..., _C1]
+    sin_part = np.sqrt(np.einsum("fkc,fkc->fk", cross, cross))
+    cos_part = np.einsum("fkc,fkc->fk", a, b)
+    return np.arctan2(sin_part, cos_part), (a, b, sin_part, cos_part)
+
+
+def _angle_gradient(parts: tuple, d_alpha: np.ndarray) -> np.ndarray:
+    """Gradient of ``sum d_alpha * alpha`` w.r.t. each face's corners.
+
+    Parameters
+    ----------
+    parts : tuple
+        From :func:`_corner_angles`.
+    d_alpha : (f, 4) float64
+        Derivative of the function with respect to each corner's angle.
+
+    Returns
+    -------
+    (f, 4, 3) float64
+        Row ``[j, k]`` is the derivative w.r.t. the position of corner ``k``
+        of face ``j`` (sum rows into vertices with a scatter matrix).
+    """
+    a, b, sin_part, cos_part = parts
+    # d alpha / d a = -b_perp / |a x b|, b_perp = b minus its component along a
+    aa = np.einsum("fkc,fkc->fk", a, a)
+    bb = np.einsum("fkc,fkc->fk", b, b)
+    safe = np.maximum(sin_part, 1e-300)[..., None]
+    b_perp = b - (cos_part / np.maximum(aa, 1e-300))[..., None] * a
+    a_perp = a - (cos_part / np.maximum(bb, 1e-300))[..., None] * b
+    g_a = -b_perp / safe * d_alpha[..., None]  # w.r.t. the previous corner
+    g_b = -a_perp / safe * d_alpha[..., None]  # w.r.t. the next corner
+    # corner k gets -(g_a + g_b) from its own angle, g_a from the angle
+    # of corner k+1 (k is its previous) and g_b from corner k-1
+    return -(g_a + g_b) + g_a[:, _NEXT] + g_b[:, _PREV]
+
+
 @dataclass(frozen=True)
 class CageEnergy:
     """The energy ``E`` of the paper on a fixed topology, with its gradient.
@@ -234,31 +280,14 @@ class CageEnergy:
             grad += 2.0 * c["laplacian"] * (self.laplacian.T @ residual)
 
         # S_A: corner angles alpha = angle(a, b), a = prev - v, b = next - v
-        corner = x[self.faces]  # (f, 4, 3)
-        a = corner[:, _PREV] - corner
-        b = corner[:, _NEXT] - corner
-        cross = a[..., _C1] * b[..., _C2] - a[..., _C2] * b[..., _C1]
-        sin_part = np.sqrt(np.einsum("fkc,fkc->fk", cross, cross))
-        cos_part = np.einsum("fkc,fkc->fk", a, b)
-        alpha = np.arctan2(sin_part, cos_part)
+        alpha, parts = _corner_angles(x, self.faces)
         sum_err = alpha.sum(axis=1) - 2.0 * np.pi
         terms["regular"] = c["regular"] * float(np.sum(sum_err**2))
         terms["max_angle"] = c["max_angle"] * float(np.sum((alpha - np.pi) ** 2))
         if want_grad:
             # dE/dalpha per corner
             d_alpha = 2.0 * c["regular"] * sum_err[:, None] + 2.0 * c["max_angle"] * (alpha - np.pi)
-            # d alpha / d a = -b_perp / |a x b|, b_perp = b minus its component along a
-            aa = np.einsum("fkc,fkc->fk", a, a)
-            bb = np.einsum("fkc,fkc->fk", b, b)
-            safe = np.maximum(sin_part, 1e-300)[..., None]
-            b_perp = b - (cos_part / np.maximum(aa, 1e-300))[..., None] * a
-            a_perp = a - (cos_part / np.maximum(bb, 1e-300))[..., None] * b
-            g_a = -b_perp / safe * d_alpha[..., None]  # w.r.t. the previous corner
-            g_b = -a_perp / safe * d_alpha[..., None]  # w.r.t. the next corner
-            # corner k gets -(g_a + g_b) from its own angle, g_a from the angle
-            # of corner k+1 (k is its previous) and g_b from corner k-1
-            per_corner = -(g_a + g_b) + g_a[:, _NEXT] + g_b[:, _PREV]
-            grad += self.corner_scatter @ per_corner.reshape(-1, 3)
+            grad += self.corner_scatter @ _angle_gradient(parts, d_alpha).reshape(-1, 3)
 
         # D_V: weighted squared distance to the template positions
         delta = x - self.rest
