@@ -96,7 +96,7 @@ def main() -> None:
         q = opt.meta["optimize"]
         print(
             f"optimize: {len(chair.vertices)} control points, {len(chair.faces)} faces: "
-            f"median {med:.3f} s, best {best:.3f} s, {q['iterations']} SLSQP iterations"
+            f"median {med:.3f} s, best {best:.3f} s, {q['iterations']} L-BFGS-B iterations"
         )
         for key in ("planarity_mean", "planarity_max", "min_angle_deg", "regularity_deg"):
             print(f"  {key}: {q['before'][key]:.4g} -> {q['after'][key]:.4g}")
