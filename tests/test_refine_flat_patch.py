@@ -16,21 +16,6 @@ from seatkit.refine.grid import grid_ring
 from seatkit.skeleton import SEGMENT_INDEX
 
 
-@pytest.fixture(scope="module")
-def seated():
-    """The default male body in every supportable library pose, with pressure."""
-    from seatkit.body import list_poses, load_pose, load_rig, pose_rig
-    from seatkit.pressure import solve_pressure
-
-    rig = load_rig("default-male", mass=75.0)
-    out = {}
-    for info in list_poses():
-        if info.supported:
-            body = pose_rig(rig, load_pose(info.name), ground=True)
-            out[info.name] = (body, solve_pressure(body))
-    return out
-
-
 def test_flat_patch_shape(seated):
     body, pressure = seated["upright-sitting"]
     mesh = FlatPatchTemplate().fit([body], [pressure])
@@ -96,10 +81,12 @@ def _chair_or_skip(body, pressure):
 
 # Issue 7 is still open for these poses: the fitted surface reaches 5-28 mm
 # into the body (thin parts such as the ankles and knees poke through between
-# the level-3 samples the fit pushes out), and on crossed-legs-ankles the
-# L-BFGS-B optimiser ends at a slightly smaller minimal angle than the
-# template's. strict=True: the suite says so as soon as one starts passing.
-OPEN = "issue 7 open: surface reaches more than 5 mm into the body, or a quality figure regresses"
+# the level-3 samples the fit pushes out) on armrest-sitting, both
+# crossed-legs poses and leaning-forward, and on lounger and lying-supine its
+# mean distance is larger than the flat patch's. strict=True: the suite says
+# so as soon as one starts passing. (The optimiser's quality figures improve
+# on all nine poses: tests/test_refine_optimize.py.)
+OPEN = "issue 7 open: surface reaches more than 5 mm into the body, or a larger mean distance than the flat patch"
 
 
 def _open(pose):
@@ -109,7 +96,7 @@ def _open(pose):
 @pytest.mark.parametrize(
     "pose",
     [
-        _open("upright-sitting"),
+        "upright-sitting",
         _open("armrest-sitting"),
         _open("crossed-legs-ankles"),
         _open("crossed-legs-knees"),

@@ -13,10 +13,11 @@ from seatkit.refine.optimize import (
     CageEnergy,
     OptimizeRefiner,
     _build_border,
+    _CornerAnglePenalty,
     _EdgeLengthPenalty,
     optimize_cage,
 )
-from seatkit.refine.quality import cage_quality, mesh_edges
+from seatkit.refine.quality import cage_quality, face_angles, mesh_edges
 
 ROWS, COLS = 11, 7  # faces, like the chair: 7 x 3 grid plus two border rings
 
@@ -333,4 +334,109 @@ def test_iterations_do_not_grow_with_the_cage_width():
     before = wide.meta["optimize"]["before"]
     assert after["planarity_mean"] < before["planarity_mean"]
     assert after["regularity_deg"] < before["regularity_deg"]
+    assert after["min_edge_length"] >= 0.02 * (1 - 1e-6)
+
+
+def _angle_penalty(mesh):
+    """A corner-angle penalty on ``mesh``: about a third of the corners too small."""
+    x = mesh.vertices
+    alpha = face_angles(x, mesh.faces)
+    target = np.where(np.arange(alpha.size).reshape(alpha.shape) % 4 == 3, 0.0, alpha * 1.05)  # some unconstrained
+    target[alpha > np.median(alpha)] *= 0.9  # these are met
+    corner = x[mesh.faces]
+    lever = np.sqrt(
+        np.linalg.norm(np.roll(corner, 1, axis=1) - corner, axis=-1)
+        * np.linalg.norm(np.roll(corner, -1, axis=1) - corner, axis=-1)
+    )
+    return _CornerAnglePenalty(mesh.faces, len(x), target, lever), alpha, target, lever
+
+
+def test_corner_angle_penalty_gradient_matches_central_differences():
+    mesh = chair_cage(noise=0.02, seed=3)
+    x = mesh.vertices
+    penalty, alpha, target, lever = _angle_penalty(mesh)
+    active = target > 0.0
+    assert penalty.size == active.sum() and 0 < penalty.size < alpha.size
+    c = penalty.constraint(x)[0]
+    assert np.allclose(c, ((alpha - target) * lever)[active])
+    assert (c < 0).sum() > 50 and (c > 0).sum() > 50
+    # multipliers on some corners (met or not), zero on others
+    lam = np.where(np.arange(penalty.size) % 3 == 0, 0.0, 0.4)
+    mu = 30.0
+    value, grad = penalty.value_and_grad(x, lam, mu)
+    assert np.isfinite(value) and value != 0.0
+    h = 1e-6
+    numeric = np.zeros_like(x)
+    for i in range(x.shape[0]):
+        for k in range(3):
+            xp, xm = x.copy(), x.copy()
+            xp[i, k] += h
+            xm[i, k] -= h
+            numeric[i, k] = (penalty.value_and_grad(xp, lam, mu)[0] - penalty.value_and_grad(xm, lam, mu)[0]) / (2 * h)
+    rel = np.linalg.norm(grad - numeric) / np.linalg.norm(numeric)
+    assert rel < 1e-6, f"relative gradient error {rel:.2e}"
+    # zero where every corner is wide enough and carries no multiplier
+    assert penalty.value_and_grad(x, np.zeros(penalty.size), mu)[0] > 0.0
+    wide = _CornerAnglePenalty(mesh.faces, len(x), np.where(active, 0.5 * alpha, 0.0), lever)
+    zero_value, zero_grad = wide.value_and_grad(x, np.zeros(wide.size), mu)
+    assert zero_value == 0.0 and not zero_grad.any()
+    # inside the energy (sharing its angles) it adds exactly its own value and gradient
+    energy = _energy(mesh)
+    e_value, e_grad = energy.value_and_grad(x)
+    both_value, both_grad = energy.value_and_grad(x, lambda a: penalty.on_angles(a, lam, mu))
+    assert both_value == pytest.approx(e_value + value, rel=1e-13)
+    assert np.allclose(both_grad, e_grad + grad, rtol=1e-12, atol=1e-12)
+
+
+def test_corner_angles_keep_their_floor():
+    """No corner ends below min(its template angle, min_corner_angle_deg)."""
+    # on this cage the free optimum closes a corner face with three ground
+    # vertices below the template's smallest angle, as on crossed-legs-ankles
+    mesh = chair_cage(noise=0.02, seed=3)
+    template = np.degrees(face_angles(mesh.vertices, mesh.faces))
+    free = optimize_cage(mesh, {"min_corner_angle_deg": 0.0}).meta["optimize"]
+    assert free["after"]["min_angle_deg"] < free["before"]["min_angle_deg"] - 1.0
+    out = optimize_cage(mesh)
+    report = out.meta["optimize"]
+    assert report["after"]["min_angle_deg"] >= report["before"]["min_angle_deg"]
+    assert report["after"]["planarity_mean"] < report["before"]["planarity_mean"]
+    assert report["after"]["regularity_deg"] < report["before"]["regularity_deg"]
+    assert report["energy_after"] <= free["energy_after"] * (1 + 1e-3)
+    # a floor that binds on many corners: each meets it, where the free run does not
+    floor = 75.0
+    bound = np.minimum(template, floor)
+    free_angles = np.degrees(face_angles(optimize_cage(mesh, {"min_corner_angle_deg": 0.0}).vertices, mesh.faces))
+    assert (free_angles < bound).sum() >= 5
+    out = optimize_cage(mesh, {"min_corner_angle_deg": floor})
+    angles = np.degrees(face_angles(out.vertices, mesh.faces))
+    assert np.all(angles >= bound * (1 - 1e-6))
+    assert out.meta["optimize"]["penalty_rounds"] >= 2
+
+
+#: The supportable library poses (tests/test_refine_flat_patch.py).
+LIBRARY_POSES = [
+    "upright-sitting",
+    "armrest-sitting",
+    "crossed-legs-ankles",
+    "crossed-legs-knees",
+    "leaning-forward",
+    "lounger",
+    "reclined-sitting",
+    "standing-leaning-back",
+    "lying-supine",
+]
+
+
+@pytest.mark.parametrize("pose", LIBRARY_POSES)
+def test_optimize_improves_every_quality_figure_on_the_library_chairs(seated, pose):
+    from seatkit.plugins import get_plugin_manager
+
+    registry = get_plugin_manager(autoload=False).registry
+    body, pressure = seated[pose]
+    chair = registry.get("template", "chair").fit([body], [pressure])
+    report = OptimizeRefiner().refine(chair, [body], [pressure]).meta["optimize"]
+    before, after = report["before"], report["after"]
+    assert after["planarity_mean"] < before["planarity_mean"]
+    assert after["regularity_deg"] < before["regularity_deg"]
+    assert after["min_angle_deg"] >= before["min_angle_deg"]
     assert after["min_edge_length"] >= 0.02 * (1 - 1e-6)
