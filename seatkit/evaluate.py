@@ -23,11 +23,13 @@ the paper's quantities are reported:
 ``max_penetration_m``
     How deep the surface reaches into the body, m (0 when it stays outside):
     the largest depth below the skin of any surface point (tessellation
-    vertices and triangle centres), measured along the outward normal of the
-    nearest skin vertex. Measured from the body side because the closed
-    skin has a well-defined inside, where a folded support surface does not;
-    a body vertex more than this deep "inside the surface" would need the
-    surface to be at least as deep inside the body.
+    vertices and quad centres): the exact distance to the skin's triangles,
+    inside as the angle-weighted pseudo-normal of the closest feature says,
+    confirmed by the point's winding number where the posed skin touches
+    itself (:class:`seatkit.skin.SkinDistance`). Measured from the body side
+    because the closed skin has a well-defined inside, where a folded
+    support surface does not; a body vertex more than this deep "inside the
+    surface" would need the surface to be at least as deep inside the body.
 ``contact_vertices``, ``contact_area_m2``
     Size of the recomputed contact set.
 
@@ -212,16 +214,14 @@ class SurfaceQuery:
 
 def surface_depth_in_body(surface: Surface, body: Body) -> float:
     """Largest depth of the surface below the skin of ``body``, m (see ``max_penetration_m``)."""
-    from seatkit.pressure.areas import vertex_normals
+    from seatkit.skin import SkinDistance
 
     v = np.asarray(surface.vertices, dtype=np.float64)
     f = np.asarray(surface.faces, dtype=np.int64)
     points = np.concatenate([v, v[f].mean(axis=1)])
-    skin = np.asarray(body.vertices, dtype=np.float64)
-    normals = vertex_normals(skin, body.faces)
-    _, near = cKDTree(skin, balanced_tree=False, compact_nodes=False).query(points)
-    depth = -np.einsum("ij,ij->i", normals[near], points - skin[near])
-    return float(max(depth.max(), 0.0)) if depth.size else 0.0
+    if not len(points):
+        return 0.0
+    return SkinDistance(body.vertices, body.faces).max_depth(points)
 
 
 def evaluate_person(

@@ -14,27 +14,43 @@ supported body regions without passing through the body. ICP-like:
    (``n_v . n_c < -min_facing``): a support holds skin that faces it, and
    pairing, say, the front of a shin with the seat below the knee would wrap
    the surface around the limb;
-3. penetration is measured from the body side: a sample whose nearest skin
-   vertex ``s`` sees it behind the skin (``n_s . (x - s) < 0``) is inside
-   the body. The closed skin has a well-defined inside, so this stays right
-   where the support surface folds or wraps around the body (the surface's
-   own normals do not; an earlier version used them and diverged on the
-   lounger). Checked against open3d's ray-parity occupancy: every flagged
-   sample was truly inside;
+3. penetration is measured from the body side, with the exact distance to
+   the closed skin (:class:`seatkit.skin.SkinDistance`: closest point on the
+   skin's triangles, inside or outside by the angle-weighted pseudo-normal).
+   The probes are the limit points, and in a polishing phase (only when
+   needed) also the refined quads' centres, which catch thin body parts
+   poking through between the limit points. The floor (y = 0) is an
+   obstacle too: probes below it are lifted to it;
 4. one sparse linear least-squares solve for the moving control points::
 
        min  sum_b w_b [ (n_c . (L_c P - b))^2 + mu |L_c P - b|^2 ] / sum_b w_b
-          + sum_{x in A} w_pen (1 + min(depth_x / clearance, 4)) (n_s . (L_x P - s) - clearance)^2 / sum_b w_b
+          + sum_{x in A} w_pen (1 + min(depth_x / clearance, 4)) (g_x . (L_x P - q_x) - clearance)^2 / sum_b w_b
           + fairness * |G (P - P_0)|^2 / v  +  damping * |P - P_k|^2 / v
 
-   ``w_b`` is the importance, ``A`` the samples inside the body or closer
-   to the skin than the clearance, pulled out to the clearance along the
-   skin normal with ``w_pen = penetration_weight * mean importance`` (deeper
-   samples weigh more); ``G`` is the cage's graph Laplacian, so the fairness
-   asks for a smooth *displacement* of the template's cage ``P_0``;
-5. repeat until the weighted mean distance stops improving by more than
-   ``tolerance`` (m) and no sample is deeper in the body than
-   ``max_penetration``, or ``max_iterations``.
+   ``w_b`` is the importance, ``A`` the probes inside the body or closer to
+   the skin than the clearance, pulled out to the clearance along a way out
+   ``g_x`` from the skin point ``q_x`` (``w_pen = penetration_weight * mean
+   importance``, deeper probes weigh more); ``G`` is the cage's graph
+   Laplacian, so the fairness asks for a smooth *displacement* of the
+   template's cage ``P_0``. The way out of a shallow probe is the skin
+   distance's gradient (the nearest side of the skin). A probe deeper than
+   half the clearance leaves *backwards*, along minus the surface normal,
+   to where that ray leaves the body (``retreat``): a support holds the body
+   on its front, and when a sheet of the surface cuts through a limb (a
+   shin, an ankle crossed over the other) every probe of the sheet then
+   agrees on the way out, where the nearest side splits the sheet, half
+   pulled to each side of the limb, and the fit stalls inside it. Where the
+   backward way is long, or runs against the skin's nearest side (the
+   surface faces away from the body there), the nearest side is kept;
+5. a trust region: the step is shortened until no control point moves more
+   than ``max_step`` (or than the current mean distance, while the surface is
+   still far, as a flat patch rising from the floor). Correspondences,
+   normals and ways out hold only near the current surface; without it a
+   control point could jump tens of centimetres and tangle the cage;
+6. repeat until the weighted mean distance stops improving by more than
+   ``tolerance`` (m) and no probe is deeper in the body than
+   ``max_penetration`` (3 mm at the probes leaves 2 mm for the surface
+   between them, for the 5 mm the evaluation allows), or ``max_iterations``.
 
 Ground and fixed control points do not move. The best iterate (smallest
 mean distance among those within the penetration limit, else the
@@ -58,6 +74,7 @@ from seatkit.errors import SolverError
 from seatkit.model import Body, ControlMesh, PressureField
 from seatkit.refine.params import refiner_params
 from seatkit.refine.quality import mesh_edges
+from seatkit.skin import SkinDistance
 
 __all__ = [
     "CCFIT_DEFAULTS",
@@ -78,9 +95,12 @@ CCFIT_DEFAULTS: dict[str, Any] = {
     "point_to_point": 0.1,  # share of the point-to-point distance
     "penetration_weight": 100.0,  # weight of a surface sample inside the body, relative to the mean importance
     "clearance": 0.006,  # m, gap kept between the surface and the skin
-    "max_penetration": 0.005,  # m, allowed depth of the surface inside the body
+    "max_penetration": 0.003,  # m, allowed depth of a probe inside the body (2 mm under the 5 mm asked of the surface: it can reach deeper between the probes)
     "min_facing": 0.2,  # a correspondence needs skin normal . surface normal below -min_facing
     "max_distance": 1.0,  # m, correspondences farther than this are ignored
+    "retreat": True,  # probes inside the body leave it backwards along the surface normal
+    "retreat_agreement": 0.25,  # ... unless that way is against the skin's nearest way out (cosine below minus this)
+    "max_step": 0.03,  # m, the farthest a control point moves in one iteration
     "max_iterations": 20,
     "polish_iterations": 8,  # extra iterations with denser penetration probes, when needed
     "tolerance": 1e-4,  # m, stop when the mean distance improves less than this
@@ -193,6 +213,26 @@ def _graph_laplacian(faces: np.ndarray, n: int) -> sp.csr_matrix:
     return (sp.identity(n, format="csr") - sp.diags(1.0 / np.maximum(degree, 1.0)) @ adjacency).tocsr()
 
 
+#: Samples along a probe's way out of the body: depth * scale + extra (m).
+_RETREAT_SCALE = np.array([1.0, 1.2, 1.4, 1.6, 1.8, 2.0, 2.0, 2.0])
+_RETREAT_EXTRA = np.array([0.0, 0.002, 0.004, 0.006, 0.009, 0.012, 0.016, 0.02])
+
+
+def skin_depth(skins: Sequence[SkinDistance], points: np.ndarray):
+    """Depth of points in the deepest of several bodies (see :class:`SkinDistance`)."""
+    best = None
+    for skin in skins:
+        d, q, g = skin.query(points)
+        if best is None:
+            best = [d, q, g]
+        else:
+            deeper = d > best[0]
+            best[0] = np.where(deeper, d, best[0])
+            best[1] = np.where(deeper[:, None], q, best[1])
+            best[2] = np.where(deeper[:, None], g, best[2])
+    return best[0], best[1], best[2]
+
+
 def _boundary_samples(ops) -> np.ndarray:
     """(p,) bool: refined vertices on the boundary of the refined mesh."""
     q = ops.faces
@@ -296,15 +336,12 @@ def fit_cage(
     limit_moving = (limit @ select).tocsr()
 
     # The body side of the fit. Penetration is measured from the body, whose
-    # closed skin has well-defined outward normals: a surface sample whose
-    # nearest skin vertex sees it behind the skin (negative offset along the
-    # skin normal) is inside the body. This stays meaningful where the
+    # closed skin has a well-defined inside: this stays meaningful where the
     # surface folds or wraps (the surface's own normals do not).
     from seatkit.pressure.areas import vertex_normals
 
-    skin = np.concatenate([np.asarray(bd.vertices, dtype=np.float64) for bd in bodies])
     skin_n = np.concatenate([vertex_normals(bd.vertices, bd.faces) for bd in bodies])
-    skin_tree = cKDTree(skin, balanced_tree=False, compact_nodes=False)
+    skins = [SkinDistance(bd.vertices, bd.faces) for bd in bodies]
     # supported targets: the skin offset by the clearance along its normal
     owner_offset = np.cumsum([0] + [len(bd.vertices) for bd in bodies])[:-1]
     target_n = skin_n[owner_offset[targets.body] + targets.vertex]
@@ -325,8 +362,10 @@ def fit_cage(
         (np.full(q.size, 0.25), (np.repeat(np.arange(len(q)), 4), q.ravel())), shape=(len(q), limit.shape[0])
     )
     dense = sp.vstack([sp.identity(limit.shape[0], format="csr"), centres]).tocsr() @ limit
+    sample_probes = (sp.identity(limit.shape[0], format="csr"), sp.vstack([sp.identity(limit.shape[0], format="csr"), centres]).tocsr())
     phases = ((limit, limit_moving, p["max_iterations"]), (dense, (dense @ select).tocsr(), p["polish_iterations"]))
     probe, probe_moving = phases[0][0], phases[0][1]
+    probe_normals = sample_probes[0]
 
     def measure(P):
         X = limit @ P
@@ -334,9 +373,50 @@ def fit_cage(
         closest, dist, signed = surface_distances(X, N, b, boundary=on_boundary)
         mean = float(np.sum(w_base * dist) / w_sum)
         Y = probe @ P
-        _, near = skin_tree.query(Y, workers=1)
-        depth = -np.einsum("ij,ij->i", skin_n[near], Y - skin[near])  # > 0: probe inside the body
-        return X, N, closest, dist, mean, near, depth
+        depth, foot, out = skin_depth(skins, Y)  # depth > 0: probe inside a body
+        # the floor is an obstacle too: nothing goes below y = 0
+        below = -Y[:, 1] > np.maximum(depth, 0.0)
+        depth = np.where(below, -Y[:, 1], depth)
+        foot = np.where(below[:, None], Y * [1.0, 0.0, 1.0], foot)
+        out = np.where(below[:, None], [0.0, 1.0, 0.0], out)
+        if p["retreat"]:
+            # a probe inside the body leaves it backwards, along the surface's
+            # own normal (-n): the body rests on the front of a support, and
+            # every probe of a sheet cut through a limb then agrees on the
+            # way out (the skin's nearest side would split the sheet, half of
+            # it pulled to each side of the limb). Where that way out is long
+            # (the surface faces away from the body there), the skin's nearest
+            # side is kept.
+            # (shallow probes keep the skin's nearest side: it is as good there)
+            inside = np.flatnonzero((depth > 0.5 * p["clearance"]) & ~below)
+            if inside.size:
+                Yn = probe_normals @ N
+                Yn /= np.maximum(np.linalg.norm(Yn, axis=1, keepdims=True), 1e-300)
+                back = -Yn[inside]
+                # the way out, sampled along the ray at up to 2 depth + 2 cm
+                # (one batched query), the exit between the last sample inside
+                # and the first outside
+                t = depth[inside, None] * _RETREAT_SCALE[None, :] + _RETREAT_EXTRA[None, :]
+                ray = Y[inside, None, :] + t[:, :, None] * back[:, None, :]
+                dd = skin_depth(skins, ray.reshape(-1, 3))[0].reshape(t.shape)
+                outside = dd <= 0.0
+                exits = outside.any(axis=1)
+                first = np.argmax(outside, axis=1)
+                rows = np.arange(inside.size)
+                prev_t = np.where(first > 0, t[rows, np.maximum(first - 1, 0)], 0.0)
+                prev_d = np.where(first > 0, dd[rows, np.maximum(first - 1, 0)], depth[inside])
+                d_out = dd[rows, first]
+                t_exit = prev_t + (t[rows, first] - prev_t) * prev_d / np.maximum(prev_d - d_out, 1e-12)
+                # backwards, but not against the skin's nearest way out (there
+                # the surface faces away from the body: a side wall around a
+                # shoulder), and not the long way through a limb
+                agree = np.einsum("ij,ij->i", back, out[inside]) > -p["retreat_agreement"]
+                short = agree & exits
+                t = t_exit
+                k = inside[short]
+                foot[k] = Y[k] + t[short, None] * back[short]
+                out[k] = back[short]
+        return X, N, closest, dist, mean, (foot, out, below), depth
 
     P = p0.copy()
     X, N, closest, dist, mean, near, depth = measure(P)
@@ -349,6 +429,7 @@ def fit_cage(
     P0_m = select.T @ p0
     fair_rhs = fair @ P0_m
     for phase, (probe, probe_moving, n_iter) in enumerate(phases):
+        probe_normals = sample_probes[phase]
         if phase == 1:
             # polish: from the best iterate, with the denser probes
             P = best[0].copy()
@@ -385,15 +466,20 @@ def fit_cage(
             rhs_pp = [Lw.T @ (np.sqrt(p["point_to_point"]) * sw * target_pp[:, d]) for d in range(3)]
             # probes inside the body, or closer to the skin than the clearance,
             # are pulled out along the skin normal (a strong penalty)
-            idx = np.flatnonzero(depth > -p["clearance"])
+            foot, out, below = near
+            # probes under the floor are lifted to it (no clearance: the
+            # furniture stands on the floor); probes in the body or closer than
+            # the clearance are pushed out along the skin's outward direction
+            gap = np.where(below, 0.0, p["clearance"])
+            idx = np.flatnonzero(depth > -gap)
             # skin resting on the floor (soles): the floor holds it; pushing the
             # surface out along its downward normal would push it underground
-            on_floor = (skin[near[idx], 1] < p["clearance"]) & (skin_n[near[idx], 1] < -0.5)
+            on_floor = ~below[idx] & (foot[idx, 1] < p["clearance"]) & (out[idx, 1] < -0.5)
             idx = idx[~on_floor]
             if idx.size:
-                nn = skin_n[near[idx]]
+                nn = out[idx]
                 fixed_a = probe[idx] @ (P - select @ (select.T @ P))
-                goal = np.einsum("kc,kc->k", nn, skin[near[idx]] - fixed_a) + p["clearance"]
+                goal = np.einsum("kc,kc->k", nn, foot[idx] - fixed_a) + gap[idx]
                 J_pen = sp.hstack([sp.diags(nn[:, d]) @ probe_moving[idx] for d in range(3)]).tocsr()
                 wp = np.sqrt(w_pen / w_sum * (1.0 + np.minimum(depth[idx].clip(0) / p["clearance"], 4.0)))
                 Jp = sp.diags(wp) @ J_pen
@@ -410,8 +496,18 @@ def fit_cage(
             if not np.all(np.isfinite(solution)):
                 msg = f"catmull-clark-fit: the fit diverged (non-finite control points at iteration {iterations})"
                 raise SolverError(msg)
+            P_prev = P
             P = P.copy()
             P[cols] = solution.reshape(3, m).T
+            # a trust region: the correspondences, normals and the probes'
+            # ways out are only valid near the current surface, so the step
+            # is shortened until no control point moves farther than max_step
+            # (or than the mean distance, while the surface is still far away:
+            # a flat patch rising from the floor)
+            longest = float(np.linalg.norm(P - P_prev, axis=1).max())
+            reach = max(p["max_step"], history[-1])
+            if longest > reach:
+                P = P_prev + (reach / longest) * (P - P_prev)
             P_m = select.T @ P
             X, N, closest, dist, mean, near, depth = measure(P)
             history.append(mean)
@@ -496,9 +592,13 @@ def fit_report(
     dict
         ``mean_distance`` (m, importance-weighted point-to-plane distance of
         the supported vertices), ``mean_euclidean_distance`` (m, unweighted
-        distance to the closest limit sample), ``max_penetration`` (m, how deep
-        the limit surface reaches into any body, measured from the closed
-        skin: :func:`seatkit.evaluate.surface_depth_in_body`),
+        distance to the closest limit sample), ``avg_distance`` (m, the
+        paper's Table 1 figure as :mod:`seatkit.evaluate` computes it: mean
+        distance from the supported body vertices, those loaded in the
+        importance map on the segments the cage supports, to the closest
+        point of the tessellated limit surface), ``max_penetration`` (m, how
+        deep the limit surface reaches into any body, measured from the
+        closed skin: :func:`seatkit.evaluate.surface_depth_in_body`),
         ``supported_vertices``.
     """
     from seatkit.subdivision import Cage, build_operators
@@ -513,7 +613,16 @@ def fit_report(
     from seatkit.model import Surface
 
     surface = Surface(X, N, ops.faces, level)
+    from seatkit.evaluate import SurfaceQuery, supported_vertices
+
+    query = SurfaceQuery(surface)
+    gaps = []
+    for body, pressure, segs in zip(bodies, pressures, targets.segments):
+        mask = supported_vertices(pressure, body, segs)
+        if mask.any():
+            gaps.append(query.query(body.vertices[mask])[0])
     return {
+        "avg_distance": float(np.concatenate(gaps).mean()) if gaps else float("nan"),
         "mean_distance": float(np.sum(targets.weights * np.abs(signed)) / targets.weights.sum()),
         "mean_euclidean_distance": float(dist.mean()),
         # how deep the surface reaches into any body (measured from the closed skin)
