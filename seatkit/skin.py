@@ -27,9 +27,42 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from seatkit.evaluate import closest_point_on_triangles
-
 __all__ = ["SkinDistance"]
+
+
+def _closest_barycentric(d1, d2, d00, d01, d11):
+    """Barycentric coordinates (u, v, w) of the closest point of triangles to points.
+
+    Ericson's regions (Real-Time Collision Detection 5.1.5) from the two dot
+    products ``d1 = ab . ap`` and ``d2 = ac . ap`` and the triangle's own
+    ``ab . ab``, ``ab . ac``, ``ac . ac`` (the other four of Ericson's dot
+    products follow from these). Coordinates on an edge or at a corner are
+    exact zeros: the caller tells the features apart by them.
+    """
+    d3, d4, d5, d6 = d1 - d00, d2 - d01, d1 - d01, d2 - d11
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        v = np.where(denom != 0, vb / denom, 0.0)
+        w = np.where(denom != 0, vc / denom, 0.0)
+        u = 1.0 - v - w
+        # edge regions, then corners (later ones take precedence, as in Ericson's order reversed)
+        e_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
+        t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+        u, v, w = np.where(e_bc, 0.0, u), np.where(e_bc, 1.0 - t, v), np.where(e_bc, t, w)
+        e_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+        t = d2 / (d2 - d6)
+        u, v, w = np.where(e_ac, 1.0 - t, u), np.where(e_ac, 0.0, v), np.where(e_ac, t, w)
+        e_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+        t = d1 / (d1 - d3)
+        u, v, w = np.where(e_ab, 1.0 - t, u), np.where(e_ab, t, v), np.where(e_ab, 0.0, w)
+    for corner, mask in ((2, (d6 >= 0) & (d5 <= d6)), (1, (d3 >= 0) & (d4 <= d3)), (0, (d1 <= 0) & (d2 <= 0))):
+        u = np.where(mask, 1.0 if corner == 0 else 0.0, u)
+        v = np.where(mask, 1.0 if corner == 1 else 0.0, v)
+        w = np.where(mask, 1.0 if corner == 2 else 0.0, w)
+    return u, v, w
 
 
 class SkinDistance:
@@ -93,6 +126,14 @@ class SkinDistance:
         self.rings = np.full((len(v), width), -1, dtype=np.int64)
         self.rings[corner[order], slot] = tri_of[order]
         self.tree = cKDTree(v, balanced_tree=False, compact_nodes=False)
+        # per triangle: corner a, edges ab and ac and their dot products, for
+        # the closest-point regions with two dot products per query
+        self._a = v[f[:, 0]]
+        self._ab = v[f[:, 1]] - self._a
+        self._ac = v[f[:, 2]] - self._a
+        self._d00 = np.einsum("ij,ij->i", self._ab, self._ab)
+        self._d01 = np.einsum("ij,ij->i", self._ab, self._ac)
+        self._d11 = np.einsum("ij,ij->i", self._ac, self._ac)
 
     def query(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Depth below the skin, closest skin point and outward direction.
@@ -131,16 +172,22 @@ class SkinDistance:
         cand = self.rings[near].reshape(len(points), -1)
         valid = cand >= 0
         tri_i = np.where(valid, cand, 0)
-        tri = self.faces[tri_i]
-        a, b, c = (self.vertices[tri[..., i]] for i in range(3))
-        q, bary = closest_point_on_triangles(points[:, None, :], a, b, c)
-        diff = points[:, None, :] - q
-        d2 = np.where(valid, np.einsum("kci,kci->kc", diff, diff), np.inf)
-        best = np.argmin(d2, axis=1)
+        ap = points[:, None, :] - self._a[tri_i]
+        ab, ac = self._ab[tri_i], self._ac[tri_i]
+        d00, d01, d11 = self._d00[tri_i], self._d01[tri_i], self._d11[tri_i]
+        d1 = np.einsum("kci,kci->kc", ab, ap)
+        d2 = np.einsum("kci,kci->kc", ac, ap)
+        bary = _closest_barycentric(d1, d2, d00, d01, d11)
+        _, v, w = bary
+        # |ap - v ab - w ac|^2 without forming the points
+        d2sq = np.einsum("kci,kci->kc", ap, ap) - 2.0 * (v * d1 + w * d2) + v * v * d00 + 2.0 * v * w * d01 + w * w * d11
+        d2sq = np.where(valid, np.maximum(d2sq, 0.0), np.inf)
+        best = np.argmin(d2sq, axis=1)
         rows = np.arange(len(points))
         t = tri_i[rows, best]
-        w = bary[rows, best]
-        qb = q[rows, best]
+        tri = self.faces[t]
+        w = np.stack([x[rows, best] for x in bary], axis=1)
+        qb = self._a[t] + w[:, 1:2] * self._ab[t] + w[:, 2:3] * self._ac[t]
         zero = w <= 0.0
         nz = zero.sum(axis=1)
         normal = self.face_normals[t].copy()
@@ -151,9 +198,9 @@ class SkinDistance:
         at_vertex = np.flatnonzero(nz == 2)
         if at_vertex.size:
             k = np.argmax(w[at_vertex], axis=1)
-            normal[at_vertex] = self.vertex_normals[tri[rows[at_vertex], best[at_vertex], k]]
+            normal[at_vertex] = self.vertex_normals[tri[at_vertex, k]]
         normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
-        dist = np.sqrt(d2[rows, best])
+        dist = np.linalg.norm(points - qb, axis=1)
         side = np.einsum("ij,ij->i", points - qb, normal)
         inside = side < 0
         depth = np.where(inside, dist, -dist)

@@ -309,6 +309,15 @@ def fit_cage(
         When nothing is supported, the solve diverges (non-finite values or
         a growing distance), or the penetration limit cannot be met.
     """
+    from threadpoolctl import threadpool_limits
+
+    # small dense blocks: multithreaded BLAS only adds contention (3-8x
+    # slower on a busy 2-core machine)
+    with threadpool_limits(limits=1):
+        return _fit_cage(mesh, bodies, pressures, params)
+
+
+def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     from seatkit.subdivision import Cage, build_operators
 
     start = time.perf_counter()
@@ -367,13 +376,34 @@ def fit_cage(
     probe, probe_moving = phases[0][0], phases[0][1]
     probe_normals = sample_probes[0]
 
+    # The skin distance is 1-Lipschitz: a probe that was farther outside than
+    # the clearance plus the way it has moved since is still outside the
+    # clearance, and its depth only matters for the active set and the
+    # deepest probe. Only the others are asked again (exact decisions, about
+    # half the queries once the surface has settled).
+    cache: dict[str, Any] = {}
+
+    def probe_depth(Y):
+        if cache.get("Y") is None or cache["Y"].shape != Y.shape:
+            cache["Y"] = Y.copy()
+            cache["depth"], cache["foot"], cache["out"] = skin_depth(skins, Y)
+            return cache["depth"].copy(), cache["foot"].copy(), cache["out"].copy()
+        bound = cache["depth"] + np.linalg.norm(Y - cache["Y"], axis=1)
+        ask = np.flatnonzero(bound >= -(p["clearance"] + 0.002))
+        if ask.size:
+            d, q, g = skin_depth(skins, Y[ask])
+            cache["Y"][ask], cache["depth"][ask], cache["foot"][ask], cache["out"][ask] = Y[ask], d, q, g
+        depth = bound
+        depth[ask] = cache["depth"][ask]
+        return depth, cache["foot"].copy(), cache["out"].copy()
+
     def measure(P):
         X = limit @ P
         N = ops.limit_normals(P)
         closest, dist, signed = surface_distances(X, N, b, boundary=on_boundary)
         mean = float(np.sum(w_base * dist) / w_sum)
         Y = probe @ P
-        depth, foot, out = skin_depth(skins, Y)  # depth > 0: probe inside a body
+        depth, foot, out = probe_depth(Y)  # depth > 0: probe inside a body
         # the floor is an obstacle too: nothing goes below y = 0
         below = -Y[:, 1] > np.maximum(depth, 0.0)
         depth = np.where(below, -Y[:, 1], depth)
@@ -418,6 +448,66 @@ def fit_cage(
                 out[k] = back[short]
         return X, N, closest, dist, mean, (foot, out, below), depth
 
+    # The normal equations of one step, unknowns stacked by coordinate
+    # (x of the m moving points, then y, then z). Targets sharing a limit
+    # sample are summed first (their rows differ only in the right-hand
+    # side); small cages (a chair: m of about 70) are assembled and solved
+    # densely, which is several times faster than sparse products of this
+    # size; large ones (a bench for six) stay sparse.
+    P0_m = select.T @ p0
+    fair_rhs = fair @ P0_m
+    fixed_X = limit @ (p0 - select @ P0_m)  # the fixed control points' share of every sample
+    probe_fixed = [ph[0] @ (p0 - select @ P0_m) for ph in phases]
+    dense = 3 * m <= 1200
+    if dense:
+        limit_rows = limit_moving.toarray()
+        probe_rows = [None, None]
+        base = np.kron(np.eye(3), (fair + damp).toarray())
+    else:
+        base = sp.block_diag([fair + damp] * 3, format="csr")
+    base_rhs = np.concatenate([fair_rhs[:, d] for d in range(3)])
+    mu = p["point_to_point"]
+
+    def solve_step(P, N, closest, w, pen, phase):
+        P_m = P[cols]
+        used = np.flatnonzero(w > 0)
+        c = closest[used]
+        samples, inverse = np.unique(c, return_inverse=True)
+        W = np.bincount(inverse, weights=w[used] / w_sum)
+        WB = np.stack([np.bincount(inverse, weights=w[used] / w_sum * b[used, d]) for d in range(3)], axis=1)
+        n_s = N[samples]
+        target = WB - W[:, None] * fixed_X[samples]  # sum of w (b - fixed) per sample
+        rhs_plane = np.einsum("sc,sc->s", n_s, target)
+        idx, g, foot_a, gap_a, wp2 = pen
+        goal = np.einsum("kc,kc->k", g, foot_a - probe_fixed[phase][idx]) + gap_a
+        if dense:
+            Ls = limit_rows[samples]
+            R = np.sqrt(W)[:, None] * Ls
+            RR = np.hstack([n_s[:, d : d + 1] * R for d in range(3)])
+            A = RR.T @ RR + np.kron(np.eye(3), mu * (R.T @ R)) + base
+            rhs = np.concatenate([Ls.T @ (n_s[:, d] * rhs_plane + mu * target[:, d]) for d in range(3)])
+            if idx.size:
+                if probe_rows[phase] is None:
+                    probe_rows[phase] = phases[phase][1].toarray()
+                Q = np.sqrt(wp2)[:, None] * probe_rows[phase][idx]
+                QQ = np.hstack([g[:, d : d + 1] * Q for d in range(3)])
+                A += QQ.T @ QQ
+                rhs += QQ.T @ (np.sqrt(wp2) * goal)
+            rhs += base_rhs + (p["damping"] / n) * P_m.T.ravel()
+            return np.linalg.solve(A, rhs)
+        Ls = limit_moving[samples]
+        R = sp.diags(np.sqrt(W)) @ Ls
+        RR = sp.hstack([sp.diags(n_s[:, d]) @ R for d in range(3)]).tocsr()
+        A = RR.T @ RR + sp.block_diag([mu * (R.T @ R)] * 3) + base
+        rhs = np.concatenate([Ls.T @ (n_s[:, d] * rhs_plane + mu * target[:, d]) for d in range(3)])
+        if idx.size:
+            Q = sp.diags(np.sqrt(wp2)) @ phases[phase][1][idx]
+            QQ = sp.hstack([sp.diags(g[:, d]) @ Q for d in range(3)]).tocsr()
+            A = A + QQ.T @ QQ
+            rhs = rhs + QQ.T @ (np.sqrt(wp2) * goal)
+        rhs = rhs + base_rhs + (p["damping"] / n) * P_m.T.ravel()
+        return spla.spsolve(A.tocsc(), rhs)
+
     P = p0.copy()
     X, N, closest, dist, mean, near, depth = measure(P)
     before = {"mean_distance": mean, "max_penetration": float(max(depth.max(), 0.0))}
@@ -425,15 +515,11 @@ def fit_cage(
     best = (P.copy(), mean, float(max(depth.max(), 0.0)))
     stall = 0
     iterations = 0
-    P_m = select.T @ P
-    P0_m = select.T @ p0
-    fair_rhs = fair @ P0_m
     for phase, (probe, probe_moving, n_iter) in enumerate(phases):
         probe_normals = sample_probes[phase]
         if phase == 1:
             # polish: from the best iterate, with the denser probes
             P = best[0].copy()
-            P_m = select.T @ P
             X, N, closest, dist, mean, near, depth = measure(P)
             if depth.max() <= p["max_penetration"]:
                 break
@@ -449,48 +535,21 @@ def fit_cage(
             facing = np.einsum("kc,kc->k", target_n, N[closest]) < -p["min_facing"]
             use = (dist <= p["max_distance"]) & facing
             w = w_base * use
-            # data: point-to-plane along the surface normal at the correspondence,
-            # plus a share of point-to-point (tangential stability)
-            n_c = N[closest]
-            L_c = limit_moving[closest]
-            fixed_part = limit[closest] @ (P - select @ (select.T @ P))
-            rhs_plane = np.einsum("kc,kc->k", n_c, b - fixed_part)
-            J_plane = sp.hstack([sp.diags(n_c[:, d]) @ L_c for d in range(3)]).tocsr()
-            sw = np.sqrt(w / w_sum)
-            Jw = sp.diags(sw) @ J_plane
-            A = (Jw.T @ Jw).tocsr()
-            rhs = Jw.T @ (sw * rhs_plane)
-            Lw = (sp.diags(np.sqrt(p["point_to_point"]) * sw) @ L_c).tocsr()
-            LtL = (Lw.T @ Lw).tocsr()
-            target_pp = b - fixed_part
-            rhs_pp = [Lw.T @ (np.sqrt(p["point_to_point"]) * sw * target_pp[:, d]) for d in range(3)]
-            # probes inside the body, or closer to the skin than the clearance,
-            # are pulled out along the skin normal (a strong penalty)
             foot, out, below = near
             # probes under the floor are lifted to it (no clearance: the
             # furniture stands on the floor); probes in the body or closer than
-            # the clearance are pushed out along the skin's outward direction
+            # the clearance are pushed out along their way out (see measure)
             gap = np.where(below, 0.0, p["clearance"])
             idx = np.flatnonzero(depth > -gap)
             # skin resting on the floor (soles): the floor holds it; pushing the
             # surface out along its downward normal would push it underground
             on_floor = ~below[idx] & (foot[idx, 1] < p["clearance"]) & (out[idx, 1] < -0.5)
             idx = idx[~on_floor]
-            if idx.size:
-                nn = out[idx]
-                fixed_a = probe[idx] @ (P - select @ (select.T @ P))
-                goal = np.einsum("kc,kc->k", nn, foot[idx] - fixed_a) + gap[idx]
-                J_pen = sp.hstack([sp.diags(nn[:, d]) @ probe_moving[idx] for d in range(3)]).tocsr()
-                wp = np.sqrt(w_pen / w_sum * (1.0 + np.minimum(depth[idx].clip(0) / p["clearance"], 4.0)))
-                Jp = sp.diags(wp) @ J_pen
-                A = A + (Jp.T @ Jp).tocsr()
-                rhs = rhs + Jp.T @ (wp * goal)
-            blocks = sp.block_diag([LtL + fair + damp] * 3, format="csr")
-            system = (A + blocks).tocsc()
-            rhs_full = rhs + np.concatenate([rhs_pp[d] + fair_rhs[:, d] + (p["damping"] / n) * P_m[:, d] for d in range(3)])
+            boost = 1.0 + np.minimum(depth[idx].clip(0) / p["clearance"], 4.0)
+            pen = (idx, out[idx], foot[idx], gap[idx], w_pen / w_sum * boost)
             try:
-                solution = spla.spsolve(system, rhs_full)
-            except RuntimeError as exc:  # singular factorisation
+                solution = solve_step(P, N, closest, w, pen, phase)
+            except (RuntimeError, np.linalg.LinAlgError) as exc:  # singular factorisation
                 msg = f"catmull-clark-fit: the linear solve failed at iteration {iterations}: {exc}"
                 raise SolverError(msg) from exc
             if not np.all(np.isfinite(solution)):
@@ -508,7 +567,6 @@ def fit_cage(
             reach = max(p["max_step"], history[-1])
             if longest > reach:
                 P = P_prev + (reach / longest) * (P - P_prev)
-            P_m = select.T @ P
             X, N, closest, dist, mean, near, depth = measure(P)
             history.append(mean)
             max_depth = float(max(depth.max(), 0.0))
