@@ -86,6 +86,8 @@ class SkinDistance:
         v = np.asarray(vertices, dtype=np.float64)
         f = np.asarray(faces, dtype=np.int64)
         self.vertices, self.faces = v, f
+        #: (lo, hi): the skin's axis-aligned bounding box, m
+        self.bounds = (v.min(axis=0), v.max(axis=0))
         e1, e2 = v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]
         cross = np.cross(e1, e2)
         fn = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-300)

@@ -218,19 +218,32 @@ _RETREAT_SCALE = np.array([1.0, 1.2, 1.4, 1.6, 1.8, 2.0, 2.0, 2.0])
 _RETREAT_EXTRA = np.array([0.0, 0.002, 0.004, 0.006, 0.009, 0.012, 0.016, 0.02])
 
 
+#: Probes farther than this outside a body's bounding box are not asked
+#: about that body: their depth is at most minus this, m.
+_FAR = 0.05
+
+
 def skin_depth(skins: Sequence[SkinDistance], points: np.ndarray):
-    """Depth of points in the deepest of several bodies (see :class:`SkinDistance`)."""
-    best = None
+    """Depth of points in the deepest of several bodies (see :class:`SkinDistance`).
+
+    Each body is asked only about the points near its bounding box; a point
+    near none gets depth ``-_FAR`` (a bound: it is at least that far outside)
+    with placeholder foot and direction, which no caller uses at that depth.
+    """
+    depth = np.full(len(points), -_FAR)
+    foot = np.array(points, dtype=np.float64, copy=True)
+    out = np.zeros_like(foot)
+    out[:, 1] = 1.0
     for skin in skins:
-        d, q, g = skin.query(points)
-        if best is None:
-            best = [d, q, g]
-        else:
-            deeper = d > best[0]
-            best[0] = np.where(deeper, d, best[0])
-            best[1] = np.where(deeper[:, None], q, best[1])
-            best[2] = np.where(deeper[:, None], g, best[2])
-    return best[0], best[1], best[2]
+        lo, hi = skin.bounds
+        near = np.flatnonzero(np.all((points > lo - _FAR) & (points < hi + _FAR), axis=1))
+        if not near.size:
+            continue
+        d, q, g = skin.query(points[near])
+        deeper = d > depth[near]
+        k = near[deeper]
+        depth[k], foot[k], out[k] = d[deeper], q[deeper], g[deeper]
+    return depth, foot, out
 
 
 def _boundary_samples(ops) -> np.ndarray:
