@@ -243,10 +243,10 @@ def evaluate_result(result: BuildResult, registry, timer: "_Timer | None" = None
 
     Parameters
     ----------
-    baseline : dict or concurrent.futures.Future, optional
-        The result of :func:`fit_baseline` (or a future of it, computed
-        while our refiners ran); computed here when not given and the recipe
-        asks for a baseline.
+    baseline : dict or seatkit.parallel.Background, optional
+        The result of :func:`fit_baseline` (or the background work computing
+        it while our refiners ran); computed here when not given and the
+        recipe asks for a baseline.
     """
     from seatkit.evaluate import design_segments, evaluate_design
     from seatkit.skeleton import SEGMENTS
@@ -293,6 +293,7 @@ def build(
     progress: Progress | None = None,
     write: bool = True,
     overwrite: bool = False,
+    processes: bool | None = None,
 ) -> BuildResult:
     """Run one build.
 
@@ -310,6 +311,12 @@ def build(
         written.
     overwrite : bool
         Allow replacing an output folder that seatkit did not write.
+    processes : bool, optional
+        Fit the baseline in a forked child process, truly in parallel with
+        our refiners (default where the platform forks safely, see
+        :mod:`seatkit.parallel`). ``False`` fits it on a thread instead, for
+        callers that already keep every core busy (batch workers). The
+        results are the same either way.
 
     Returns
     -------
@@ -317,15 +324,18 @@ def build(
     """
     from threadpoolctl import threadpool_limits
 
+    from seatkit.parallel import can_fork
+
     # Every numerical step here works on small dense blocks or sparse
     # matrices: multithreaded BLAS only adds contention (SLSQP became 10-20x
-    # slower with OpenBLAS threads spinning on 2 busy cores), and two build
-    # threads (ours and the baseline) already use both cores.
+    # slower with OpenBLAS threads spinning on 2 busy cores), and the build's
+    # two lines of work (ours and the baseline) already use both cores.
     with threadpool_limits(limits=1):
-        return _build(recipe, pm=pm, progress=progress, write=write, overwrite=overwrite)
+        processes = can_fork() if processes is None else bool(processes)
+        return _build(recipe, pm=pm, progress=progress, write=write, overwrite=overwrite, processes=processes)
 
 
-def _build(recipe, *, pm, progress, write, overwrite) -> BuildResult:
+def _build(recipe, *, pm, progress, write, overwrite, processes) -> BuildResult:
     from seatkit.plugins import get_plugin_manager
 
     if isinstance(recipe, Mapping) and "bodies" in recipe and "pressure" in recipe and "refiners" in recipe and all(isinstance(r, dict) for r in recipe["refiners"]):
@@ -362,16 +372,15 @@ def _build(recipe, *, pm, progress, write, overwrite) -> BuildResult:
             raise
 
     # The baseline depends only on the bodies and the segments our cage
-    # supports: fit it on a second thread while our refiners run (numpy,
-    # scipy.sparse and the KD-tree release the GIL for their heavy parts).
-    executor = baseline = None
+    # supports: fit it in a forked child process (a thread where the platform
+    # cannot fork, see seatkit.parallel) while our refiners run.
+    baseline = None
     if recipe["evaluate"]["enabled"] and recipe["evaluate"]["baseline"]:
-        from concurrent.futures import ThreadPoolExecutor
-
         from seatkit.evaluate import design_segments
+        from seatkit.parallel import Background
 
-        executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="seatkit-baseline")
-        baseline = executor.submit(fit_baseline, recipe, bodies, pressures, registry, design_segments(initial))
+        segments = design_segments(initial)
+        baseline = Background(fit_baseline, recipe, bodies, pressures, registry, segments, name="baseline", process=processes)
     try:
         mesh = initial
         for ref in recipe["refiners"]:
@@ -384,8 +393,8 @@ def _build(recipe, *, pm, progress, write, overwrite) -> BuildResult:
 
             surface = limit_surface(mesh, level=recipe["surface_level"])
     except BaseException:
-        if executor is not None:
-            executor.shutdown(wait=True, cancel_futures=True)
+        if baseline is not None:
+            baseline.close()
         raise
 
     result = BuildResult(
@@ -401,8 +410,8 @@ def _build(recipe, *, pm, progress, write, overwrite) -> BuildResult:
         try:
             evaluate_result(result, registry, timer, baseline=baseline)
         finally:
-            if executor is not None:
-                executor.shutdown(wait=True)
+            if baseline is not None:
+                baseline.close()
 
     if write:
         target = output_target(recipe)
