@@ -5,8 +5,10 @@ two threads of one process mostly wait for each other's GIL. Measured on 2
 cores: the ``optimize`` refiner takes 0.11 s alone but 0.41 s while the
 baseline is fitted on a second thread. A child made with ``fork`` after the
 inputs exist runs truly in parallel and shares them copy-on-write: nothing is
-pickled on the way in, and only the (small) result comes back, pickled,
-through a pipe.
+pickled on the way in, and only the result comes back, pickled, through a
+pipe. A child can also be started *before* its input exists (``inbox``): it
+gets ready (imports what it needs) while the parent computes, then receives
+the input, pickled, through a second pipe.
 
 Why not everywhere: ``fork`` is used only on Linux. macOS has ``fork``, but a
 process that has loaded Apple's system libraries (Accelerate, via numpy) may
@@ -31,6 +33,7 @@ from __future__ import annotations
 
 import os
 import pickle
+import queue
 import signal
 import sys
 import threading
@@ -41,6 +44,8 @@ from seatkit.errors import SeatkitError
 
 __all__ = ["Background", "can_fork"]
 
+_PROTOCOL = pickle.HIGHEST_PROTOCOL
+
 
 def can_fork() -> bool:
     """Whether background work may run in a forked child process (Linux only; see the module docstring)."""
@@ -50,11 +55,34 @@ def can_fork() -> bool:
 def _portable_error(exc: BaseException) -> BaseException:
     """``exc`` if it survives pickling, else the nearest thing that does (same message)."""
     try:
-        pickle.loads(pickle.dumps(exc, protocol=pickle.HIGHEST_PROTOCOL))
+        pickle.loads(pickle.dumps(exc, protocol=_PROTOCOL))
         return exc
     except Exception:  # noqa: BLE001 - any failure to round-trip
-        cls = SeatkitError if isinstance(exc, SeatkitError) else RuntimeError
-        return cls(f"{type(exc).__name__}: {exc}" if cls is RuntimeError else str(exc))
+        if isinstance(exc, SeatkitError):
+            return SeatkitError(str(exc))
+        return RuntimeError(f"{type(exc).__name__}: {exc}")
+
+
+def _read_to_end(fd: int) -> bytes:
+    with os.fdopen(fd, "rb") as pipe:
+        return pipe.read()
+
+
+def _fresh_std_streams() -> None:
+    """Give a forked child its own ``sys.stdout``/``sys.stderr`` objects.
+
+    Another thread of the parent (a progress spinner) may have held a
+    stream's internal lock at the moment of the fork; the child's copy of
+    that lock would then never be released. New objects on the same file
+    descriptors have new locks.
+    """
+    for name in ("stdout", "stderr"):
+        stream = getattr(sys, name)
+        try:
+            fd = stream.fileno()
+        except (AttributeError, ValueError, OSError):
+            continue  # not a real file (captured output): nothing to re-open
+        setattr(sys, name, open(fd, "w", buffering=1, encoding=stream.encoding, errors=stream.errors, closefd=False))
 
 
 class Background:
@@ -71,20 +99,30 @@ class Background:
     process : bool
         Run in a forked child (only where :func:`can_fork`); otherwise on a
         thread.
+    inbox : bool
+        Call ``fn(receive, *args)``: ``receive()`` waits for the object the
+        parent passes to :meth:`send` (``None`` when the parent closes the
+        work without sending). In a process the object arrives pickled.
     """
 
-    def __init__(self, fn: Callable[..., Any], *args: Any, name: str, process: bool = True):
+    def __init__(self, fn: Callable[..., Any], *args: Any, name: str, process: bool = True, inbox: bool = False):
         self.name = name
         self.process = bool(process) and can_fork()
         self._done = False
+        self._sent = not inbox
         self._value: Any = None
         self._error: BaseException | None = None
         self._pid: int | None = None
-        self._fd: int | None = None
+        self._out: int | None = None  # child -> parent: the answer
+        self._in: int | None = None  # parent -> child: the inbox
+        self._queue: queue.Queue | None = None
         self._thread: threading.Thread | None = None
         if self.process:
-            self._fork(fn, args)
+            self._fork(fn, args, inbox)
         else:
+            if inbox:
+                self._queue = queue.Queue(maxsize=1)
+                args = (self._queue.get, *args)
             self._thread = threading.Thread(target=self._run_here, args=(fn, args), name=f"seatkit-{name}")
             self._thread.start()
 
@@ -96,42 +134,52 @@ class Background:
             self._error = exc
 
     # ----------------------------------------------------------------- process
-    def _fork(self, fn, args) -> None:
+    def _fork(self, fn, args, inbox: bool) -> None:
         for stream in (sys.stdout, sys.stderr):
             try:
                 stream.flush()  # or the child would hold (and never write) a copy of pending output
             except (AttributeError, ValueError, OSError):
                 pass
-        r, w = os.pipe()
+        out_r, out_w = os.pipe()
+        in_r, in_w = os.pipe() if inbox else (None, None)
         pid = os.fork()
-        if pid == 0:  # the child: compute, send, leave without running any of the parent's clean-up
+        if pid == 0:  # the child: compute, answer, leave without running any of the parent's clean-up
             status = 0
             try:
-                os.close(r)
+                os.close(out_r)
+                if inbox:
+                    os.close(in_w)
+
+                    def receive():
+                        data = _read_to_end(in_r)
+                        return pickle.loads(data) if data else None
+
+                    args = (receive, *args)
+                _fresh_std_streams()
                 try:
-                    payload = pickle.dumps((True, fn(*args)), protocol=pickle.HIGHEST_PROTOCOL)
+                    payload = pickle.dumps((True, fn(*args)), protocol=_PROTOCOL)
                 except BaseException as exc:  # noqa: BLE001 - sent to the parent
                     tb = "".join(traceback.format_exception(exc))
-                    payload = pickle.dumps((False, _portable_error(exc), tb), protocol=pickle.HIGHEST_PROTOCOL)
-                with os.fdopen(w, "wb") as pipe:
+                    payload = pickle.dumps((False, _portable_error(exc), tb), protocol=_PROTOCOL)
+                with os.fdopen(out_w, "wb") as pipe:
                     pipe.write(payload)
+                sys.stdout.flush()
+                sys.stderr.flush()
             except BaseException:  # noqa: BLE001 - e.g. the parent went away (broken pipe)
                 status = 1
             finally:
                 os._exit(status)
-        os.close(w)
-        self._pid, self._fd = pid, r
+        os.close(out_w)
+        if inbox:
+            os.close(in_r)
+        self._pid, self._out, self._in = pid, out_r, in_w
 
     def _collect(self) -> None:
         """Read the child's answer to the end, then reap it."""
-        chunks = []
-        with os.fdopen(self._fd, "rb") as pipe:
-            self._fd = None
-            while chunk := pipe.read(1 << 20):
-                chunks.append(chunk)
+        fd, self._out = self._out, None
+        data = _read_to_end(fd)
         _, status = os.waitpid(self._pid, 0)
         self._pid = None
-        data = b"".join(chunks)
         if not data:
             how = (
                 f"was killed by signal {os.WTERMSIG(status)}"
@@ -148,12 +196,35 @@ class Background:
             self._error.add_note(f"(raised in the {self.name} process)\n{answer[2]}")
 
     # ------------------------------------------------------------------ public
+    def send(self, obj: Any) -> None:
+        """Hand ``obj`` to the work's ``receive()`` (once; only with ``inbox``)."""
+        if self._sent:
+            msg = f"{self.name}: send() needs inbox=True and works once"
+            raise RuntimeError(msg)
+        self._sent = True
+        if self._queue is not None:
+            self._queue.put(obj)
+            return
+        fd, self._in = self._in, None
+        try:
+            with os.fdopen(fd, "wb") as pipe:
+                pipe.write(pickle.dumps(obj, protocol=_PROTOCOL))
+        except BrokenPipeError:
+            pass  # the child ended before reading (it failed): result() reports why
+
     def result(self) -> Any:
         """Wait for the work and return its value, or raise its error."""
         if not self._done:
             if self._thread is not None:
+                if not self._sent:  # the work waits in receive(): tell it nothing is coming
+                    self._sent = True
+                    self._queue.put(None)
                 self._thread.join()
             else:
+                if not self._sent:  # the work waits in receive(): tell it nothing is coming
+                    self._sent = True
+                    os.close(self._in)
+                    self._in = None
                 try:
                     self._collect()
                 finally:
@@ -164,16 +235,23 @@ class Background:
         return self._value
 
     def close(self) -> None:
-        """Stop a child whose result is not wanted, and reap it (idempotent).
+        """Stop work whose result is not wanted, and reap its process (idempotent).
 
-        A thread cannot be stopped: this waits for it to finish, so that no
-        work of a finished build goes on in the background.
+        A thread cannot be stopped: this waits for it to finish (a thread
+        waiting in ``receive()`` gets ``None``), so that no work of a finished
+        build goes on in the background.
         """
         if self._thread is not None:
+            if not self._sent:
+                self._sent = True
+                self._queue.put(None)
             self._thread.join()
-        if self._fd is not None:
-            os.close(self._fd)
-            self._fd = None
+            return
+        for attr in ("_in", "_out"):
+            fd = getattr(self, attr)
+            if fd is not None:
+                os.close(fd)
+                setattr(self, attr, None)
         if self._pid is not None:
             try:
                 os.kill(self._pid, signal.SIGTERM)

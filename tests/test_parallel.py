@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 import pickle
 import time
@@ -174,4 +175,100 @@ def test_a_failing_refiner_stops_the_baseline_and_leaves_no_process(pm, tmp_path
     recipe = dict(RECIPE, refiners=["explode"], output=str(tmp_path / "out"))
     with pytest.raises(SeatkitError, match="the refiner exploded"):
         seatkit.build(recipe, pm=pm, processes=processes)
+    assert _children() == []
+
+
+def _echo_inbox(receive, scale):
+    got = receive()
+    return None if got is None else got * scale
+
+
+@pytest.mark.parametrize("process", [True, False])
+def test_inbox_receives_what_the_parent_sends_later(process):
+    work = Background(_echo_inbox, 3.0, name="inbox", process=process, inbox=True)
+    work.send(np.arange(3.0))
+    np.testing.assert_array_equal(work.result(), [0.0, 3.0, 6.0])
+    with pytest.raises(RuntimeError, match="works once"):
+        work.send(1.0)
+    assert _children() == []
+
+
+@pytest.mark.parametrize("process", [True, False])
+def test_inbox_work_that_is_never_sent_anything_ends(process):
+    assert Background(_echo_inbox, 3.0, name="inbox", process=process, inbox=True).result() is None
+    work = Background(_echo_inbox, 3.0, name="inbox", process=process, inbox=True)
+    work.close()
+    assert _children() == []
+
+
+# ----------------------------------------------------------------- the export worker
+
+WRITE = {"template": "chair", "exporters": ["usd", "obj", "surface", "body-ply", "design"], "evaluate": {"enabled": False}}
+
+
+def _same_design_files(a: Path, b: Path) -> None:
+    names = sorted(p.name for p in a.iterdir())
+    assert names == sorted(p.name for p in b.iterdir())
+    for name in names:
+        if name in ("report.json", ".seatkit-run", "design.npz"):
+            continue
+        assert (a / name).read_bytes() == (b / name).read_bytes(), name
+    da, db = np.load(a / "design.npz"), np.load(b / "design.npz")
+    for key in da.files:
+        if key != "header":
+            assert da[key].tobytes() == db[key].tobytes(), key
+
+
+@needs_fork
+def test_the_export_worker_writes_the_same_files_as_the_main_process(tmp_path):
+    from seatkit.pipeline import _Exports
+
+    seatkit.build(dict(WRITE, output=str(tmp_path / "a")), processes=True)
+    seatkit.build(dict(WRITE, output=str(tmp_path / "a")), processes=False)  # replaces its own run
+    seatkit.build(dict(WRITE, output=str(tmp_path / "b")), processes=False)
+    seatkit.build(dict(WRITE, output=str(tmp_path / "c")), processes=True)
+    _same_design_files(tmp_path / "b", tmp_path / "c")
+    # the roles are listed in recipe order whichever process wrote them
+    files = list(json.loads((tmp_path / "c" / "report.json").read_text())["files"])
+    assert files == list(json.loads((tmp_path / "b" / "report.json").read_text())["files"])
+    # usd, surface and body-ply have prepare(): they are the worker's
+    from seatkit.plugins import get_plugin_manager
+
+    reg = get_plugin_manager().registry
+    exports = _Exports([reg.get("exporter", n) for n in WRITE["exporters"]], processes=True)
+    exports.close()
+    assert exports.ahead == [0, 2, 3]
+    assert _children() == []
+
+
+class _FailingExporter:
+    description = "fails"
+
+    def __init__(self, name, prepare):
+        self.name = name
+        if prepare:
+            self.prepare = lambda: None
+
+    def export(self, result, directory):
+        (Path(directory) / f"{self.name}.txt").write_text("half")
+        raise SeatkitError(f"exporter {self.name} failed")
+
+
+class _ExporterPlugin:
+    @seatkit.hookimpl
+    def seatkit_register_exporters(self):
+        return [_FailingExporter("fail-in-worker", True), _FailingExporter("fail-here", False)]
+
+
+@pytest.mark.parametrize("processes", [True, False])
+@pytest.mark.parametrize("failing", ["fail-in-worker", "fail-here"])
+def test_a_failing_exporter_leaves_no_output_folder_and_no_process(tmp_path, processes, failing):
+    from seatkit.plugins import get_plugin_manager
+
+    pm = get_plugin_manager(autoload=False)
+    pm.register_plugin(_ExporterPlugin(), "test-exporters")
+    recipe = dict(WRITE, exporters=["usd", failing, "obj"], output=str(tmp_path / "out"))
+    with pytest.raises(SeatkitError, match=f"exporter {failing} failed"):
+        seatkit.build(recipe, pm=pm, processes=processes)
+    assert list(tmp_path.iterdir()) == []  # neither the folder nor its staging folder
     assert _children() == []

@@ -18,6 +18,7 @@ __all__ = [
     "SURFACE_FORMATS",
     "read_obj_cage",
     "pressure_colors",
+    "prepare_colors",
     "quads_to_triangles",
     "surface_trimesh",
     "thick_shell",
@@ -205,6 +206,13 @@ def write_shell(surface, thickness: float, path) -> Path:
     with atomic_path(path) as tmp:
         mesh.export(tmp, file_type=path.suffix.lower()[1:])
     return path
+
+
+def prepare_colors(cmap: str = "magma_r") -> None:
+    """Load the colour map of :func:`pressure_colors` (matplotlib) ahead of use."""
+    from matplotlib import colormaps
+
+    colormaps[cmap]  # noqa: B018 - the lookup builds the map
 
 
 def pressure_colors(pressure: np.ndarray, *, cmap: str = "magma_r") -> np.ndarray:

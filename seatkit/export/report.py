@@ -812,6 +812,12 @@ class ReportHtmlExporter:
     name = "report-html"
     description = "report.html: interactive 3D view (plotly, embedded, offline) and the metrics table"
 
+    def prepare(self) -> None:
+        """Import plotly's HTML writer (it imports more on first use), ahead of :meth:`export`."""
+        import plotly.io as pio
+
+        pio.to_html({"data": [], "layout": {}}, include_plotlyjs=False, full_html=False, validate=False)
+
     def export(self, result, directory: Path) -> dict[str, Path]:
         return {"report_html": write_report_html(result, Path(directory) / "report.html")}
 
