@@ -435,8 +435,8 @@ class _Exports:
     """The exporters of a build, some of them run by a worker process.
 
     Exporters that have a ``prepare()`` method (the built-in ones whose time
-    goes mostly into importing a big library: usd-core, trimesh, matplotlib,
-    plotly) are run by a worker process forked when the build starts. It
+    goes mostly into importing a big library: usd-core, trimesh, plotly) are
+    run by a worker process forked when the build starts. It
     calls their ``prepare()`` while the main process computes the design (on
     2 cores the second one is idle until the template is fitted), receives
     the result when the design is done and writes its files into the same

@@ -255,3 +255,23 @@ def test_plugin_registers_the_exporters():
     spec.loader.exec_module(mod)
     names = [e.name for e in mod.seatkit_register_exporters()]
     assert names == ["usd", "usdc", "obj", "surface", "shell", "body-ply", "design", "report-png", "report-html"]
+
+
+def test_pressure_colours_match_matplotlib_without_importing_it():
+    from matplotlib import colormaps
+
+    from seatkit.export.meshes import pressure_colors
+
+    rng = np.random.default_rng(3)
+    # every entry of the map, its edges, values between entries, zero, the peak, NaN
+    p = np.concatenate([np.arange(257) / 256.0, np.nextafter(np.arange(1, 257) / 256.0, 0), rng.uniform(0, 1, 5000), [0.0, 1.0, np.nan]]) * 3200.0
+    got = pressure_colors(p)
+    peak = np.nanmax(p)
+    want = (colormaps["magma_r"](np.clip(p / peak, 0, 1)) * 255).round().astype(np.uint8)
+    # max() of an array with NaN is NaN: compare on the finite ones, with the same peak
+    finite = np.isfinite(p)
+    got_finite = pressure_colors(np.where(finite, p, 0.0))
+    assert np.array_equal(got_finite[finite], want[finite])
+    assert got.shape == (len(p), 4)
+    # another map goes through matplotlib itself
+    assert np.array_equal(pressure_colors(p[finite], cmap="viridis"), (colormaps["viridis"](p[finite] / peak) * 255).round().astype(np.uint8))

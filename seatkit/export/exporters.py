@@ -2,7 +2,7 @@
 
 Each is an :class:`seatkit.interfaces.Exporter`: ``export(result, directory)``
 writes files atomically and returns them by role. Those whose time goes
-mostly into importing a big library (usd-core, trimesh, matplotlib) also have
+mostly into importing a big library (usd-core, trimesh) also have
 ``prepare()``, which imports it: a build calls it in its export worker
 process while the design is being computed (see ``seatkit.pipeline._Exports``).
 
@@ -74,12 +74,10 @@ class UsdExporter:
         self.description = f"cage.{fmt} ({kind} USD): Catmull-Clark cage with creases, bodies coloured by pressure"
 
     def prepare(self) -> None:
-        """Import usd-core (and load its plugins) and the bodies' colour map, ahead of :meth:`export`."""
-        from seatkit.export.meshes import prepare_colors
+        """Import usd-core (and load its plugins), ahead of :meth:`export`."""
         from seatkit.export.usd import prepare_usd
 
         prepare_usd()
-        prepare_colors()
 
     def export(self, result, directory: Path) -> dict[str, Path]:
         from seatkit.export.usd import write_usd
@@ -154,12 +152,8 @@ class BodyPlyExporter:
     description = "body.ply: the posed body with vertex colours from pressure (one file per person)"
 
     def prepare(self) -> None:
-        """Import trimesh and the colour map, ahead of :meth:`export`."""
+        """Import trimesh, ahead of :meth:`export`."""
         import trimesh  # noqa: F401
-
-        from seatkit.export.meshes import prepare_colors
-
-        prepare_colors()
 
     def export(self, result, directory: Path) -> dict[str, Path]:
         from seatkit.export.meshes import write_body_ply
