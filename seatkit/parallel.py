@@ -38,18 +38,44 @@ import signal
 import sys
 import threading
 import traceback
-from typing import Any, Callable
+from contextlib import contextmanager
+from contextvars import ContextVar
+from typing import Any, Callable, Iterator
 
 from seatkit.errors import SeatkitError
 
-__all__ = ["Background", "can_fork"]
+__all__ = ["Background", "can_fork", "forking", "forking_allowed"]
 
 _PROTOCOL = pickle.HIGHEST_PROTOCOL
+
+#: Whether the running build lets its parts fork (see :func:`forking`).
+_FORKING: ContextVar[bool] = ContextVar("seatkit_forking", default=False)
 
 
 def can_fork() -> bool:
     """Whether background work may run in a forked child process (Linux only; see the module docstring)."""
     return hasattr(os, "fork") and sys.platform.startswith("linux")
+
+
+@contextmanager
+def forking_allowed(allowed: bool) -> Iterator[None]:
+    """Let the code run inside (a build's stages, its exporters) fork child processes, or not."""
+    token = _FORKING.set(bool(allowed) and can_fork())
+    try:
+        yield
+    finally:
+        _FORKING.reset(token)
+
+
+def forking() -> bool:
+    """Whether the running code may split work into forked child processes.
+
+    True only inside :func:`forking_allowed` (a build with ``processes``
+    on) on a platform that forks safely: a component called outside a build,
+    or from a batch worker that already keeps every core busy, works in one
+    process.
+    """
+    return _FORKING.get()
 
 
 def _portable_error(exc: BaseException) -> BaseException:

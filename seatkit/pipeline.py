@@ -312,11 +312,14 @@ def build(
     overwrite : bool
         Allow replacing an output folder that seatkit did not write.
     processes : bool, optional
-        Fit the baseline in a forked child process, truly in parallel with
-        our refiners (default where the platform forks safely, see
-        :mod:`seatkit.parallel`). ``False`` fits it on a thread instead, for
-        callers that already keep every core busy (batch workers). The
-        results are the same either way.
+        Use forked child processes (default where the platform forks
+        safely, see :mod:`seatkit.parallel`): the baseline is fitted truly
+        in parallel with our refiners, an export worker prepares and runs
+        the exporters that import big libraries, and exporters may split
+        their work (:func:`seatkit.parallel.forking`). ``False`` keeps the
+        build in one process (the baseline on a thread), for callers that
+        already keep every core busy (batch workers). The files and results
+        are the same either way.
 
     Returns
     -------
@@ -324,14 +327,14 @@ def build(
     """
     from threadpoolctl import threadpool_limits
 
-    from seatkit.parallel import can_fork
+    from seatkit.parallel import can_fork, forking_allowed
 
     # Every numerical step here works on small dense blocks or sparse
     # matrices: multithreaded BLAS only adds contention (SLSQP became 10-20x
     # slower with OpenBLAS threads spinning on 2 busy cores), and the build's
-    # two lines of work (ours and the baseline) already use both cores.
-    with threadpool_limits(limits=1):
-        processes = can_fork() if processes is None else bool(processes)
+    # processes (ours, the baseline, the exports) already use both cores.
+    processes = can_fork() if processes is None else bool(processes)
+    with threadpool_limits(limits=1), forking_allowed(processes):
         return _build(recipe, pm=pm, progress=progress, write=write, overwrite=overwrite, processes=processes)
 
 
