@@ -172,7 +172,8 @@ class SurfaceQuery:
         # corner opposite its longest edge (the triangle is the convex hull of
         # its corners), so no surface point is farther than this from a vertex.
         if len(tris):
-            edges = np.stack([np.linalg.norm(v[tris[:, i]] - v[tris[:, (i + 1) % 3]], axis=1) for i in range(3)], axis=1)
+            corners = v[tris]
+            edges = np.linalg.norm(corners - np.roll(corners, -1, axis=1), axis=2)
             self.reach = float(np.sort(edges, axis=1)[:, 1].max())
         else:
             self.reach = 0.0

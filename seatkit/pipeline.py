@@ -393,7 +393,9 @@ def _design(recipe, registry, timer: _Timer, *, write: bool, processes: bool) ->
         from seatkit.parallel import Background
 
         segments = design_segments(initial)
-        baseline = Background(fit_baseline, recipe, bodies, pressures, registry, segments, name="baseline", process=processes)
+        baseline = Background(
+            fit_baseline, recipe, bodies, pressures, registry, segments, name="baseline", process=processes
+        )
     try:
         mesh = initial
         for ref in recipe["refiners"]:

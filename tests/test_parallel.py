@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import re
 import time
 from pathlib import Path
 
@@ -203,7 +204,11 @@ def test_inbox_work_that_is_never_sent_anything_ends(process):
 
 # ----------------------------------------------------------------- the export worker
 
-WRITE = {"template": "chair", "exporters": ["usd", "obj", "surface", "body-ply", "design"], "evaluate": {"enabled": False}}
+WRITE = {
+    "template": "chair",
+    "exporters": ["usd", "obj", "surface", "body-ply", "design", "report-html"],
+    "evaluate": {"enabled": False},
+}
 
 
 def _same_design_files(a: Path, b: Path) -> None:
@@ -211,6 +216,10 @@ def _same_design_files(a: Path, b: Path) -> None:
     assert names == sorted(p.name for p in b.iterdir())
     for name in names:
         if name in ("report.json", ".seatkit-run", "design.npz"):
+            continue
+        if name == "report.html":  # the same but for the time each stage took
+            ha, hb = (re.sub(r"<h2>Time per stage</h2><table>.*?</table>", "", (d / name).read_text(), flags=re.S) for d in (a, b))
+            assert ha == hb
             continue
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
     da, db = np.load(a / "design.npz"), np.load(b / "design.npz")
@@ -231,13 +240,13 @@ def test_the_export_worker_writes_the_same_files_as_the_main_process(tmp_path):
     # the roles are listed in recipe order whichever process wrote them
     files = list(json.loads((tmp_path / "c" / "report.json").read_text())["files"])
     assert files == list(json.loads((tmp_path / "b" / "report.json").read_text())["files"])
-    # usd, surface and body-ply have prepare(): they are the worker's
+    # usd and report-html have prepare(): they are the worker's
     from seatkit.plugins import get_plugin_manager
 
     reg = get_plugin_manager().registry
     exports = _Exports([reg.get("exporter", n) for n in WRITE["exporters"]], processes=True)
     exports.close()
-    assert exports.ahead == [0, 2, 3]
+    assert exports.ahead == [0, 5]
     assert _children() == []
 
 

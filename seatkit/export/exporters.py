@@ -112,10 +112,6 @@ class SurfaceExporter:
     def __init__(self, formats=(".obj", ".ply", ".stl", ".glb")):
         self.formats = tuple(formats)
 
-    def prepare(self) -> None:
-        """Import trimesh (PLY, STL, GLB), ahead of :meth:`export`."""
-        import trimesh  # noqa: F401
-
     def export(self, result, directory: Path) -> dict[str, Path]:
         from seatkit.export.meshes import write_surface
 
@@ -150,10 +146,6 @@ class BodyPlyExporter:
 
     name = "body-ply"
     description = "body.ply: the posed body with vertex colours from pressure (one file per person)"
-
-    def prepare(self) -> None:
-        """Import trimesh, ahead of :meth:`export`."""
-        import trimesh  # noqa: F401
 
     def export(self, result, directory: Path) -> dict[str, Path]:
         from seatkit.export.meshes import write_body_ply
