@@ -19,9 +19,9 @@ from seatkit.parallel import Background, can_fork
 needs_fork = pytest.mark.skipif(not can_fork(), reason="forked workers run on Linux only")
 
 
-def _children() -> list[tuple[int, str]]:
+def _all_children() -> set[tuple[int, str]]:
     """(pid, state) of this process's children, zombies included (Linux /proc)."""
-    me, out = os.getpid(), []
+    me, out = os.getpid(), set()
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
             text = stat.read_text()
@@ -29,8 +29,23 @@ def _children() -> list[tuple[int, str]]:
             continue
         fields = text[text.rindex(")") + 2 :].split()
         if int(fields[1]) == me:
-            out.append((int(stat.parent.name), fields[0]))
+            out.add((int(stat.parent.name), fields[0]))
     return out
+
+
+_BEFORE: set = set()
+
+
+@pytest.fixture(autouse=True)
+def _note_children():
+    """Children that other tests of the session left (a Dask cluster...) are not ours."""
+    _BEFORE.clear()
+    _BEFORE.update(pid for pid, _ in _all_children())
+
+
+def _children() -> list[tuple[int, str]]:
+    """Children started (and not reaped) since the test began."""
+    return sorted(c for c in _all_children() if c[0] not in _BEFORE)
 
 
 def _square_pid(x):
