@@ -8,6 +8,12 @@ file, the plugin manager is built fresh unless one is passed, and the result
 are written into a staging folder beside the target and moved into place only
 when every exporter has succeeded, so an interrupted build leaves no output
 folder that looks complete.
+
+Where the platform forks safely, the work is split over forked child
+processes (:mod:`seatkit.parallel`; docs/architecture.md, "Processes of one
+build"): the baseline is fitted beside our refiners, an export worker
+prepares and runs the exporters that import big libraries (:class:`_Exports`).
+Threads would not do: the stages hold the GIL most of the time.
 """
 
 from __future__ import annotations
