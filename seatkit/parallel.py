@@ -35,6 +35,7 @@ import os
 import pickle
 import queue
 import signal
+import struct
 import sys
 import threading
 import traceback
@@ -89,9 +90,33 @@ def _portable_error(exc: BaseException) -> BaseException:
         return RuntimeError(f"{type(exc).__name__}: {exc}")
 
 
-def _read_to_end(fd: int) -> bytes:
+# Messages on the pipes are length-prefixed rather than ended by closing the
+# pipe: a child forked later (the baseline, half of the PNGs) holds copies of
+# the parent's open pipe ends until it exits, so end-of-file can come late.
+_HEADER = struct.Struct("<Q")
+
+
+def _read_message(fd: int) -> bytes | None:
+    """One message from a pipe, then close it; None if the writer closed it without sending."""
     with os.fdopen(fd, "rb") as pipe:
-        return pipe.read()
+        head = pipe.read(_HEADER.size)
+        if len(head) < _HEADER.size:
+            return None
+        (size,) = _HEADER.unpack(head)
+        data = pipe.read(size)
+    if len(data) < size:
+        return None
+    return data
+
+
+def _write_message(fd: int, data: bytes) -> None:
+    """Write one message to a pipe and close it (quietly if the reader is gone)."""
+    try:
+        with os.fdopen(fd, "wb") as pipe:
+            pipe.write(_HEADER.pack(len(data)))
+            pipe.write(data)
+    except BrokenPipeError:
+        pass  # the child ended before reading (it failed, or was stopped): result() reports why
 
 
 def _fresh_std_streams() -> None:
@@ -143,6 +168,7 @@ class Background:
         self._in: int | None = None  # parent -> child: the inbox
         self._queue: queue.Queue | None = None
         self._thread: threading.Thread | None = None
+        self._writer: threading.Thread | None = None  # writes what send() gave to a child
         if self.process:
             self._fork(fn, args, inbox)
         else:
@@ -177,7 +203,7 @@ class Background:
                     os.close(in_w)
 
                     def receive():
-                        data = _read_to_end(in_r)
+                        data = _read_message(in_r)
                         return pickle.loads(data) if data else None
 
                     args = (receive, *args)
@@ -188,6 +214,7 @@ class Background:
                     tb = "".join(traceback.format_exception(exc))
                     payload = pickle.dumps((False, _portable_error(exc), tb), protocol=_PROTOCOL)
                 with os.fdopen(out_w, "wb") as pipe:
+                    pipe.write(_HEADER.pack(len(payload)))
                     pipe.write(payload)
                 sys.stdout.flush()
                 sys.stderr.flush()
@@ -203,7 +230,7 @@ class Background:
     def _collect(self) -> None:
         """Read the child's answer to the end, then reap it."""
         fd, self._out = self._out, None
-        data = _read_to_end(fd)
+        data = _read_message(fd)
         _, status = os.waitpid(self._pid, 0)
         self._pid = None
         if not data:
@@ -223,7 +250,11 @@ class Background:
 
     # ------------------------------------------------------------------ public
     def send(self, obj: Any) -> None:
-        """Hand ``obj`` to the work's ``receive()`` (once; only with ``inbox``)."""
+        """Hand ``obj`` to the work's ``receive()`` (once; only with ``inbox``).
+
+        Does not wait for the work to take it: a child still getting ready
+        reads it from the pipe later (a helper thread writes it meanwhile).
+        """
         if self._sent:
             msg = f"{self.name}: send() needs inbox=True and works once"
             raise RuntimeError(msg)
@@ -231,12 +262,13 @@ class Background:
         if self._queue is not None:
             self._queue.put(obj)
             return
+        self._post(pickle.dumps(obj, protocol=_PROTOCOL))
+
+    def _post(self, data: bytes) -> None:
+        """Write a message to the child's inbox on a helper thread (the child may not read yet)."""
         fd, self._in = self._in, None
-        try:
-            with os.fdopen(fd, "wb") as pipe:
-                pipe.write(pickle.dumps(obj, protocol=_PROTOCOL))
-        except BrokenPipeError:
-            pass  # the child ended before reading (it failed): result() reports why
+        self._writer = threading.Thread(target=_write_message, args=(fd, data), name=f"seatkit-{self.name}-send")
+        self._writer.start()
 
     def result(self) -> Any:
         """Wait for the work and return its value, or raise its error."""
@@ -249,8 +281,7 @@ class Background:
             else:
                 if not self._sent:  # the work waits in receive(): tell it nothing is coming
                     self._sent = True
-                    os.close(self._in)
-                    self._in = None
+                    self._post(b"")
                 try:
                     self._collect()
                 finally:
@@ -285,6 +316,9 @@ class Background:
                 pass
             os.waitpid(self._pid, 0)
             self._pid = None
+        if self._writer is not None:  # the child is gone: the write ends (broken pipe) if it had not
+            self._writer.join()
+            self._writer = None
 
     def __enter__(self) -> "Background":
         return self

@@ -296,3 +296,17 @@ def test_a_failing_exporter_leaves_no_output_folder_and_no_process(tmp_path, pro
         seatkit.build(recipe, pm=pm, processes=processes)
     assert list(tmp_path.iterdir()) == []  # neither the folder nor its staging folder
     assert _children() == []
+
+
+@needs_fork
+def test_a_later_child_holding_a_copy_of_the_inbox_pipe_does_not_delay_the_message():
+    work = Background(_echo_inbox, 2.0, name="inbox", inbox=True)
+    sleeper = Background(time.sleep, 10.0, name="sleeper")  # forked with the inbox's write end open
+    try:
+        start = time.perf_counter()
+        work.send(np.ones(3))
+        np.testing.assert_array_equal(work.result(), [2.0, 2.0, 2.0])
+        assert time.perf_counter() - start < 5.0
+    finally:
+        sleeper.close()
+    assert _children() == []
