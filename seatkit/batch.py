@@ -187,7 +187,8 @@ def run_item(recipe: dict) -> dict:
 
     start = time.perf_counter()
     try:
-        result = build(recipe, overwrite=True)
+        # one build per core already: no forked baseline process on top
+        result = build(recipe, overwrite=True, processes=False)
     except SeatkitError as e:
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         return {"status": "failed", "seconds": time.perf_counter() - start, "error": first}

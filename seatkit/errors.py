@@ -65,3 +65,8 @@ class MissingExtraError(SeatkitError):
         )
         self.package = package
         self.extra = extra
+
+    def __reduce__(self):
+        # rebuilt from its own arguments, so that it survives pickling (a
+        # forked worker of seatkit.parallel, a Dask worker)
+        return (type(self), (self.package, self.extra))

@@ -171,7 +171,15 @@ class Refiner(Protocol):
 
 @runtime_checkable
 class Exporter(Protocol):
-    """Writes part of a build result to files."""
+    """Writes part of a build result to files.
+
+    An exporter may also have ``prepare()`` (not part of the protocol, so
+    optional): it imports what :meth:`export` needs (a big library) and
+    writes nothing. A build runs such exporters in its export worker
+    process, which calls ``prepare()`` while the design is computed (see
+    ``seatkit.pipeline._Exports``); ``export`` then gets a pickled copy of
+    the result.
+    """
 
     name: str
     description: str

@@ -8,6 +8,12 @@ file, the plugin manager is built fresh unless one is passed, and the result
 are written into a staging folder beside the target and moved into place only
 when every exporter has succeeded, so an interrupted build leaves no output
 folder that looks complete.
+
+Where the platform forks safely, the work is split over forked child
+processes (:mod:`seatkit.parallel`; docs/architecture.md, "Processes of one
+build"): the baseline is fitted beside our refiners, an export worker
+prepares and runs the exporters that import big libraries (:class:`_Exports`).
+Threads would not do: the stages hold the GIL most of the time.
 """
 
 from __future__ import annotations
@@ -243,10 +249,10 @@ def evaluate_result(result: BuildResult, registry, timer: "_Timer | None" = None
 
     Parameters
     ----------
-    baseline : dict or concurrent.futures.Future, optional
-        The result of :func:`fit_baseline` (or a future of it, computed
-        while our refiners ran); computed here when not given and the recipe
-        asks for a baseline.
+    baseline : dict or seatkit.parallel.Background, optional
+        The result of :func:`fit_baseline` (or the background work computing
+        it while our refiners ran); computed here when not given and the
+        recipe asks for a baseline.
     """
     from seatkit.evaluate import design_segments, evaluate_design
     from seatkit.skeleton import SEGMENTS
@@ -293,6 +299,7 @@ def build(
     progress: Progress | None = None,
     write: bool = True,
     overwrite: bool = False,
+    processes: bool | None = None,
 ) -> BuildResult:
     """Run one build.
 
@@ -310,6 +317,15 @@ def build(
         written.
     overwrite : bool
         Allow replacing an output folder that seatkit did not write.
+    processes : bool, optional
+        Use forked child processes (default where the platform forks
+        safely, see :mod:`seatkit.parallel`): the baseline is fitted truly
+        in parallel with our refiners, an export worker prepares and runs
+        the exporters that import big libraries, and exporters may split
+        their work (:func:`seatkit.parallel.forking`). ``False`` keeps the
+        build in one process (the baseline on a thread), for callers that
+        already keep every core busy (batch workers). The files and results
+        are the same either way.
 
     Returns
     -------
@@ -317,15 +333,18 @@ def build(
     """
     from threadpoolctl import threadpool_limits
 
+    from seatkit.parallel import can_fork, forking_allowed
+
     # Every numerical step here works on small dense blocks or sparse
     # matrices: multithreaded BLAS only adds contention (SLSQP became 10-20x
-    # slower with OpenBLAS threads spinning on 2 busy cores), and two build
-    # threads (ours and the baseline) already use both cores.
-    with threadpool_limits(limits=1):
-        return _build(recipe, pm=pm, progress=progress, write=write, overwrite=overwrite)
+    # slower with OpenBLAS threads spinning on 2 busy cores), and the build's
+    # processes (ours, the baseline, the exports) already use both cores.
+    processes = can_fork() if processes is None else bool(processes)
+    with threadpool_limits(limits=1), forking_allowed(processes):
+        return _build(recipe, pm=pm, progress=progress, write=write, overwrite=overwrite, processes=processes)
 
 
-def _build(recipe, *, pm, progress, write, overwrite) -> BuildResult:
+def _build(recipe, *, pm, progress, write, overwrite, processes) -> BuildResult:
     from seatkit.plugins import get_plugin_manager
 
     if isinstance(recipe, Mapping) and "bodies" in recipe and "pressure" in recipe and "refiners" in recipe and all(isinstance(r, dict) for r in recipe["refiners"]):
@@ -341,6 +360,16 @@ def _build(recipe, *, pm, progress, write, overwrite) -> BuildResult:
     with timer.stage("check"):
         check_recipe(recipe, registry, document=document)
 
+    exporters = [registry.get("exporter", name) for name in recipe["exporters"]] if write else []
+    with _Exports(exporters, processes=processes) as exports:
+        result = _design(recipe, registry, timer, write=write, processes=processes)
+        if write:
+            _write(result, exports, timer, overwrite=overwrite)
+    return result
+
+
+def _design(recipe, registry, timer: _Timer, *, write: bool, processes: bool) -> BuildResult:
+    """The stages from the bodies to the evaluation: the build's result, nothing written."""
     with timer.stage("bodies"):
         bodies = make_bodies(recipe, registry)
 
@@ -362,16 +391,17 @@ def _build(recipe, *, pm, progress, write, overwrite) -> BuildResult:
             raise
 
     # The baseline depends only on the bodies and the segments our cage
-    # supports: fit it on a second thread while our refiners run (numpy,
-    # scipy.sparse and the KD-tree release the GIL for their heavy parts).
-    executor = baseline = None
+    # supports: fit it in a forked child process (a thread where the platform
+    # cannot fork, see seatkit.parallel) while our refiners run.
+    baseline = None
     if recipe["evaluate"]["enabled"] and recipe["evaluate"]["baseline"]:
-        from concurrent.futures import ThreadPoolExecutor
-
         from seatkit.evaluate import design_segments
+        from seatkit.parallel import Background
 
-        executor = ThreadPoolExecutor(max_workers=1, thread_name_prefix="seatkit-baseline")
-        baseline = executor.submit(fit_baseline, recipe, bodies, pressures, registry, design_segments(initial))
+        segments = design_segments(initial)
+        baseline = Background(
+            fit_baseline, recipe, bodies, pressures, registry, segments, name="baseline", process=processes
+        )
     try:
         mesh = initial
         for ref in recipe["refiners"]:
@@ -383,71 +413,137 @@ def _build(recipe, *, pm, progress, write, overwrite) -> BuildResult:
             from seatkit.subdivision import limit_surface
 
             surface = limit_surface(mesh, level=recipe["surface_level"])
-    except BaseException:
-        if executor is not None:
-            executor.shutdown(wait=True, cancel_futures=True)
-        raise
 
-    result = BuildResult(
-        recipe=recipe,
-        bodies=bodies,
-        pressures=pressures,
-        initial_mesh=initial,
-        control_mesh=mesh,
-        surface=surface,
-        timings=timer.timings,
-    )
-    if recipe["evaluate"]["enabled"]:
-        try:
+        result = BuildResult(
+            recipe=recipe,
+            bodies=bodies,
+            pressures=pressures,
+            initial_mesh=initial,
+            control_mesh=mesh,
+            surface=surface,
+            timings=timer.timings,
+        )
+        if recipe["evaluate"]["enabled"]:
             evaluate_result(result, registry, timer, baseline=baseline)
-        finally:
-            if executor is not None:
-                executor.shutdown(wait=True)
-
-    if write:
-        target = output_target(recipe)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.staging-", dir=target.parent))
-        mask = os.umask(0)
-        os.umask(mask)
-        os.chmod(staging, 0o777 & ~mask)  # mkdtemp makes 0700 folders
-        try:
-            with timer.stage("export"):
-                files: dict[str, Path] = {}
-                for name in recipe["exporters"]:
-                    exporter = registry.get("exporter", name)
-                    for role, path in exporter.export(result, staging).items():
-                        files[role] = target / Path(path).name
-            result.timings = timer.timings
-            report = {
-                "seatkit_run": recipe_id(recipe),
-                "recipe": _jsonable(recipe),
-                "versions": _versions(),
-                "timings_s": _jsonable(timer.timings),
-                "control_mesh": {
-                    "vertices": int(len(mesh.vertices)),
-                    "faces": int(len(mesh.faces)),
-                    "meta": _jsonable(mesh.meta),
-                },
-                "pressure": [
-                    {
-                        "status": pf.status,
-                        "solve_seconds": pf.solve_seconds,
-                        "max_pressure_pa": float(pf.pressure.max()),
-                        "max_joint_moment_nm": float(np.linalg.norm(pf.joint_moment, axis=1).max()),
-                    }
-                    for pf in pressures
-                ],
-                "metrics": _jsonable(result.metrics),
-                "files": {k: Path(v).name for k, v in files.items()},
-            }
-            write_text_atomic(staging / "report.json", json.dumps(report, indent=1) + "\n")
-            files["report"] = target / "report.json"
-            mark_complete(staging, run_id=recipe_id(recipe), files=files)
-            _finish_output(staging, target, overwrite=overwrite)
-        except BaseException:
-            shutil.rmtree(staging, ignore_errors=True)
-            raise
-        result.files = {k: str(v) for k, v in files.items()}
-        result.extra["output"] = str(target)
+    finally:
+        if baseline is not None:
+            baseline.close()
     return result
+
+
+def _export_worker(receive, exporters: list) -> list[dict] | None:
+    """The export worker's job (see :class:`_Exports`): get ready, wait for the result, export."""
+    for exporter in exporters:
+        exporter.prepare()
+    job = receive()
+    if job is None:  # the build ended without writing
+        return None
+    result, directory = job
+    return [exporter.export(result, directory) for exporter in exporters]
+
+
+class _Exports:
+    """The exporters of a build, some of them run by a worker process.
+
+    Exporters that have a ``prepare()`` method (the built-in ones whose time
+    goes mostly into importing a big library: usd-core, trimesh, plotly) are
+    run by a worker process forked when the build starts. It
+    calls their ``prepare()`` while the main process computes the design (on
+    2 cores the second one is idle until the template is fitted), receives
+    the result when the design is done and writes its files into the same
+    staging folder while the main process runs the other exporters (the PNG
+    report, design.npz). Without forked processes (``processes=False``, see
+    :mod:`seatkit.parallel`) every exporter runs in the main process, in
+    recipe order.
+    """
+
+    def __init__(self, exporters: list, *, processes: bool):
+        from seatkit.parallel import Background, can_fork
+
+        self.exporters = list(exporters)
+        ahead = [i for i, e in enumerate(self.exporters) if callable(getattr(e, "prepare", None))]
+        self.ahead = ahead if processes and can_fork() else []
+        self.worker = None
+        if self.ahead:
+            self.worker = Background(_export_worker, [self.exporters[i] for i in self.ahead], name="export", inbox=True)
+
+    def run(self, result: BuildResult, directory: Path) -> list[dict]:
+        """Every exporter's ``{role: path}``, in recipe order.
+
+        Raises the first error of the main process's exporters, else the
+        worker's; either way the worker has ended (and written nothing more)
+        when this returns or raises.
+        """
+        out: dict[int, dict] = {}
+        if self.worker is not None:
+            self.worker.send((result, directory))
+        try:
+            for i, exporter in enumerate(self.exporters):
+                if i not in self.ahead:
+                    out[i] = exporter.export(result, directory)
+        except BaseException:
+            self.close()
+            raise
+        if self.worker is not None:
+            out.update(zip(self.ahead, self.worker.result()))
+        return [out[i] for i in range(len(self.exporters))]
+
+    def close(self) -> None:
+        """Stop the worker if it still runs (the build failed or wrote nothing)."""
+        if self.worker is not None:
+            self.worker.close()
+
+    def __enter__(self) -> "_Exports":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def _write(result: BuildResult, exports: _Exports, timer: _Timer, *, overwrite: bool) -> None:
+    """Export into a staging folder, write report.json, move the folder into place."""
+    recipe, mesh, pressures = result.recipe, result.control_mesh, result.pressures
+    target = output_target(recipe)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.staging-", dir=target.parent))
+    mask = os.umask(0)
+    os.umask(mask)
+    os.chmod(staging, 0o777 & ~mask)  # mkdtemp makes 0700 folders
+    try:
+        with timer.stage("export"):
+            files: dict[str, Path] = {}
+            for written in exports.run(result, staging):
+                for role, path in written.items():
+                    files[role] = target / Path(path).name
+        result.timings = timer.timings
+        report = {
+            "seatkit_run": recipe_id(recipe),
+            "recipe": _jsonable(recipe),
+            "versions": _versions(),
+            "timings_s": _jsonable(timer.timings),
+            "control_mesh": {
+                "vertices": int(len(mesh.vertices)),
+                "faces": int(len(mesh.faces)),
+                "meta": _jsonable(mesh.meta),
+            },
+            "pressure": [
+                {
+                    "status": pf.status,
+                    "solve_seconds": pf.solve_seconds,
+                    "max_pressure_pa": float(pf.pressure.max()),
+                    "max_joint_moment_nm": float(np.linalg.norm(pf.joint_moment, axis=1).max()),
+                }
+                for pf in pressures
+            ],
+            "metrics": _jsonable(result.metrics),
+            "files": {k: Path(v).name for k, v in files.items()},
+        }
+        write_text_atomic(staging / "report.json", json.dumps(report, indent=1) + "\n")
+        files["report"] = target / "report.json"
+        mark_complete(staging, run_id=recipe_id(recipe), files=files)
+        _finish_output(staging, target, overwrite=overwrite)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+    result.files = {k: str(v) for k, v in files.items()}
+    result.extra["output"] = str(target)

@@ -19,6 +19,12 @@ from seatkit.errors import RecipeError
 
 KeyPath = tuple  # of str and int
 
+#: libyaml's parser when PyYAML was built with it (several times faster; the
+#: templates are parsed at every start-up), else the pure-Python one: the same
+#: nodes, marks and constructors either way. A syntax error is reported with
+#: the pure-Python parser's message.
+_Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
 
 def format_path(path: Iterable) -> str:
     """``("faces", 4, "segment")`` -> ``faces[4].segment``."""
@@ -89,12 +95,25 @@ def parse_yaml(text: str, *, source: str = "<string>") -> Document:
     RecipeError
         On a syntax error, with the file and line.
     """
-    loader = yaml.SafeLoader(text)
+    try:
+        return _parse(text, source, _Loader)
+    except yaml.MarkedYAMLError:
+        if _Loader is yaml.SafeLoader:
+            raise
+    # a syntax error: parse again with the pure-Python parser, whose messages
+    # say more ("found character '\t' that cannot start any token")
+    return _parse(text, source, yaml.SafeLoader)
+
+
+def _parse(text: str, source: str, loader_class) -> Document:
+    loader = loader_class(text)
     try:
         node = loader.get_single_node()
         lines: dict = {}
         data = {} if node is None else _construct(node, (), lines, loader)
     except yaml.MarkedYAMLError as e:
+        if loader_class is not yaml.SafeLoader:
+            raise
         mark = e.problem_mark or e.context_mark
         line = f":{mark.line + 1}" if mark is not None else ""
         msg = f"{source}{line}: not valid YAML: {e.problem or e}"

@@ -53,6 +53,31 @@ def test_surface_query_matches_brute_force_near_the_surface():
     assert np.all(np.sign(side[clear]) == np.sign(pts[clear, 1] - height[clear]))
 
 
+def test_surface_query_within_skips_only_points_that_are_farther():
+    surface, tm = _bumpy_surface(12)  # coarse: a large reach
+    rng = np.random.default_rng(1)
+    pts = rng.uniform([-0.8, -0.6, -0.8], [0.8, 0.6, 0.8], size=(3000, 3))
+    query = SurfaceQuery(surface)
+    edges = np.linalg.norm(tm.vertices[tm.edges[:, 0]] - tm.vertices[tm.edges[:, 1]], axis=1)
+    assert 0 < query.reach <= edges.max()
+    full, side_full = query.query(pts)
+    within = rng.uniform(0.0, 0.2, size=len(pts))
+    dist, side = query.query(pts, within=within)
+    searched = np.isfinite(dist)
+    assert 0 < searched.sum() < len(pts)
+    # searched points: the same numbers as a full search, bit for bit
+    assert dist[searched].tobytes() == full[searched].tobytes()
+    assert side[searched].tobytes() == side_full[searched].tobytes()
+    # skipped points are farther than asked, and say so
+    assert np.all(full[~searched] > within[~searched])
+    assert np.isnan(side[~searched]).all()
+    # a scalar works too; no points, no work
+    near = query.query(pts, within=0.05)[0]
+    assert np.all(np.isfinite(near[full <= 0.05]))
+    assert np.all(full[~np.isfinite(near)] > 0.05)
+    assert query.query(np.zeros((0, 3)))[0].shape == (0,)
+
+
 def test_comparison_rows_format_like_table_1():
     ours = {"avg_distance_m": 0.04, "avg_moment_nm": 4.23, "max_moment_nm": 11.47, "avg_pressure_pa": 433.85, "max_pressure_pa": 3598.34}
     base = dict(ours, avg_distance_m=0.0642)

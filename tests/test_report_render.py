@@ -12,6 +12,7 @@ from PIL import Image
 
 from seatkit.export import raster as rs
 from seatkit.export import report
+from seatkit.parallel import can_fork, forking, forking_allowed
 from test_report_support import evaluated_result, plain_result
 
 # ----------------------------------------------------------------------------- rasteriser
@@ -133,6 +134,30 @@ def test_pressure_png_shows_the_dark_end_of_the_scale_on_the_body(pngs):
     purple = (back[..., 2] > back[..., 1] + 30) & (back[..., 0] > back[..., 1] + 15)
     assert purple.sum() > 100, "no high-pressure colour on the back view"
     assert _near(img[:, 2 * report.PANEL_WIDTH :], dark, tol=8) > 10  # the colour bar holds the same scale
+
+
+@pytest.mark.skipif(not can_fork(), reason="forked processes on Linux only")
+def test_split_rendering_writes_the_same_files(tmp_path, monkeypatch):
+    result = evaluated_result()
+    for name in ("one", "two", "three"):
+        (tmp_path / name).mkdir()
+    one = report.render_pngs(result, tmp_path / "one", split=False)
+    two = report.render_pngs(result, tmp_path / "two", split=True)
+    assert list(one) == list(two) == list(report.PNG_FILES)  # roles in the same order
+    for role in one:
+        assert one[role].read_bytes() == two[role].read_bytes(), role
+    # split by default only inside a build that allows forking
+    assert forking() is False
+    with forking_allowed(True):
+        assert forking() is True
+
+    # an error in the child's half surfaces in the parent
+    def broken(scene, path, save):
+        raise report.InputError("cannot draw the pressure")
+
+    monkeypatch.setattr(report, "_pressure_png", broken)
+    with pytest.raises(report.InputError, match="cannot draw the pressure"):
+        report.render_pngs(result, tmp_path / "three", split=True)
 
 
 def test_comparison_only_with_a_baseline(tmp_path):

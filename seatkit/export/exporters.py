@@ -1,7 +1,10 @@
 """The built-in exporters (registered by the ``seatkit_exporters`` plugin).
 
 Each is an :class:`seatkit.interfaces.Exporter`: ``export(result, directory)``
-writes files atomically and returns them by role.
+writes files atomically and returns them by role. Those whose time goes
+mostly into importing a big library (usd-core, trimesh) also have
+``prepare()``, which imports it: a build calls it in its export worker
+process while the design is being computed (see ``seatkit.pipeline._Exports``).
 
 =========  =====================================================================
 name       files
@@ -70,6 +73,12 @@ class UsdExporter:
         kind = "text" if fmt == "usda" else "binary"
         self.description = f"cage.{fmt} ({kind} USD): Catmull-Clark cage with creases, bodies coloured by pressure"
 
+    def prepare(self) -> None:
+        """Import usd-core (and load its plugins), ahead of :meth:`export`."""
+        from seatkit.export.usd import prepare_usd
+
+        prepare_usd()
+
     def export(self, result, directory: Path) -> dict[str, Path]:
         from seatkit.export.usd import write_usd
 
@@ -120,6 +129,10 @@ class ShellExporter:
 
     def __init__(self, thickness: float = DEFAULT_SHELL_THICKNESS):
         self.thickness = float(thickness)
+
+    def prepare(self) -> None:
+        """Import trimesh, ahead of :meth:`export`."""
+        import trimesh  # noqa: F401
 
     def export(self, result, directory: Path) -> dict[str, Path]:
         from seatkit.export.meshes import write_shell

@@ -12,10 +12,13 @@ from pathlib import Path
 import numpy as np
 
 from seatkit.errors import InputError
-from seatkit.io import atomic_path, atomic_write
+from seatkit.io import atomic_path, atomic_write, write_bytes_atomic
 
 __all__ = [
     "SURFACE_FORMATS",
+    "glb_bytes",
+    "ply_bytes",
+    "stl_bytes",
     "read_obj_cage",
     "pressure_colors",
     "quads_to_triangles",
@@ -129,8 +132,9 @@ def surface_trimesh(surface):
 def write_surface(surface, path) -> Path:
     """Write a limit surface; the format follows the suffix (.obj .ply .stl .glb).
 
-    OBJ keeps the quads and the limit normals (``vn``); PLY, STL and GLB are
-    triangle meshes written by trimesh.
+    OBJ keeps the quads and the limit normals (``vn``); PLY (with the
+    normals), STL and GLB (with the normals) are triangle meshes, written by
+    :func:`ply_bytes`, :func:`stl_bytes` and :func:`glb_bytes`.
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -146,10 +150,150 @@ def write_surface(surface, path) -> Path:
         with atomic_write(path, "w") as fh:
             fh.write("".join(text))
         return path
-    mesh = surface_trimesh(surface)
-    with atomic_path(path) as tmp:
-        mesh.export(tmp, file_type=suffix[1:])
-    return path
+    vertices, faces = np.asarray(surface.vertices, dtype=np.float64), quads_to_triangles(surface.faces)
+    normals = np.asarray(surface.normals, dtype=np.float64)
+    if suffix == ".ply":
+        data = ply_bytes(vertices, faces, normals=normals)
+    elif suffix == ".stl":
+        data = stl_bytes(vertices, faces)
+    else:
+        data = glb_bytes(vertices, faces, normals=normals)
+    return write_bytes_atomic(path, data)
+
+
+# Binary PLY, STL and GLB of a triangle mesh. These files were written by
+# trimesh until its import (0.2-0.4 s) became a large part of a build's time;
+# the writers below produce the same bytes trimesh 5.2 does for these meshes
+# (a test compares them), header comment included.
+
+_PLY_HEADER = "ply\nformat binary_little_endian 1.0\ncomment https://github.com/mikedh/trimesh\n"
+
+
+def ply_bytes(vertices: np.ndarray, faces: np.ndarray, *, normals=None, colors=None) -> bytes:
+    """A binary little-endian PLY.
+
+    Float32 positions, optional float32 normals and uint8 RGBA colours, int32 triangles.
+    """
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    header = [_PLY_HEADER, f"element vertex {len(vertices)}\nproperty float x\nproperty float y\nproperty float z\n"]
+    dtype = [("vertex", "<f4", (3,))]
+    if normals is not None:
+        header.append("property float nx\nproperty float ny\nproperty float nz\n")
+        dtype.append(("normals", "<f4", (3,)))
+    if colors is not None:
+        header.append("property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n")
+        dtype.append(("rgba", "<u1", (4,)))
+    header.append(f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n")
+    vert = np.zeros(len(vertices), dtype=dtype)
+    vert["vertex"] = vertices
+    if normals is not None:
+        vert["normals"] = np.asarray(normals, dtype=np.float64)
+    if colors is not None:
+        vert["rgba"] = np.asarray(colors, dtype=np.uint8)
+    face = np.zeros(len(faces), dtype=[("count", "<u1"), ("index", "<i4", (3,))])
+    face["count"] = 3
+    face["index"] = faces
+    return "".join(header).encode("utf-8") + vert.tobytes() + face.tobytes()
+
+
+def _unit_rows(vectors: np.ndarray, threshold: float = 1e-13) -> tuple[np.ndarray, np.ndarray]:
+    """Rows divided by their length, and which rows were longer than ``threshold`` (the others are not divided)."""
+    norm = np.sqrt(np.dot(vectors * vectors, [1.0] * vectors.shape[1]))
+    valid = norm > threshold
+    norm[valid] **= -1
+    return vectors * norm.reshape((-1, 1)), valid
+
+
+def stl_bytes(vertices: np.ndarray, faces: np.ndarray) -> bytes:
+    """A binary STL: an empty 80-byte header, the count, then unit face normal and corners per triangle (float32)."""
+    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces, dtype=np.int64).reshape(-1, 3)]
+    edges = tri[:, 1:, :] - tri[:, :2, :]
+    unit, valid = _unit_rows(np.cross(edges[:, 0], edges[:, 1]))
+    normals = np.where(valid[:, None], unit, 0.0)  # degenerate triangles: a zero normal
+    header = np.zeros(1, dtype=[("header", np.void, 80), ("face_count", "<u4")])
+    header["face_count"] = len(tri)
+    packed = np.zeros(len(tri), dtype=[("normals", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attributes", "<u2")])
+    packed["normals"] = normals
+    packed["vertices"] = tri
+    return header.tobytes() + packed.tobytes()
+
+
+def _pad4(data: bytes, fill: bytes = b"\0") -> bytes:
+    return data + fill * (-len(data) % 4)
+
+
+def glb_bytes(vertices: np.ndarray, faces: np.ndarray, *, normals=None) -> bytes:
+    """A binary glTF 2.0 (GLB) of one triangle mesh: uint32 indices, float32 positions and unit normals."""
+    import json
+
+    vertices = np.asarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
+    if not len(faces):
+        msg = "a GLB file needs at least one triangle"
+        raise InputError(msg)
+    # accessors: the keys in the order trimesh wrote them (the JSON's bytes follow it)
+    index = faces.astype(np.uint32)
+    accessors = [
+        {
+            "componentType": 5125,
+            "type": "SCALAR",
+            "bufferView": 0,
+            "count": int(index.size),
+            "max": [int(index.max())],
+            "min": [int(index.min())],
+        }
+    ]
+    position = vertices.astype(np.float32)
+    accessors.append(
+        {
+            "componentType": 5126,
+            "type": "VEC3",
+            "byteOffset": 0,
+            "bufferView": 1,
+            "count": len(position),
+            "max": position.max(axis=0).tolist(),
+            "min": position.min(axis=0).tolist(),
+        }
+    )
+    attributes = {"POSITION": 1}
+    blobs = [_pad4(index.tobytes()), _pad4(position.tobytes())]
+    if normals is not None:
+        unit = _unit_rows(np.asarray(normals, dtype=np.float64))[0].astype(np.float32)
+        accessors.append(
+            {
+                "componentType": 5126,
+                "count": len(unit),
+                "type": "VEC3",
+                "byteOffset": 0,
+                "bufferView": 2,
+                "max": unit.max(axis=0).tolist(),
+                "min": unit.min(axis=0).tolist(),
+            }
+        )
+        attributes["NORMAL"] = 2
+        blobs.append(_pad4(unit.tobytes()))
+    views, offset = [], 0
+    for blob in blobs:
+        views.append({"buffer": 0, "byteOffset": offset, "byteLength": len(blob)})
+        offset += len(blob)
+    tree = {
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "asset": {"version": "2.0", "generator": "https://github.com/mikedh/trimesh"},
+        "accessors": accessors,
+        "meshes": [
+            {"name": "geometry_0", "extras": {}, "primitives": [{"attributes": attributes, "indices": 0, "mode": 4}]}
+        ],
+        "nodes": [{"name": "geometry_0", "mesh": 0}],
+        "buffers": [{"byteLength": offset}],
+        "bufferViews": views,
+    }
+    content = json.dumps(tree, separators=(",", ":"))
+    content = (content + (4 - ((len(content) + 20) % 4)) * " ").encode("utf-8")
+    binary = b"".join(blobs)
+    header = np.array([0x46546C67, 2, len(content) + len(binary) + 28, len(content), 0x4E4F534A], dtype="<u4").tobytes()
+    return header + content + np.array([len(binary), 0x004E4942], dtype="<u4").tobytes() + binary
 
 
 def thick_shell(surface, thickness: float):
@@ -207,17 +351,54 @@ def write_shell(surface, thickness: float, path) -> Path:
     return path
 
 
+#: matplotlib's colour map "magma_r" (magma reversed) as its 256 RGB bytes, so
+#: that the default colours of :func:`pressure_colors` need no matplotlib
+#: import (0.13 s of every build); a test checks it against matplotlib.
+_MAGMA_R = bytes.fromhex(
+    "fcfdbffcfbbdfcf9bbfcf7b9fcf6b8fcf4b6fcf2b4fcf0b2fceeb0fcecaefdebacfde9aafde7a9fde5a7fde3a5fde2a3"
+    "fde0a1fddea0fddc9efdda9cfed89afed799fed597fed395fed194fecf92fecd90fecc8ffeca8dfec88cfec68afec488"
+    "fec287fec185febf84febd82febb81feb97ffeb77efeb67cfeb47bfeb27afeb078feae77feac76feaa74fea973fea772"
+    "fea571fea36ffea16efe9f6dfe9d6cfd9b6bfd9a6afd9869fd9668fd9467fd9266fc9065fc8e64fc8c63fc8a62fc8961"
+    "fb8761fb8560fb835ffa815ffa7f5efa7d5ef97b5df9795df9785df8765cf8745cf7725cf7705cf66e5cf66c5cf56b5c"
+    "f4695cf4675cf3655cf2645cf2625df1605df05f5eef5d5eee5b5eed5a5fec5860eb5760ea5661e95462e85362e75263"
+    "e55064e44f64e34e65e24d66e04c67df4a68de4968dc4869db476ad9466bd8456cd6456cd5446dd3436ed2426fd0416f"
+    "cf4070cd4071cc3f71ca3e72c83e73c73d73c53c74c43c75c23b75c03a76bf3a77bd3977bc3978ba3878b83779b73779"
+    "b5367ab3367ab2357bb0357bae347bad347cab337caa337da8327da6317da5317ea3307ea1307ea02f7f9e2f7f9c2e7f"
+    "9b2e7f992d80982d80962c80942c80932b80912b81902a818e2a818c29818b2981892881882781862781842681832681"
+    "8125818025827e24827c23827b2382792282782281762181752181732081721f81701f816e1e816d1d816b1d816a1c81"
+    "681c81671b80651a80641a806219806018805f187f5d177f5c167f5a167e59157e57157e56147d54137d52137c51127c"
+    "4f127b4e117b4c117a4a1079491078471078451077440f76420f75400f743f0f723d0f713b0f70390f6e38106c36106b"
+    "3410693310673111652f11632d11612c115f2a115c29115a27125825125524125322115021114e20114b1e11491d1147"
+    "1c10441a104219103f180f3d160f3b150e38140e36130d34120d31110c2f100b2d0e0b2b0d0a290c09260b09240a0822"
+    "09072008071e07061c06051a06051805041604041403031203030f02020d02020b020109010108010106010005000004"
+)
+
+
 def pressure_colors(pressure: np.ndarray, *, cmap: str = "magma_r") -> np.ndarray:
     """(n, 4) uint8 RGBA colours of pressures, scaled by the maximum.
 
-    Zero pressure maps to the light end of ``cmap``, the peak to the dark end.
+    Zero pressure maps to the light end of ``cmap`` (a matplotlib colour map
+    name), the peak to the dark end; NaN is transparent black, as in
+    matplotlib.
     """
-    from matplotlib import colormaps
-
     p = np.asarray(pressure, dtype=np.float64)
     peak = float(p.max()) if p.size else 0.0
     importance = np.clip(p / peak, 0.0, 1.0) if peak > 0 else np.zeros_like(p)
-    return (colormaps[cmap](importance) * 255).round().astype(np.uint8)
+    if cmap != "magma_r":
+        from matplotlib import colormaps
+
+        return (colormaps[cmap](importance) * 255).round().astype(np.uint8)
+    # matplotlib's lookup of a float in [0, 1] in a 256-entry map: the entry
+    # int(x * 256), 1.0 being the last
+    x = importance * 256.0
+    x[x == 256.0] = 255.0
+    bad = np.isnan(x)
+    index = np.where(bad, 0.0, x).astype(np.int64)
+    rgba = np.empty(x.shape + (4,), np.uint8)
+    rgba[..., :3] = np.frombuffer(_MAGMA_R, np.uint8).reshape(256, 3)[index]
+    rgba[..., 3] = 255
+    rgba[bad] = 0
+    return rgba
 
 
 def write_body_ply(body, pressure, path) -> Path:
@@ -229,19 +410,8 @@ def write_body_ply(body, pressure, path) -> Path:
     pressure : (n,) float64 or seatkit.model.PressureField
     path : str or Path
     """
-    import trimesh
-
     p = np.asarray(getattr(pressure, "pressure", pressure), dtype=np.float64)
     if p.shape != (len(body.vertices),):
         msg = f"pressure must have one value per body vertex ({len(body.vertices)}), got shape {p.shape}"
         raise InputError(msg)
-    mesh = trimesh.Trimesh(
-        vertices=body.vertices,
-        faces=body.faces,
-        vertex_colors=pressure_colors(p),
-        process=False,
-    )
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        mesh.export(tmp, file_type="ply")
-    return path
+    return write_bytes_atomic(path, ply_bytes(body.vertices, body.faces, colors=pressure_colors(p)))

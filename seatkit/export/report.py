@@ -537,24 +537,53 @@ def _comparison_png(scene: _Scene, path: Path, save=_write_png) -> Path:
     return save(_sheet(title, panels, colorbar=bar, table=table_rows(scene.metrics), table_head=("ours", scene.baseline_name), columns=2), path)
 
 
-def render_pngs(result, directory) -> dict[str, Path]:
+def render_pngs(result, directory, *, split: bool | None = None) -> dict[str, Path]:
     """Write the report's PNG files into ``directory`` and return them by role.
 
     ``comparison.png`` is written only when the result holds a baseline
     surface; ``cage.png`` and ``surface.png`` only when it holds a cage and a
     surface.
+
+    Parameters
+    ----------
+    split : bool, optional
+        Render the first half of the pictures in a forked child process while
+        this one renders the rest (the pictures are independent; together
+        they are the longest exporter of a build). Default: when the running
+        build allows forked processes (:func:`seatkit.parallel.forking`).
+        The files are the same either way.
     """
+    from seatkit.parallel import Background, forking
+
     directory = Path(directory)
     scene = _scene(result)
-    save = _PngWriter()
+    jobs = [("report_pressure_png", _pressure_png)]
+    if scene.cage is not None:
+        jobs.append(("report_cage_png", _cage_png))
+    if scene.surface is not None:
+        jobs.append(("report_surface_png", _surface_png))
+        if scene.baseline_surface is not None:
+            jobs.append(("report_comparison_png", _comparison_png))
+    split = forking() if split is None else split
+    if not split or len(jobs) < 2:
+        return _render(scene, jobs, directory)
+    half = (len(jobs) + 1) // 2
+    child = Background(_render, scene, jobs[:half], directory, name="report-png", process=True)
     try:
-        out = {"report_pressure_png": _pressure_png(scene, directory / PNG_FILES["report_pressure_png"], save)}
-        if scene.cage is not None:
-            out["report_cage_png"] = _cage_png(scene, directory / PNG_FILES["report_cage_png"], save)
-        if scene.surface is not None:
-            out["report_surface_png"] = _surface_png(scene, directory / PNG_FILES["report_surface_png"], save)
-            if scene.baseline_surface is not None:
-                out["report_comparison_png"] = _comparison_png(scene, directory / PNG_FILES["report_comparison_png"], save)
+        rest = _render(scene, jobs[half:], directory)
+    except BaseException:
+        child.close()
+        raise
+    return {**child.result(), **rest}
+
+
+def _render(scene: _Scene, jobs, directory: Path) -> dict[str, Path]:
+    """Draw and write the pictures ``jobs`` lists as ``(role, function)``, in order."""
+    save = _PngWriter()
+    out = {}
+    try:
+        for role, draw in jobs:
+            out[role] = draw(scene, directory / PNG_FILES[role], save)
     finally:
         save.result()
     return out
@@ -811,6 +840,12 @@ class ReportHtmlExporter:
 
     name = "report-html"
     description = "report.html: interactive 3D view (plotly, embedded, offline) and the metrics table"
+
+    def prepare(self) -> None:
+        """Import plotly's HTML writer (it imports more on first use), ahead of :meth:`export`."""
+        import plotly.io as pio
+
+        pio.to_html({"data": [], "layout": {}}, include_plotlyjs=False, full_html=False, validate=False)
 
     def export(self, result, directory: Path) -> dict[str, Path]:
         return {"report_html": write_report_html(result, Path(directory) / "report.html")}

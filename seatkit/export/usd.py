@@ -23,7 +23,7 @@ import numpy as np
 from seatkit.errors import InputError, MissingExtraError
 from seatkit.io import atomic_path
 
-__all__ = ["write_usd", "read_usd_cage", "CAGE_PRIM", "ROOT_PRIM"]
+__all__ = ["write_usd", "read_usd_cage", "prepare_usd", "CAGE_PRIM", "ROOT_PRIM"]
 
 ROOT_PRIM = "/seatkit"
 CAGE_PRIM = "/seatkit/Cage"
@@ -38,6 +38,12 @@ def _pxr():
     except ImportError as exc:  # pragma: no cover - usd-core is a dependency
         raise MissingExtraError("usd-core", "usd") from exc
     return Gf, Sdf, Usd, UsdGeom, Vt
+
+
+def prepare_usd() -> None:
+    """Import usd-core and load its plugins (the first stage does), ahead of :func:`write_usd`."""
+    Gf, Sdf, Usd, UsdGeom, Vt = _pxr()
+    Usd.Stage.CreateInMemory()
 
 
 def _polygons(mesh):
