@@ -259,7 +259,7 @@ def surface_depth_in_body(surface: Surface, body: Body) -> float:
     points = np.concatenate([v, v[f].mean(axis=1)])
     if not len(points):
         return 0.0
-    return SkinDistance(body.vertices, body.faces).max_depth(points)
+    return SkinDistance.of(body.vertices, body.faces).max_depth(points)
 
 
 def evaluate_person(

@@ -24,10 +24,15 @@ the two.
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 from scipy.spatial import cKDTree
 
 __all__ = ["SkinDistance"]
+
+#: SkinDistance.of's cache: (id(vertices), id(faces)) -> (ref, ref, SkinDistance)
+_CACHE: dict = {}
 
 
 def _closest_barycentric(d1, d2, d00, d01, d11):
@@ -136,6 +141,29 @@ class SkinDistance:
         self._d00 = np.einsum("ij,ij->i", self._ab, self._ab)
         self._d01 = np.einsum("ij,ij->i", self._ab, self._ac)
         self._d11 = np.einsum("ij,ij->i", self._ac, self._ac)
+
+    @classmethod
+    def of(cls, vertices: np.ndarray, faces: np.ndarray) -> "SkinDistance":
+        """The SkinDistance of a mesh, built once per vertex array in this process.
+
+        The fit and the evaluation of one build ask about the same bodies;
+        the cache is keyed by the arrays' identity (checked through weak
+        references, so a new array at a recycled address is not mistaken
+        for an old one) and holds the last few meshes.
+        """
+        key = (id(vertices), id(faces))
+        hit = _CACHE.get(key)
+        if hit is not None and hit[0]() is vertices and hit[1]() is faces:
+            return hit[2]
+        skin = cls(vertices, faces)
+        try:
+            refs = (weakref.ref(vertices), weakref.ref(faces))
+        except TypeError:  # not weak-referenceable (a list): no caching
+            return skin
+        if len(_CACHE) >= 8:
+            _CACHE.pop(next(iter(_CACHE)))
+        _CACHE[key] = (*refs, skin)
+        return skin
 
     def query(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Depth below the skin, closest skin point and outward direction.
@@ -253,9 +281,11 @@ class SkinDistance:
         depth, _, _ = self.query(points)
         order = np.argsort(-depth)
         order = order[depth[order] > 0.0]
-        for s in range(0, min(order.size, confirm), 16):
-            chunk = order[s : min(s + 16, confirm)]
+        start, size = 0, 1  # growing batches: the deepest is usually confirmed at once
+        while start < min(order.size, confirm):
+            chunk = order[start : min(start + size, confirm)]
             inside = np.flatnonzero(self.winding_numbers(np.asarray(points)[chunk]) > 0.5)
             if inside.size:
                 return float(depth[chunk[inside[0]]])
+            start, size = start + size, size * 4
         return float(depth[order[confirm]]) if order.size > confirm else 0.0

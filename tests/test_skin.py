@@ -98,3 +98,13 @@ def test_body_depth_agrees_with_open3d_and_the_winding_number():
     # inside or outside as the winding number says
     w = skin.winding_numbers(points[:200])
     assert np.array_equal(depth[:200] > 0, w > 0.5)
+
+
+def test_of_caches_per_array():
+    sphere = trimesh.creation.icosphere(subdivisions=2, radius=0.1)
+    v, f = np.array(sphere.vertices), np.array(sphere.faces)
+    first = SkinDistance.of(v, f)
+    assert SkinDistance.of(v, f) is first
+    other = SkinDistance.of(v.copy(), f)
+    assert other is not first
+    assert np.array_equal(other.query(v[:5] * 1.1)[0], first.query(v[:5] * 1.1)[0])

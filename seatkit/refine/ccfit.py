@@ -363,7 +363,7 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     from seatkit.pressure.areas import vertex_normals
 
     skin_n = np.concatenate([vertex_normals(bd.vertices, bd.faces) for bd in bodies])
-    skins = [SkinDistance(bd.vertices, bd.faces) for bd in bodies]
+    skins = [SkinDistance.of(bd.vertices, bd.faces) for bd in bodies]
     # supported targets: the skin offset by the clearance along its normal
     owner_offset = np.cumsum([0] + [len(bd.vertices) for bd in bodies])[:-1]
     target_n = skin_n[owner_offset[targets.body] + targets.vertex]
