@@ -35,8 +35,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path)
     args = ap.parse_args()
     pm = get_plugin_manager()
-    head = "| pose | design | " + " | ".join(label for _, label, _, _ in TABLE_COLUMNS) + " | max. penetration |"
-    lines = [head, "|" + "---|" * (len(TABLE_COLUMNS) + 3)]
+    head = "| pose | design | " + " | ".join(label for _, label, _, _ in TABLE_COLUMNS) + " | max. penetration | max. body depth |"
+    lines = [head, "|" + "---|" * (len(TABLE_COLUMNS) + 4)]
     verdicts = []
     for info in list_poses():
         if not info.supported:
@@ -45,10 +45,12 @@ def main() -> None:
         ours, base = r.metrics["ours"][0], r.metrics["baseline"][0]
         for name, m in (("ours", ours), ("flat patch", base)):
             if not m.get("supported", True):
-                lines.append(f"| {info.name} | {name} | not supported: {m.get('reason', '')} |" + " |" * len(TABLE_COLUMNS))
+                lines.append(f"| {info.name} | {name} | not supported: {m.get('reason', '')} |" + " |" * (len(TABLE_COLUMNS) + 1))
                 continue
             cells = " | ".join(fmt(k, m[k]) for k, _, _, _ in TABLE_COLUMNS)
-            lines.append(f"| {info.name} | {name} | {cells} | {m['max_penetration_m'] * 1000:.1f} mm |")
+            lines.append(
+                f"| {info.name} | {name} | {cells} | {m['max_penetration_m'] * 1000:.1f} mm | {m['max_body_depth_m'] * 1000:.1f} mm |"
+            )
         wins = {k: ours.get(k, float("inf")) < base.get(k, float("inf")) for k in WIN_KEYS}
         verdicts.append((info.name, wins))
     text = "\n".join(lines)

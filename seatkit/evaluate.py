@@ -30,6 +30,14 @@ the paper's quantities are reported:
     because the closed skin has a well-defined inside, where a folded
     support surface does not; a body vertex more than this deep "inside the
     surface" would need the surface to be at least as deep inside the body.
+``max_body_depth_m``
+    How deep any body vertex lies inside the furniture, m (0 when none
+    does): the solid the surface closes with the floor (its boundary is the
+    ground ring), inside by the parity of a vertical ray, depth the
+    distance to the surface (:func:`body_depth_in_surface`). The refiners'
+    requirement read literally; it also catches a thin part pushed right
+    through the surface, where ``max_penetration_m`` sees only the limb's
+    radius.
 ``contact_vertices``, ``contact_area_m2``
     Size of the recomputed contact set.
 
@@ -262,6 +270,82 @@ def surface_depth_in_body(surface: Surface, body: Body) -> float:
     return SkinDistance.of(body.vertices, body.faces).max_depth(points)
 
 
+def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | None = None, *, cell: float = 0.02) -> float:
+    """Largest depth of a body vertex inside the furniture, m (0 when none is).
+
+    The furniture is the solid the surface closes with the floor: the cage's
+    boundary is its ground ring, on the floor, so every vertical ray from a
+    point above the floor leaves the solid through the surface. A body
+    vertex is inside when a ray from it straight up crosses the surface an
+    odd number of times; its depth is its distance to the surface. This is
+    the refiners' requirement read literally ("no body vertex more than
+    5 mm inside the surface"); it also catches a thin part pushed right
+    through the surface (a heel through a foot rest), where the surface
+    itself reaches only a limb's radius into the body.
+
+    Candidate triangles come from a grid of ``cell`` (m) over the floor
+    plan; the point-in-triangle tests are exact in the plan.
+    """
+    v = np.asarray(surface.vertices, dtype=np.float64)
+    f = np.asarray(surface.faces, dtype=np.int64)
+    tris = np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]]) if f.shape[1] == 4 else f
+    p = np.asarray(body.vertices, dtype=np.float64)
+    if not len(tris) or not len(p):
+        return 0.0
+    t = v[tris]  # (T, 3, 3)
+    lo = t[:, :, [0, 2]].min(axis=1)
+    hi = t[:, :, [0, 2]].max(axis=1)
+    origin = np.minimum(lo.min(axis=0), p[:, [0, 2]].min(axis=0)) - cell
+    c_lo = np.floor((lo - origin) / cell).astype(np.int64)
+    c_hi = np.floor((hi - origin) / cell).astype(np.int64)
+    width = int(max(c_hi[:, 0].max(), np.floor((p[:, 0].max() - origin[0]) / cell))) + 2
+    # every (triangle, cell) pair of the triangles' plan bounding boxes
+    nx, nz = c_hi[:, 0] - c_lo[:, 0] + 1, c_hi[:, 1] - c_lo[:, 1] + 1
+    count = nx * nz
+    owner = np.repeat(np.arange(len(tris)), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
+    cx = c_lo[owner, 0] + k % nx[owner]
+    cz = c_lo[owner, 1] + k // nx[owner]
+    key = cz * width + cx
+    order = np.argsort(key, kind="stable")
+    key, owner = key[order], owner[order]
+    # the body vertices above the floor, their cells, and the triangles there
+    up = np.flatnonzero(p[:, 1] > 0.0)
+    # the rays start a hair off the body vertices in the plan (a fixed offset
+    # far below any feature size), so that no ray runs exactly through a
+    # vertex or an edge of the surface, where the parity could count a
+    # crossing twice or not at all
+    start_points = p[up] + [1.2345e-9, 0.0, 2.3456e-9]
+    pc = np.floor((start_points[:, [0, 2]] - origin) / cell).astype(np.int64)
+    pkey = pc[:, 1] * width + pc[:, 0]
+    start = np.searchsorted(key, pkey, side="left")
+    stop = np.searchsorted(key, pkey, side="right")
+    n = stop - start
+    if not n.sum():
+        return 0.0
+    pt = np.repeat(np.arange(up.size), n)
+    j = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
+    tri = owner[np.repeat(start, n) + j]
+    q = start_points[pt]
+    a, b, c = t[tri, 0], t[tri, 1], t[tri, 2]
+    # plan barycentrics of q in (a, b, c)
+    e1, e2, d = b[:, [0, 2]] - a[:, [0, 2]], c[:, [0, 2]] - a[:, [0, 2]], q[:, [0, 2]] - a[:, [0, 2]]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+    ok = np.abs(det) > 1e-18
+    det = np.where(ok, det, 1.0)
+    s = (d[:, 0] * e2[:, 1] - d[:, 1] * e2[:, 0]) / det
+    r = (e1[:, 0] * d[:, 1] - e1[:, 1] * d[:, 0]) / det
+    within = ok & (s >= 0) & (r >= 0) & (s + r <= 1)
+    height = a[:, 1] + s * (b[:, 1] - a[:, 1]) + r * (c[:, 1] - a[:, 1])
+    crossing = within & (height > q[:, 1])
+    inside = np.bincount(pt[crossing], minlength=up.size) % 2 == 1
+    if not inside.any():
+        return 0.0
+    query = query if query is not None else SurfaceQuery(surface)
+    dist, _ = query.query(p[up[inside]])
+    return float(dist.max())
+
+
 def evaluate_person(
     body: Body,
     importance: PressureField,
@@ -293,6 +377,7 @@ def evaluate_person(
         "avg_distance_m": float(dist[supported].mean()) if supported.any() else float("nan"),
         "supported_vertices": int(supported.sum()),
         "max_penetration_m": surface_depth_in_body(surface, body),
+        "max_body_depth_m": body_depth_in_surface(surface, body, query),
         "contact_vertices": int(contact.sum()),
         "contact_area_m2": float(importance.area[contact].sum()),
     }

@@ -111,3 +111,39 @@ def test_design_file_round_trips(tmp_path):
     np.testing.assert_array_equal(bodies[0].region_labels["face"], [1, 2])
     np.testing.assert_array_equal(got.vertices, mesh.vertices)
     assert got.meta == {"special_cases": ["x"]} and initial is None
+
+
+def test_body_depth_in_surface_on_a_dome():
+    """Points under a dome closed by the floor are inside; their depth is their distance to the dome."""
+    from types import SimpleNamespace
+
+    from seatkit.evaluate import body_depth_in_surface
+    from seatkit.model import Surface
+
+    a, b, h = 0.5, 0.4, 0.3
+    xs, zs = np.linspace(-a, a, 41), np.linspace(-b, b, 33)
+    X, Z = np.meshgrid(xs, zs, indexing="ij")
+    Y = h * (1 - (X / a) ** 2) * (1 - (Z / b) ** 2)
+    verts = np.stack([X, Y, Z], axis=-1).reshape(-1, 3)
+    idx = np.arange(len(verts)).reshape(X.shape)
+    quads = np.stack([idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]], axis=-1).reshape(-1, 4)
+    normals = np.tile([0.0, 1.0, 0.0], (len(verts), 1))
+    dome = Surface(verts, normals, quads, 3)
+    rng = np.random.default_rng(0)
+    pts = np.column_stack([rng.uniform(-0.6, 0.6, 400), rng.uniform(0.001, 0.4, 400), rng.uniform(-0.5, 0.5, 400)])
+    height = np.where(
+        (np.abs(pts[:, 0]) < a) & (np.abs(pts[:, 2]) < b),
+        h * (1 - (pts[:, 0] / a) ** 2) * (1 - (pts[:, 2] / b) ** 2),
+        0.0,
+    )
+    inside = pts[:, 1] < height - 2e-3  # clear of the tessellation's error
+    outside = pts[:, 1] > height + 2e-3
+    from seatkit.evaluate import SurfaceQuery
+
+    dist, _ = SurfaceQuery(dome).query(pts)
+    # the deepest inside point decides; points outside never count
+    got = body_depth_in_surface(dome, SimpleNamespace(vertices=pts[inside | outside]))
+    assert got == pytest.approx(dist[inside].max(), abs=1e-12)
+    assert body_depth_in_surface(dome, SimpleNamespace(vertices=pts[outside])) == 0.0
+    # one point just under the top, 5 cm deep
+    assert body_depth_in_surface(dome, SimpleNamespace(vertices=np.array([[0.0, h - 0.05, 0.0]]))) == pytest.approx(0.05, abs=2e-3)

@@ -30,6 +30,7 @@ def test_ours_beats_the_flat_patch_as_in_table1(pm, pose):
     for key in ("avg_distance_m", "avg_pressure_pa", "max_pressure_pa"):
         assert ours[key] < base[key], f"{pose}: {key} ours {ours[key]:.4g} >= flat patch {base[key]:.4g}"
     assert ours["max_penetration_m"] <= 0.005
+    assert ours["max_body_depth_m"] <= 0.005
     # the pressure recomputed on our surface still carries the whole body
     field = r.extra["contact_pressures"][0]
     weight = r.bodies[0].segment_mass.sum() * GRAVITY

@@ -671,6 +671,9 @@ def fit_report(
         point of the tessellated limit surface), ``max_penetration`` (m, how
         deep the limit surface reaches into any body, measured from the
         closed skin: :func:`seatkit.evaluate.surface_depth_in_body`),
+        ``max_body_depth`` (m, how deep any body vertex lies inside the
+        furniture the surface closes with the floor:
+        :func:`seatkit.evaluate.body_depth_in_surface`),
         ``supported_vertices``.
     """
     from seatkit.subdivision import Cage, build_operators
@@ -685,7 +688,7 @@ def fit_report(
     from seatkit.model import Surface
 
     surface = Surface(X, N, ops.faces, level)
-    from seatkit.evaluate import SurfaceQuery, supported_vertices
+    from seatkit.evaluate import SurfaceQuery, body_depth_in_surface, supported_vertices
 
     query = SurfaceQuery(surface)
     gaps = []
@@ -699,5 +702,7 @@ def fit_report(
         "mean_euclidean_distance": float(dist.mean()),
         # how deep the surface reaches into any body (measured from the closed skin)
         "max_penetration": max(surface_depth_in_body(surface, b) for b in bodies),
+        # how deep any body vertex lies inside the furniture (surface closed by the floor)
+        "max_body_depth": max(body_depth_in_surface(surface, b, query) for b in bodies),
         "supported_vertices": int(len(targets.points)),
     }
