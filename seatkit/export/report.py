@@ -492,7 +492,8 @@ def table_rows(metrics: dict) -> tuple[list[tuple[str, list[str], list[str]]], l
     -------
     rows : list of (person, ours, baseline)
         ``ours`` and ``baseline`` list the quantities of
-        :data:`seatkit.evaluate.TABLE_COLUMNS` then the deepest penetration;
+        :data:`seatkit.evaluate.TABLE_COLUMNS` then the deepest penetration
+        and the deepest body vertex inside the furniture;
         a person a design cannot support shows "not supported" (no invented
         figures), a missing value "-".
     labels : list of str
@@ -502,13 +503,18 @@ def table_rows(metrics: dict) -> tuple[list[tuple[str, list[str], list[str]]], l
 
     ours = list(metrics.get("ours") or [])
     base = list(metrics.get("baseline") or [])
-    cols = [*TABLE_COLUMNS, ("max_penetration_m", "max. penetration", "cm", 100.0)]
+    cols = [
+        *TABLE_COLUMNS,
+        ("max_penetration_m", "max. penetration", "cm", 100.0),
+        ("max_body_depth_m", "max. body depth", "cm", 100.0),
+    ]
     rows = []
     for i in range(max(len(ours), len(base))):
         cells = []
         for person in (ours[i] if i < len(ours) else {}, base[i] if i < len(base) else {}):
             if person and person.get("supported") is False:
-                cells.append(["not supported" if k not in ("avg_distance_m", "max_penetration_m") else _fmt(person.get(k), s, u) for k, _, u, s in cols])
+                geometric = ("avg_distance_m", "max_penetration_m", "max_body_depth_m")
+                cells.append(["not supported" if k not in geometric else _fmt(person.get(k), s, u) for k, _, u, s in cols])
             else:
                 cells.append([_fmt(person.get(k), s, u) for k, _, u, s in cols])
         rows.append((f"person {i + 1}", *cells))
