@@ -156,9 +156,12 @@ class Background:
         work without sending). In a process the object arrives pickled.
     """
 
-    def __init__(self, fn: Callable[..., Any], *args: Any, name: str, process: bool = True, inbox: bool = False):
+    def __init__(
+        self, fn: Callable[..., Any], *args: Any, name: str, process: bool = True, inbox: bool = False, nice: int = 0
+    ):
         self.name = name
         self.process = bool(process) and can_fork()
+        self._nice = int(nice)
         self._done = False
         self._sent = not inbox
         self._value: Any = None
@@ -208,6 +211,11 @@ class Background:
 
                     args = (receive, *args)
                 _fresh_std_streams()
+                if self._nice:
+                    try:
+                        os.nice(self._nice)  # yield the cores to the build's critical path when they are short
+                    except OSError:
+                        pass
                 try:
                     payload = pickle.dumps((True, fn(*args)), protocol=_PROTOCOL)
                 except BaseException as exc:  # noqa: BLE001 - sent to the parent

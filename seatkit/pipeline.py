@@ -37,6 +37,13 @@ from seatkit.io import RUN_MARKER, mark_complete, write_text_atomic
 from seatkit.model import Body, BuildResult
 from seatkit.recipe import check_recipe, load_recipe
 
+#: Niceness added to the build's helper processes (the baseline, the export
+#: worker): on two cores three runnable processes would otherwise slow the
+#: main process, whose stages are the critical path; the helpers have slack
+#: (the baseline is done long before our evaluation needs it, the export
+#: worker waits for the design). Only matters when the cores are short.
+BACKGROUND_NICE = 5
+
 #: Default gap between neighbours when people are placed automatically, m.
 DEFAULT_SEAT_GAP = 0.15
 
@@ -400,7 +407,7 @@ def _design(recipe, registry, timer: _Timer, *, write: bool, processes: bool) ->
 
         segments = design_segments(initial)
         baseline = Background(
-            fit_baseline, recipe, bodies, pressures, registry, segments, name="baseline", process=processes
+            fit_baseline, recipe, bodies, pressures, registry, segments, name="baseline", process=processes, nice=BACKGROUND_NICE
         )
     try:
         mesh = initial
@@ -465,7 +472,9 @@ class _Exports:
         self.ahead = ahead if processes and can_fork() else []
         self.worker = None
         if self.ahead:
-            self.worker = Background(_export_worker, [self.exporters[i] for i in self.ahead], name="export", inbox=True)
+            self.worker = Background(
+                _export_worker, [self.exporters[i] for i in self.ahead], name="export", inbox=True, nice=BACKGROUND_NICE
+            )
 
     def run(self, result: BuildResult, directory: Path) -> list[dict]:
         """Every exporter's ``{role: path}``, in recipe order.
