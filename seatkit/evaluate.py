@@ -89,6 +89,13 @@ def design_segments(mesh) -> list[int]:
     return sorted(int(s) for s in segs)
 
 
+def _safe_ratio(num, den):
+    """num / den, 0 where den is 0."""
+    out = np.zeros(np.broadcast(num, den).shape)
+    np.divide(num, den, out=out, where=den != 0)
+    return out
+
+
 def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Closest point of each triangle (a, b, c) to each point p (Ericson, Real-Time Collision Detection 5.1.5).
 
@@ -122,12 +129,14 @@ def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: n
         w = np.where(denom != 0, vc / denom, 0.0)
         u = 1.0 - v - w
         # edge regions (later assignments take precedence, in Ericson's order reversed)
+        # the denominators are squared edge lengths: 0 where two corners
+        # coincide (the edge is a point; t = 0 picks it)
         e_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
-        t_bc = np.where(e_bc, (d4 - d3) / ((d4 - d3) + (d5 - d6)), 0.0)
+        t_bc = np.where(e_bc, _safe_ratio(d4 - d3, (d4 - d3) + (d5 - d6)), 0.0)
         e_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-        t_ac = np.where(e_ac, d2 / (d2 - d6), 0.0)
+        t_ac = np.where(e_ac, _safe_ratio(d2, d2 - d6), 0.0)
         e_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-        t_ab = np.where(e_ab, d1 / (d1 - d3), 0.0)
+        t_ab = np.where(e_ab, _safe_ratio(d1, d1 - d3), 0.0)
     # Region by region, later regions taking precedence; each barycentric
     # coordinate on its own (fewer and smaller temporaries than stacked triples).
     for region, (bu, bv, bw) in (

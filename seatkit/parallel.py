@@ -247,7 +247,12 @@ class Background:
                 if os.WIFSIGNALED(status)
                 else f"exited with status {os.waitstatus_to_exitcode(status)}"
             )
-            self._error = RuntimeError(f"the {self.name} process {how} before sending its result")
+            # one clear line, not a traceback: the cause is outside seatkit
+            # (out of memory, a signal from the user or the system)
+            self._error = SeatkitError(
+                f"the {self.name} process {how} before sending its result "
+                "(out of memory, or stopped from outside seatkit)"
+            )
             return
         answer = pickle.loads(data)
         if answer[0]:

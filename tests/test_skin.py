@@ -116,3 +116,21 @@ def test_of_caches_per_array():
     other = SkinDistance.of(v.copy(), f)
     assert other is not first
     assert np.array_equal(other.query(v[:5] * 1.1)[0], first.query(v[:5] * 1.1)[0])
+
+
+def test_degenerate_triangles_and_stray_vertices_do_not_poison_answers():
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.1)
+    v, f = np.asarray(sphere.vertices, dtype=float), np.asarray(sphere.faces)
+    rng = np.random.default_rng(2)
+    d = rng.normal(size=(500, 3))
+    points = 0.1 * (1 + rng.uniform(-0.08, 0.08, 500))[:, None] * d / np.linalg.norm(d, axis=1, keepdims=True)
+    clean = SkinDistance(v, f).query(points)[0]
+    # a face with two coincident corners (a == b), and two vertices no face uses, right next to the points
+    stray = np.array([[0.105, 0.0, 0.0], [0.106, 0.001, 0.0]])
+    v2 = np.vstack([v, stray])
+    f2 = np.vstack([f, [f[0, 0], f[0, 0], f[0, 1]]])
+    depth, closest, out = SkinDistance(v2, f2).query(np.vstack([points, [[0.11, 0.0, 0.0]]]))
+    assert np.all(np.isfinite(depth)) and np.all(np.isfinite(closest)) and np.all(np.isfinite(out))
+    assert np.allclose(depth[:-1], clean, atol=1e-12)
+    # the point by the stray vertices is answered from the skin, not from them
+    assert depth[-1] < -0.005

@@ -28,7 +28,8 @@ supported body regions without passing through the body. ICP-like:
           + fairness * |G (P - P_0)|^2 / v  +  damping * |P - P_k|^2 / v
 
    ``w_b`` is the importance, ``A`` the probes inside the body or closer to
-   the skin than the clearance, pulled out to the clearance along a way out
+   the skin than the clearance (below the floor: lifted to it, with no
+   clearance), pulled out to the clearance along a way out
    ``g_x`` from the skin point ``q_x`` (``w_pen = penetration_weight * mean
    importance``, deeper probes weigh more); ``G`` is the cage's graph
    Laplacian, so the fairness asks for a smooth *displacement* of the
@@ -42,6 +43,10 @@ supported body regions without passing through the body. ICP-like:
    pulled to each side of the limb, and the fit stalls inside it. Where the
    backward way is long, or runs against the skin's nearest side (the
    surface faces away from the body there), the nearest side is kept;
+   A supported skin vertex *behind* the surface (a crease the surface
+   bridges, as between the thighs: no probe is inside the body, yet the
+   skin at the bottom of the crease is inside the furniture) weighs as
+   much as a probe inside the body, until the surface is below it;
 5. a trust region: the step is shortened until no control point moves more
    than ``max_step`` (or than the current mean distance, while the surface is
    still far, as a flat patch rising from the floor). Correspondences,
@@ -383,32 +388,14 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     centres = sp.csr_matrix(
         (np.full(q.size, 0.25), (np.repeat(np.arange(len(q)), 4), q.ravel())), shape=(len(q), limit.shape[0])
     )
-    dense = sp.vstack([sp.identity(limit.shape[0], format="csr"), centres]).tocsr() @ limit
+    with_centres = sp.vstack([sp.identity(limit.shape[0], format="csr"), centres]).tocsr() @ limit
     sample_probes = (sp.identity(limit.shape[0], format="csr"), sp.vstack([sp.identity(limit.shape[0], format="csr"), centres]).tocsr())
-    phases = ((limit, limit_moving, p["max_iterations"]), (dense, (dense @ select).tocsr(), p["polish_iterations"]))
+    phases = (
+        (limit, limit_moving, p["max_iterations"]),
+        (with_centres, (with_centres @ select).tocsr(), p["polish_iterations"]),
+    )
     probe, probe_moving = phases[0][0], phases[0][1]
     probe_normals = sample_probes[0]
-
-    # The skin distance is 1-Lipschitz: a probe that was farther outside than
-    # the clearance plus the way it has moved since is still outside the
-    # clearance, and its depth only matters for the active set and the
-    # deepest probe. Only the others are asked again (exact decisions, about
-    # half the queries once the surface has settled).
-    cache: dict[str, Any] = {}
-
-    def probe_depth(Y):
-        if cache.get("Y") is None or cache["Y"].shape != Y.shape:
-            cache["Y"] = Y.copy()
-            cache["depth"], cache["foot"], cache["out"] = skin_depth(skins, Y)
-            return cache["depth"].copy(), cache["foot"].copy(), cache["out"].copy()
-        bound = cache["depth"] + np.linalg.norm(Y - cache["Y"], axis=1)
-        ask = np.flatnonzero(bound >= -(p["clearance"] + 0.002))
-        if ask.size:
-            d, q, g = skin_depth(skins, Y[ask])
-            cache["Y"][ask], cache["depth"][ask], cache["foot"][ask], cache["out"][ask] = Y[ask], d, q, g
-        depth = bound
-        depth[ask] = cache["depth"][ask]
-        return depth, cache["foot"].copy(), cache["out"].copy()
 
     def measure(P):
         X = limit @ P
@@ -416,7 +403,7 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
         closest, dist, signed = surface_distances(X, N, b, boundary=on_boundary)
         mean = float(np.sum(w_base * dist) / w_sum)
         Y = probe @ P
-        depth, foot, out = probe_depth(Y)  # depth > 0: probe inside a body
+        depth, foot, out = skin_depth(skins, Y)  # depth > 0: probe inside a body
         # the floor is an obstacle too: nothing goes below y = 0
         below = -Y[:, 1] > np.maximum(depth, 0.0)
         depth = np.where(below, -Y[:, 1], depth)
@@ -472,8 +459,8 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     fair_rhs = fair @ P0_m
     fixed_X = limit @ (p0 - select @ P0_m)  # the fixed control points' share of every sample
     probe_fixed = [ph[0] @ (p0 - select @ P0_m) for ph in phases]
-    dense = 3 * m <= 450
-    if dense:
+    dense_step = 3 * m <= 450
+    if dense_step:
         limit_rows = limit_moving.toarray()
         probe_rows = [None, None]
         base = np.kron(np.eye(3), (fair + damp).toarray())
@@ -494,7 +481,7 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
         rhs_plane = np.einsum("sc,sc->s", n_s, target)
         idx, g, foot_a, gap_a, wp2 = pen
         goal = np.einsum("kc,kc->k", g, foot_a - probe_fixed[phase][idx]) + gap_a
-        if dense:
+        if dense_step:
             Ls = limit_rows[samples]
             R = np.sqrt(W)[:, None] * Ls
             RR = np.hstack([n_s[:, d : d + 1] * R for d in range(3)])
@@ -549,6 +536,13 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
             facing = np.einsum("kc,kc->k", target_n, N[closest]) < -p["min_facing"]
             use = (dist <= p["max_distance"]) & facing
             w = w_base * use
+            # a supported skin vertex behind the surface (a crease the
+            # surface bridges, as between the thighs: no probe is inside the
+            # body, yet the skin at the bottom of the crease is inside the
+            # furniture) is pulled out as firmly as a probe inside the body
+            X_c = X[closest]
+            behind = use & (np.einsum("kc,kc->k", N[closest], targets.points - X_c) < 0) & (targets.points[:, 1] > p["clearance"])
+            w = np.where(behind, np.maximum(w, w_pen), w)
             foot, out, below = near
             # probes under the floor are lifted to it (no clearance: the
             # furniture stands on the floor); probes in the body or closer than
