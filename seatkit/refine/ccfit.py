@@ -45,8 +45,9 @@ supported body regions without passing through the body. ICP-like:
    surface faces away from the body there), the nearest side is kept;
    A supported skin vertex *behind* the surface (a crease the surface
    bridges, as between the thighs: no probe is inside the body, yet the
-   skin at the bottom of the crease is inside the furniture) weighs as
-   much as a probe inside the body, until the surface is below it;
+   skin at the bottom of the crease is inside the furniture; a sole on the
+   floor under a surface a few mm above it) weighs as much as a probe
+   inside the body, until the surface is below it;
 5. a trust region: the step is shortened until no control point moves more
    than ``max_step`` (or than the current mean distance, while the surface is
    still far, as a flat patch rising from the floor). Correspondences,
@@ -539,9 +540,11 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
             # a supported skin vertex behind the surface (a crease the
             # surface bridges, as between the thighs: no probe is inside the
             # body, yet the skin at the bottom of the crease is inside the
-            # furniture) is pulled out as firmly as a probe inside the body
+            # furniture; a sole on the floor under a surface a few mm above
+            # it, its target held at y = 0) is pulled out as firmly as a
+            # probe inside the body
             X_c = X[closest]
-            behind = use & (np.einsum("kc,kc->k", N[closest], targets.points - X_c) < 0) & (targets.points[:, 1] > p["clearance"])
+            behind = use & (np.einsum("kc,kc->k", N[closest], targets.points - X_c) < 0)
             w = np.where(behind, np.maximum(w, w_pen), w)
             foot, out, below = near
             # probes under the floor are lifted to it (no clearance: the
