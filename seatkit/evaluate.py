@@ -52,9 +52,11 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 from scipy.spatial import cKDTree
 
+from seatkit.closest import closest_point_on_triangles, vertex_triangle_rings
 from seatkit.constants import DEFAULT_SUPPORT_DISTANCE
 from seatkit.errors import InfeasibleSupportError
 from seatkit.model import Body, PressureField, Surface
+from seatkit.skin import SkinDistance
 
 #: A vertex is "supported" when its importance-map pressure is at least this
 #: fraction of the maximum.
@@ -89,72 +91,6 @@ def design_segments(mesh) -> list[int]:
     return sorted(int(s) for s in segs)
 
 
-def _safe_ratio(num, den):
-    """num / den, 0 where den is 0."""
-    out = np.zeros(np.broadcast(num, den).shape)
-    np.divide(num, den, out=out, where=den != 0)
-    return out
-
-
-def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Closest point of each triangle (a, b, c) to each point p (Ericson, Real-Time Collision Detection 5.1.5).
-
-    Parameters
-    ----------
-    p, a, b, c : (..., 3) float64
-        Broadcast together.
-
-    Returns
-    -------
-    point : (..., 3) float64
-    bary : (..., 3) float64
-        Barycentric coordinates of ``point`` in (a, b, c).
-    """
-    ab, ac, ap = b - a, c - a, p - a
-    d1 = np.einsum("...i,...i", ab, ap)
-    d2 = np.einsum("...i,...i", ac, ap)
-    bp = p - b
-    d3 = np.einsum("...i,...i", ab, bp)
-    d4 = np.einsum("...i,...i", ac, bp)
-    cp = p - c
-    d5 = np.einsum("...i,...i", ab, cp)
-    d6 = np.einsum("...i,...i", ac, cp)
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        # interior by default
-        denom = va + vb + vc
-        v = np.where(denom != 0, vb / denom, 0.0)
-        w = np.where(denom != 0, vc / denom, 0.0)
-        u = 1.0 - v - w
-        # edge regions (later assignments take precedence, in Ericson's order reversed)
-        # the denominators are squared edge lengths: 0 where two corners
-        # coincide (the edge is a point; t = 0 picks it)
-        e_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
-        t_bc = np.where(e_bc, _safe_ratio(d4 - d3, (d4 - d3) + (d5 - d6)), 0.0)
-        e_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-        t_ac = np.where(e_ac, _safe_ratio(d2, d2 - d6), 0.0)
-        e_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-        t_ab = np.where(e_ab, _safe_ratio(d1, d1 - d3), 0.0)
-    # Region by region, later regions taking precedence; each barycentric
-    # coordinate on its own (fewer and smaller temporaries than stacked triples).
-    for region, (bu, bv, bw) in (
-        (e_bc, (0 * t_bc, 1 - t_bc, t_bc)),
-        (e_ac, (1 - t_ac, 0 * t_ac, t_ac)),
-        (e_ab, (1 - t_ab, t_ab, 0 * t_ab)),
-    ):
-        u, v, w = np.where(region, bu, u), np.where(region, bv, v), np.where(region, bw, w)
-    # vertex regions
-    at_c = (d6 >= 0) & (d5 <= d6)
-    at_b = (d3 >= 0) & (d4 <= d3)
-    at_a = (d1 <= 0) & (d2 <= 0)
-    for region, (bu, bv, bw) in ((at_c, (0.0, 0.0, 1.0)), (at_b, (0.0, 1.0, 0.0)), (at_a, (1.0, 0.0, 0.0))):
-        u, v, w = np.where(region, bu, u), np.where(region, bv, v), np.where(region, bw, w)
-    point = u[..., None] * a + v[..., None] * b + w[..., None] * c
-    return point, np.stack([u, v, w], axis=-1)
-
-
 class SurfaceQuery:
     """Exact closest points on a tessellated surface (quads split in two triangles).
 
@@ -177,15 +113,7 @@ class SurfaceQuery:
         f = np.asarray(surface.faces, dtype=np.int64)
         tris = np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]]) if f.shape[1] == 4 else f
         self.vertices, self.normals, self.triangles = v, np.asarray(surface.normals, dtype=np.float64), tris
-        # vertex -> incident triangles, padded with -1
-        owner = np.repeat(np.arange(len(tris)), 3)
-        corner = tris.ravel()
-        order = np.argsort(corner, kind="stable")
-        counts = np.bincount(corner, minlength=len(v))
-        width = int(counts.max()) if len(counts) else 0
-        slot = np.arange(len(corner)) - np.repeat(np.cumsum(counts) - counts, counts)
-        self.rings = np.full((len(v), width), -1, dtype=np.int64)
-        self.rings[corner[order], slot] = owner[order]
+        self.rings = vertex_triangle_rings(tris, len(v))  # vertex -> incident triangles, padded with -1
         self.tree = cKDTree(v, balanced_tree=False, compact_nodes=False)
         # Every point of a triangle lies within its second-longest edge of the
         # corner opposite its longest edge (the triangle is the convex hull of
@@ -269,8 +197,6 @@ class SurfaceQuery:
 
 def surface_depth_in_body(surface: Surface, body: Body) -> float:
     """Largest depth of the surface below the skin of ``body``, m (see ``max_penetration_m``)."""
-    from seatkit.skin import SkinDistance
-
     v = np.asarray(surface.vertices, dtype=np.float64)
     f = np.asarray(surface.faces, dtype=np.int64)
     points = np.concatenate([v, v[f].mean(axis=1)])

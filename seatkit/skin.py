@@ -42,54 +42,13 @@ import weakref
 import numpy as np
 from scipy.spatial import cKDTree
 
+from seatkit.closest import closest_barycentric, vertex_triangle_rings
+
 __all__ = ["SkinDistance"]
 
 #: SkinDistance.of's cache: (id(vertices), id(faces)) -> (ref, ref, SkinDistance)
 _CACHE: dict = {}
 _CACHE_LOCK = threading.Lock()
-
-
-def _ratio(num, den):
-    """num / den, 0 where den is 0 (a degenerate triangle's edge or area)."""
-    out = np.zeros(np.broadcast(num, den).shape)
-    np.divide(num, den, out=out, where=den != 0)
-    return out
-
-
-def _closest_barycentric(d1, d2, d00, d01, d11):
-    """Barycentric coordinates (u, v, w) of the closest point of triangles to points.
-
-    Ericson's regions (Real-Time Collision Detection 5.1.5) from the two dot
-    products ``d1 = ab . ap`` and ``d2 = ac . ap`` and the triangle's own
-    ``ab . ab``, ``ab . ac``, ``ac . ac`` (the other four of Ericson's dot
-    products follow from these). Coordinates on an edge or at a corner are
-    exact zeros: the caller tells the features apart by them.
-    """
-    d3, d4, d5, d6 = d1 - d00, d2 - d01, d1 - d01, d2 - d11
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    denom = va + vb + vc
-    v = _ratio(vb, denom)
-    w = _ratio(vc, denom)
-    u = 1.0 - v - w
-    # edge regions, then corners (later ones take precedence, as in Ericson's
-    # order reversed). The denominators are squared edge lengths: a triangle
-    # with two coincident corners has a zero one, and its edge is a point
-    e_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
-    t = _ratio(d4 - d3, (d4 - d3) + (d5 - d6))
-    u, v, w = np.where(e_bc, 0.0, u), np.where(e_bc, 1.0 - t, v), np.where(e_bc, t, w)
-    e_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-    t = _ratio(d2, d2 - d6)
-    u, v, w = np.where(e_ac, 1.0 - t, u), np.where(e_ac, 0.0, v), np.where(e_ac, t, w)
-    e_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-    t = _ratio(d1, d1 - d3)
-    u, v, w = np.where(e_ab, 1.0 - t, u), np.where(e_ab, t, v), np.where(e_ab, 0.0, w)
-    for corner, mask in ((2, (d6 >= 0) & (d5 <= d6)), (1, (d3 >= 0) & (d4 <= d3)), (0, (d1 <= 0) & (d2 <= 0))):
-        u = np.where(mask, 1.0 if corner == 0 else 0.0, u)
-        v = np.where(mask, 1.0 if corner == 1 else 0.0, v)
-        w = np.where(mask, 1.0 if corner == 2 else 0.0, w)
-    return u, v, w
 
 
 class SkinDistance:
@@ -153,15 +112,7 @@ class SkinDistance:
         per_tri = np.empty((m * 3, 3))
         per_tri[order] = edge_n
         self.edge_normals = per_tri.reshape(m, 3, 3)
-        # vertex -> incident triangles, padded with -1
-        corner = f.ravel()
-        tri_of = np.repeat(np.arange(m), 3)
-        order = np.argsort(corner, kind="stable")
-        counts = np.bincount(corner, minlength=len(v))
-        width = int(counts.max()) if len(counts) else 0
-        slot = np.arange(len(corner)) - np.repeat(np.cumsum(counts) - counts, counts)
-        self.rings = np.full((len(v), width), -1, dtype=np.int64)
-        self.rings[corner[order], slot] = tri_of[order]
+        self.rings = vertex_triangle_rings(f, len(v))  # vertex -> incident triangles, padded with -1
         # only vertices some face uses (a stray vertex would offer no triangles)
         self._used = np.unique(f)
         self.tree = cKDTree(v[self._used], balanced_tree=False, compact_nodes=False)
@@ -242,7 +193,7 @@ class SkinDistance:
         d00, d01, d11 = self._d00[tri_i], self._d01[tri_i], self._d11[tri_i]
         d1 = np.einsum("kci,kci->kc", ab, ap)
         d2 = np.einsum("kci,kci->kc", ac, ap)
-        bary = _closest_barycentric(d1, d2, d00, d01, d11)
+        bary = closest_barycentric(d1, d2, d00, d01, d11)
         _, v, w = bary
         # |ap - v ab - w ac|^2 without forming the points
         d2sq = np.einsum("kci,kci->kc", ap, ap) - 2.0 * (v * d1 + w * d2) + v * v * d00 + 2.0 * v * w * d01 + w * w * d11

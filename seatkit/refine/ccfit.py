@@ -389,8 +389,10 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     centres = sp.csr_matrix(
         (np.full(q.size, 0.25), (np.repeat(np.arange(len(q)), 4), q.ravel())), shape=(len(q), limit.shape[0])
     )
-    with_centres = sp.vstack([sp.identity(limit.shape[0], format="csr"), centres]).tocsr() @ limit
+    # probes as combinations of the limit samples (their normals are the
+    # same combinations of the samples' normals), per phase
     sample_probes = (sp.identity(limit.shape[0], format="csr"), sp.vstack([sp.identity(limit.shape[0], format="csr"), centres]).tocsr())
+    with_centres = (sample_probes[1] @ limit).tocsr()
     phases = (
         (limit, limit_moving, p["max_iterations"]),
         (with_centres, (with_centres @ select).tocsr(), p["polish_iterations"]),

@@ -1,0 +1,96 @@
+"""Closest points on triangle meshes: the geometry the surface and skin queries share.
+
+:func:`closest_barycentric` is Ericson's closest-point-on-triangle by
+regions (Real-Time Collision Detection 5.1.5), from two dot products per
+point and triangle (the other four follow from per-triangle constants, which
+:class:`seatkit.skin.SkinDistance` keeps); :func:`closest_point_on_triangles`
+is the same for explicit corners. :func:`vertex_triangle_rings` lists the
+triangles around each vertex, the candidates both queries search.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["safe_ratio", "closest_barycentric", "closest_point_on_triangles", "vertex_triangle_rings"]
+
+
+def safe_ratio(num, den) -> np.ndarray:
+    """``num / den``, 0 where ``den`` is 0 (a degenerate triangle's edge or area)."""
+    out = np.zeros(np.broadcast(num, den).shape)
+    np.divide(num, den, out=out, where=den != 0)
+    return out
+
+
+def closest_barycentric(d1, d2, d00, d01, d11) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Barycentric coordinates (u, v, w) of the closest point of triangles to points.
+
+    Ericson's regions from the two dot products ``d1 = ab . ap`` and
+    ``d2 = ac . ap`` and the triangle's own ``ab . ab``, ``ab . ac``,
+    ``ac . ac``. Coordinates on an edge or at a corner are exact zeros: a
+    caller can tell the features apart by them.
+    """
+    d3, d4, d5, d6 = d1 - d00, d2 - d01, d1 - d01, d2 - d11
+    va = d3 * d6 - d5 * d4
+    vb = d5 * d2 - d1 * d6
+    vc = d1 * d4 - d3 * d2
+    denom = va + vb + vc
+    v = safe_ratio(vb, denom)
+    w = safe_ratio(vc, denom)
+    u = 1.0 - v - w
+    # edge regions, then corners (later ones take precedence, as in Ericson's
+    # order reversed). The denominators are squared edge lengths: a triangle
+    # with two coincident corners has a zero one, and its edge is a point
+    e_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
+    t = safe_ratio(d4 - d3, (d4 - d3) + (d5 - d6))
+    u, v, w = np.where(e_bc, 0.0, u), np.where(e_bc, 1.0 - t, v), np.where(e_bc, t, w)
+    e_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
+    t = safe_ratio(d2, d2 - d6)
+    u, v, w = np.where(e_ac, 1.0 - t, u), np.where(e_ac, 0.0, v), np.where(e_ac, t, w)
+    e_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
+    t = safe_ratio(d1, d1 - d3)
+    u, v, w = np.where(e_ab, 1.0 - t, u), np.where(e_ab, t, v), np.where(e_ab, 0.0, w)
+    for corner, mask in ((2, (d6 >= 0) & (d5 <= d6)), (1, (d3 >= 0) & (d4 <= d3)), (0, (d1 <= 0) & (d2 <= 0))):
+        u = np.where(mask, 1.0 if corner == 0 else 0.0, u)
+        v = np.where(mask, 1.0 if corner == 1 else 0.0, v)
+        w = np.where(mask, 1.0 if corner == 2 else 0.0, w)
+    return u, v, w
+
+
+def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Closest point of each triangle (a, b, c) to each point p.
+
+    Parameters
+    ----------
+    p, a, b, c : (..., 3) float64
+        Broadcast together.
+
+    Returns
+    -------
+    point : (..., 3) float64
+    bary : (..., 3) float64
+        Barycentric coordinates of ``point`` in (a, b, c).
+    """
+    ab, ac, ap = b - a, c - a, p - a
+    u, v, w = closest_barycentric(
+        np.einsum("...i,...i", ab, ap),
+        np.einsum("...i,...i", ac, ap),
+        np.einsum("...i,...i", ab, ab),
+        np.einsum("...i,...i", ab, ac),
+        np.einsum("...i,...i", ac, ac),
+    )
+    point = a + v[..., None] * ab + w[..., None] * ac
+    return point, np.stack([u, v, w], axis=-1)
+
+
+def vertex_triangle_rings(triangles: np.ndarray, n_vertices: int) -> np.ndarray:
+    """(n_vertices, width) int64: the triangles around each vertex, padded with -1."""
+    corner = np.asarray(triangles, dtype=np.int64).ravel()
+    owner = np.repeat(np.arange(len(corner) // 3), 3)
+    order = np.argsort(corner, kind="stable")
+    counts = np.bincount(corner, minlength=n_vertices)
+    width = int(counts.max()) if len(counts) else 0
+    slot = np.arange(len(corner)) - np.repeat(np.cumsum(counts) - counts, counts)
+    rings = np.full((n_vertices, width), -1, dtype=np.int64)
+    rings[corner[order], slot] = owner[order]
+    return rings
