@@ -33,7 +33,6 @@ __all__ = [
     "light_vertices",
     "rasterize",
     "to_uint8",
-    "vertex_normals",
     "view_rotation",
 ]
 
@@ -66,18 +65,6 @@ def view_rotation(azimuth_deg: float, elevation_deg: float) -> np.ndarray:
     right /= np.linalg.norm(right)
     up = np.cross(toward, right)
     return np.stack([right, up, toward])
-
-
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """(n, 3) float64 area-weighted unit vertex normals of a triangle mesh."""
-    v = np.asarray(vertices, dtype=np.float64)
-    f = np.asarray(faces, dtype=np.int64)
-    face_n = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # length = 2 * area
-    normals = np.zeros_like(v)
-    for k in range(3):  # three scatter-adds, one per triangle corner
-        np.add.at(normals, f[:, k], face_n)
-    length = np.linalg.norm(normals, axis=1, keepdims=True)
-    return normals / np.where(length > 0, length, 1.0)
 
 
 def light_vertices(colors: np.ndarray, normals: np.ndarray, rotation: np.ndarray) -> np.ndarray:

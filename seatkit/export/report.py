@@ -44,6 +44,7 @@ import numpy as np
 from seatkit.errors import InputError
 from seatkit.export import raster as rs
 from seatkit.io import atomic_write, write_text_atomic
+from seatkit.pressure.areas import vertex_normals
 
 __all__ = [
     "PNG_FILES",
@@ -218,7 +219,7 @@ class _Scene:
         cage = self.cage if name == "cage" else self.baseline_cage
         v = np.asarray(cage.vertices, dtype=np.float64)
         f = _tri(cage.faces)
-        return _Mesh(v, f, rs.vertex_normals(v, f))
+        return _Mesh(v, f, vertex_normals(v, f))
 
     def layer(self, name: str, view: str, family: str, rgb: np.ndarray, alpha: float = 1.0):
         """(raster, shaded image, alpha) of a mesh with per-vertex or uniform colours."""
@@ -236,7 +237,7 @@ def _surface_mesh(surface) -> _Mesh | None:
     v = np.asarray(surface.vertices, dtype=np.float64)
     normals = np.asarray(surface.normals, dtype=np.float64)
     if normals.shape != v.shape:
-        normals = rs.vertex_normals(v, faces)
+        normals = vertex_normals(v, faces)
     return _Mesh(v, faces, normals)
 
 
@@ -259,7 +260,7 @@ def _scene(result) -> _Scene:
     offsets = np.cumsum([0, *sizes[:-1]])
     verts = np.concatenate([np.asarray(b.vertices, dtype=np.float64) for b in bodies])
     faces = np.concatenate([np.asarray(b.faces, dtype=np.int64) + o for b, o in zip(bodies, offsets)])
-    body = _Mesh(verts, faces, rs.vertex_normals(verts, faces), closed=True)
+    body = _Mesh(verts, faces, vertex_normals(verts, faces), closed=True)
     importance = _concat_fields(list(result.pressures or []), sizes)
     if importance is None:
         msg = f"the report needs one importance pressure per body, got {len(result.pressures or [])} for {len(bodies)} bodies"

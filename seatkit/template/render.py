@@ -12,18 +12,11 @@ from typing import Sequence
 
 import numpy as np
 
+from seatkit.export.raster import view_rotation
+
 __all__ = ["render_cage"]
 
 _VIEWS = {"front": (0.0, 0.0), "side": (-90.0, 0.0), "three-quarter": (-40.0, 20.0), "back": (180.0, 10.0), "top": (0.0, 89.0)}
-
-
-def _axes(az: float, el: float) -> np.ndarray:
-    az, el = np.radians(az), np.radians(el)
-    toward = np.array([np.sin(az) * np.cos(el), np.sin(el), np.cos(az) * np.cos(el)])
-    right = np.cross([0.0, 1.0, 0.0], toward)
-    right /= np.linalg.norm(right)
-    up = np.cross(toward, right)
-    return np.stack([right, up, toward])
 
 
 def render_cage(mesh, bodies, path, *, views: Sequence[str] = ("front", "side", "three-quarter"), title: str = "", dpi: int = 90) -> Path:
@@ -54,7 +47,7 @@ def render_cage(mesh, bodies, path, *, views: Sequence[str] = ("front", "side", 
     light = np.array([0.3, 0.8, 0.5])
     light /= np.linalg.norm(light)
     for ax, view in zip(axs, views):
-        R = _axes(*_VIEWS[view])
+        R = view_rotation(*_VIEWS[view])
         polys, colors, depth, edge = [], [], [], []
         for body in bodies:
             tri = body.vertices[body.faces]
