@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from seatkit.body import list_poses
 from seatkit.errors import RecipeError, UnsupportedPoseError
 from seatkit.refine import (
     CatmullClarkFitRefiner,
@@ -79,23 +80,8 @@ def _chair_or_skip(body, pressure):
         pytest.skip(f"chair template does not fit this pose: {exc}")
 
 
-@pytest.mark.parametrize(
-    "pose",
-    [
-        "upright-sitting",
-        "armrest-sitting",
-        "crossed-legs-ankles",
-        "crossed-legs-knees",
-        "leaning-forward",
-        "lounger",
-        "reclined-sitting",
-        "standing-leaning-back",
-        "lying-supine",
-    ],
-)
+@pytest.mark.parametrize("pose", [info.name for info in list_poses() if info.supported])
 def test_chair_after_both_refiners_beats_flat_patch(seated, pose):
-    if pose not in seated:
-        pytest.skip(f"{pose} is not a supportable library pose")
     body, pressure = seated[pose]
     chair = _chair_or_skip(body, pressure)
     optimised = OptimizeRefiner().refine(chair, [body], [pressure])

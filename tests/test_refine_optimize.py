@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from seatkit.body import list_poses
 from seatkit.errors import RecipeError, SolverError
 from seatkit.model import ControlMesh
 from seatkit.refine.grid import grid_faces, grid_ring
@@ -100,6 +101,17 @@ TERM_PARAMS = {
 }
 
 
+def _central_differences(f, x, h=1e-6):
+    """Gradient of the scalar ``f`` at ``x`` (any shape) by central differences."""
+    numeric = np.zeros_like(x)
+    for k in np.ndindex(x.shape):
+        xp, xm = x.copy(), x.copy()
+        xp[k] += h
+        xm[k] -= h
+        numeric[k] = (f(xp) - f(xm)) / (2 * h)
+    return numeric
+
+
 @pytest.mark.parametrize("term", sorted(TERM_PARAMS))
 def test_gradient_matches_central_differences(term):
     mesh = chair_cage(noise=0.02, seed=3)
@@ -107,14 +119,7 @@ def test_gradient_matches_central_differences(term):
     x = mesh.vertices
     value, grad = energy.value_and_grad(x)
     assert value > 0.0
-    h = 1e-6
-    numeric = np.zeros_like(x)
-    for i in range(x.shape[0]):
-        for c in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[i, c] += h
-            xm[i, c] -= h
-            numeric[i, c] = (energy.value_and_grad(xp)[0] - energy.value_and_grad(xm)[0]) / (2 * h)
+    numeric = _central_differences(lambda y: energy.value_and_grad(y)[0], x)
     rel = np.linalg.norm(grad - numeric) / np.linalg.norm(numeric)
     assert rel < 1e-5, f"{term}: relative gradient error {rel:.2e}"
 
@@ -242,14 +247,7 @@ def test_edge_length_penalty_gradient_matches_central_differences():
     mu = 3.0
     value, grad = penalty.value_and_grad(x, lam, mu)
     assert np.isfinite(value)
-    h = 1e-6
-    numeric = np.zeros_like(x)
-    for i in range(x.shape[0]):
-        for k in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[i, k] += h
-            xm[i, k] -= h
-            numeric[i, k] = (penalty.value_and_grad(xp, lam, mu)[0] - penalty.value_and_grad(xm, lam, mu)[0]) / (2 * h)
+    numeric = _central_differences(lambda y: penalty.value_and_grad(y, lam, mu)[0], x)
     rel = np.linalg.norm(grad - numeric) / np.linalg.norm(numeric)
     assert rel < 1e-6, f"relative gradient error {rel:.2e}"
     # zero for edges long enough and without multiplier; unbounded as an edge shrinks
@@ -287,13 +285,7 @@ def test_reduced_gradient_through_the_border_parametrisation():
     basis_t = border.basis.T.tocsr()
     _, grad_x = energy.value_and_grad(unpack(z0))
     grad_z = basis_t @ grad_x.ravel()
-    h = 1e-6
-    numeric = np.zeros_like(z0)
-    for i in range(z0.size):
-        zp, zm = z0.copy(), z0.copy()
-        zp[i] += h
-        zm[i] -= h
-        numeric[i] = (energy.value_and_grad(unpack(zp))[0] - energy.value_and_grad(unpack(zm))[0]) / (2 * h)
+    numeric = _central_differences(lambda z: energy.value_and_grad(unpack(z))[0], z0)
     rel = np.linalg.norm(grad_z - numeric) / np.linalg.norm(numeric)
     assert rel < 1e-5, f"relative gradient error {rel:.2e}"
     # moving a sliding unknown moves its vertex along its side only, at y = 0
@@ -365,14 +357,7 @@ def test_corner_angle_penalty_gradient_matches_central_differences():
     mu = 30.0
     value, grad = penalty.value_and_grad(x, lam, mu)
     assert np.isfinite(value) and value != 0.0
-    h = 1e-6
-    numeric = np.zeros_like(x)
-    for i in range(x.shape[0]):
-        for k in range(3):
-            xp, xm = x.copy(), x.copy()
-            xp[i, k] += h
-            xm[i, k] -= h
-            numeric[i, k] = (penalty.value_and_grad(xp, lam, mu)[0] - penalty.value_and_grad(xm, lam, mu)[0]) / (2 * h)
+    numeric = _central_differences(lambda y: penalty.value_and_grad(y, lam, mu)[0], x)
     rel = np.linalg.norm(grad - numeric) / np.linalg.norm(numeric)
     assert rel < 1e-6, f"relative gradient error {rel:.2e}"
     # zero where every corner is wide enough and carries no multiplier
@@ -413,18 +398,8 @@ def test_corner_angles_keep_their_floor():
     assert out.meta["optimize"]["penalty_rounds"] >= 2
 
 
-#: The supportable library poses (tests/test_refine_flat_patch.py).
-LIBRARY_POSES = [
-    "upright-sitting",
-    "armrest-sitting",
-    "crossed-legs-ankles",
-    "crossed-legs-knees",
-    "leaning-forward",
-    "lounger",
-    "reclined-sitting",
-    "standing-leaning-back",
-    "lying-supine",
-]
+#: The supportable library poses.
+LIBRARY_POSES = [info.name for info in list_poses() if info.supported]
 
 
 @pytest.mark.parametrize("pose", LIBRARY_POSES)
