@@ -135,6 +135,16 @@ def check_overlap(bodies: list[Body]) -> None:
                 raise SeatkitError(msg)
 
 
+def solve_importance(recipe: Mapping, bodies, registry) -> list:
+    """Each person's pressure "supported everywhere" (the importance map), with the recipe's settings."""
+    p = recipe["pressure"]
+    solver = registry.get("pressure_solver", p["solver"])
+    return [
+        solver.solve(body, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
+        for body in bodies
+    ]
+
+
 def _versions() -> dict:
     import importlib.metadata as md
 
@@ -381,12 +391,7 @@ def _design(recipe, registry, timer: _Timer, *, write: bool, processes: bool) ->
         bodies = make_bodies(recipe, registry)
 
     with timer.stage("pressure"):
-        solver = registry.get("pressure_solver", recipe["pressure"]["solver"])
-        p = recipe["pressure"]
-        pressures = [
-            solver.solve(body, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
-            for body in bodies
-        ]
+        pressures = solve_importance(recipe, bodies, registry)
 
     with timer.stage("template"):
         template = registry.get("template", recipe["template"])

@@ -16,7 +16,7 @@ def evaluate_folder(directory: Path, *, pm, baseline: str | None = "keep", suppo
     Returns the :class:`~seatkit.model.BuildResult` with ``metrics`` filled.
     """
     from seatkit.model import BuildResult
-    from seatkit.pipeline import evaluate_result
+    from seatkit.pipeline import evaluate_result, solve_importance
     from seatkit.state import load_design
     from seatkit.subdivision import limit_surface
 
@@ -27,12 +27,7 @@ def evaluate_folder(directory: Path, *, pm, baseline: str | None = "keep", suppo
     if support_distance is not None:
         ev["support_distance"] = support_distance
     registry = pm.registry
-    p = recipe["pressure"]
-    solver = registry.get("pressure_solver", p["solver"])
-    pressures = [
-        solver.solve(b, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
-        for b in bodies
-    ]
+    pressures = solve_importance(recipe, bodies, registry)
     result = BuildResult(
         recipe=recipe,
         bodies=bodies,
