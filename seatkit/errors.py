@@ -22,6 +22,26 @@ class RecipeError(SeatkitError):
     """A recipe, template or pose YAML file is malformed or names unknown things."""
 
 
+class ParamError(RecipeError):
+    """A component's parameter is wrong; the caller knows where the parameters came from.
+
+    Components (templates, refiners) check their parameters without knowing
+    the file: ``path`` is the key path inside the parameters
+    (``("steps", "border", "width")``), ``problem`` what was expected. The
+    recipe checker re-raises it as ``recipe.yaml:12: template_params.steps.border.width: ...``.
+    """
+
+    def __init__(self, path, problem: str):
+        from seatkit.yamlio import format_path
+
+        self.path = tuple(path)
+        self.problem = problem
+        super().__init__(f"{format_path(self.path)}: {problem}")
+
+    def __reduce__(self):
+        return (type(self), (self.path, self.problem))
+
+
 class InputError(SeatkitError):
     """An input file (mesh, BVH, glTF, cage) is unreadable or invalid."""
 

@@ -138,14 +138,15 @@ def _monotone(ring: np.ndarray, *, axis: int, direction: np.ndarray, step: float
         line += np.outer(want - pos, direction)
 
 
-def _clear_bodies(line: np.ndarray, along: np.ndarray, across: np.ndarray, points: np.ndarray, clearance: float) -> None:
+def _clear_bodies(line: np.ndarray, along: np.ndarray, across: np.ndarray, points: np.ndarray, clearance: float, top=None) -> None:
     """Move ``line`` (m, 3) along ``along`` until its walls pass outside the body ``points``, in place.
 
     A wall hangs from each vertex of the ring down to the ground; it must
     lie beyond (along ``along``) every body vertex in the vertex's strip
     (between the midpoints to its neighbours along ``across``) lower than
     the vertex (and above 2 cm: skin resting on the floor under a lying
-    body is below every wall).
+    body is below every wall). With ``top`` ((m,) heights), the strip reaches
+    up to ``top`` instead (a face rises from the vertex to that height).
     """
     if len(points) == 0:
         return
@@ -155,15 +156,64 @@ def _clear_bodies(line: np.ndarray, along: np.ndarray, across: np.ndarray, point
     hi = np.concatenate([mid, [np.inf]])
     lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
     pa, pc, py = points @ along, points @ across, points[:, 1]
+    top = line[:, 1] if top is None else np.asarray(top)
     for i in range(len(line)):
-        sel = (pc >= lo[i]) & (pc <= hi[i]) & (py >= 0.02) & (py <= line[i, 1])
+        sel = (pc >= lo[i]) & (pc <= hi[i]) & (py >= 0.02) & (py <= top[i])
         if sel.any():
             need = float(pa[sel].max()) + clearance - float(line[i] @ along)
             if need > 0:
                 line[i] += need * along
 
 
-def add_border(grid: GridMesh, *, width: float, margin: float, min_spacing: float, meta: dict, bodies=()) -> GridMesh:
+def _set_back_front_edge(V: np.ndarray, points: np.ndarray, back: np.ndarray, across: np.ndarray, gap: float, *, most: float = 0.8) -> None:
+    """Move the first vertex row back along the first face row until the legs hang in front of it, in place.
+
+    A body point below the seat (lower than the line from ``V[0]`` to
+    ``V[1]`` of its strip by more than ``gap``, and above 2 cm) hangs from
+    the seat: the seat's front edge must lie ``gap`` behind it, so that a
+    wall straight down from the edge passes behind the lower legs. Each
+    vertex moves at most ``most`` of the way to ``V[1]``.
+    """
+    if len(points) == 0 or len(V) < 2:
+        return
+    c = V[0] @ across
+    mid = 0.5 * (c[1:] + c[:-1])
+    lo = np.concatenate([[-np.inf], mid])
+    hi = np.concatenate([mid, [np.inf]])
+    lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+    pa, pc, py = points @ back, points @ across, points[:, 1]
+    for k in range(V.shape[1]):
+        p0, p1 = V[0, k], V[1, k]
+        a0, a1 = float(p0 @ back), float(p1 @ back)
+        if a1 - a0 < 1e-6:
+            continue
+        t = np.clip((pa - a0) / (a1 - a0), 0.0, 1.0)
+        seat = p0[1] + t * (p1[1] - p0[1])
+        sel = (pc >= lo[k]) & (pc <= hi[k]) & (py >= 0.02) & (py < seat - gap)
+        if not sel.any():
+            continue
+        need = float(pa[sel].max()) + gap
+        if need > a0:
+            f = min(most, (need - a0) / (a1 - a0))
+            V[0, k] = p0 + f * (p1 - p0)
+
+
+#: Where the front wall stands (the border step's ``front_wall`` option).
+FRONT_WALLS = ("before-feet", "behind-calves")
+
+
+def add_border(
+    grid: GridMesh,
+    *,
+    width: float,
+    margin: float,
+    min_spacing: float,
+    meta: dict,
+    bodies=(),
+    front_wall: str = "before-feet",
+    front_drop: float = 0.08,
+    body_clearance: float | None = None,
+) -> GridMesh:
     """The grid with two border rings, the outer one on a ground rectangle.
 
     Parameters
@@ -180,12 +230,28 @@ def add_border(grid: GridMesh, *, width: float, margin: float, min_spacing: floa
         Receives ``border`` facts (rectangle, convexity per side).
     bodies : sequence of Body
         The walls from the ring down to the ground pass outside them.
+    front_wall : str
+        ``before-feet``: the first ring continues the first row forwards and
+        its wall hangs in front of every body part below it (a chair's feet).
+        ``behind-calves``: the first ring lies ``front_drop`` below the first
+        row's edge, moved back until its wall passes behind every body part
+        below the edge; the legs hang in front of it (a saddle stool). The
+        ground rectangle's front edge is then ``margin`` in front of that
+        ring, not of the seat's edge.
+    front_drop : float
+        ``behind-calves``: height of the front face, m.
+    body_clearance : float, optional
+        Gap between walls and bodies, m (default ``min_spacing``).
 
     Returns
     -------
     GridMesh
         (R + 4, C + 4) faces; ``ground`` marks the outer ring.
     """
+    if front_wall not in FRONT_WALLS:
+        raise ValueError(f"front_wall {front_wall!r}: expected one of {', '.join(FRONT_WALLS)}")
+    behind = front_wall == "behind-calves"
+    gap = min_spacing if body_clearance is None else float(body_clearance)
     V = grid.vertices.copy()
     R, C = grid.shape
     # rectangle axes: the body faces +Z, so the rectangle is axis-aligned:
@@ -196,24 +262,35 @@ def add_border(grid: GridMesh, *, width: float, margin: float, min_spacing: floa
     # the back row: a side that doubles back (an outer back face wrapping
     # forward past the seat's edge) would make the walls below it overlap
     _monotone(V, axis=0, direction=-front, step=min_spacing)
+    pts = np.concatenate([np.asarray(b.vertices, dtype=np.float64) for b in bodies]) if len(bodies) else np.zeros((0, 3))
+    if behind:
+        _set_back_front_edge(V, pts, -front, side, gap)
     ring = np.full((R + 3, C + 3, 3), np.nan)  # ring-1 grid: original at [1:-1, 1:-1]
     ring[1:-1, 1:-1] = V
     ring[1:-1, 0] = V[:, 0] - width * side
     ring[1:-1, -1] = V[:, -1] + width * side
-    ring[0, 1:-1] = V[0] + width * unit(V[0] - V[1])
+    if behind:
+        ring[0, 1:-1] = V[0] - np.array([0.0, front_drop, 0.0])
+    else:
+        ring[0, 1:-1] = V[0] + width * unit(V[0] - V[1])
     ring[-1, 1:-1] = V[-1] + width * unit(V[-1] - V[-2])
     # the ring envelops the grid: its back row lies behind every grid vertex
     # of the same column (a wall hanging from a backrest that wraps forward
     # would cut the back), its front row in front, its sides outside the rows
     _envelop(ring[-1, 1:-1], V.transpose(1, 0, 2), -front)
-    _envelop(ring[0, 1:-1], V.transpose(1, 0, 2), front)
+    if not behind:
+        _envelop(ring[0, 1:-1], V.transpose(1, 0, 2), front)
     _envelop(ring[1:-1, 0], V, -side)
     _envelop(ring[1:-1, -1], V, side)
-    pts = np.concatenate([np.asarray(b.vertices, dtype=np.float64) for b in bodies]) if len(bodies) else np.zeros((0, 3))
-    _clear_bodies(ring[-1, 1:-1], -front, side, pts, min_spacing)
-    _clear_bodies(ring[0, 1:-1], front, side, pts, min_spacing)
-    _clear_bodies(ring[1:-1, 0], -side, front, pts, min_spacing)
-    _clear_bodies(ring[1:-1, -1], side, front, pts, min_spacing)
+    _clear_bodies(ring[-1, 1:-1], -front, side, pts, gap)
+    if behind:
+        # the wall hangs from the ring, front_drop below the seat's edge:
+        # everything below the ring in its strip (the lower legs) stays in front of it
+        _clear_bodies(ring[0, 1:-1], -front, side, pts, gap)
+    else:
+        _clear_bodies(ring[0, 1:-1], front, side, pts, gap)
+    _clear_bodies(ring[1:-1, 0], -side, front, pts, gap)
+    _clear_bodies(ring[1:-1, -1], side, front, pts, gap)
     for i, k, ii in ((0, 0, 1), (0, -1, 1), (-1, 0, -2), (-1, -1, -2)):
         kk = 1 if k == 0 else -2
         ring[i, k] = ring[i, kk] + (ring[ii, k] - ring[ii, kk])
@@ -226,6 +303,11 @@ def add_border(grid: GridMesh, *, width: float, margin: float, min_spacing: floa
     s_all, f_all = flat @ side, flat @ front
     s0, s1 = s_all.min() - margin, s_all.max() + margin
     f0, f1 = f_all.min() - margin, f_all.max() + margin
+    if behind:
+        # the front wall hangs from the first ring down and back, to the
+        # ground's front edge under its rearmost vertex: never forwards into
+        # the legs (and not in front of the seat's edge above them)
+        f1 = float((ring[0] @ front).min())
 
     out = np.zeros((R + 5, C + 5, 3))
     out[1:-1, 1:-1] = ring
@@ -265,6 +347,7 @@ def add_border(grid: GridMesh, *, width: float, margin: float, min_spacing: floa
         "convex_sides": convex,
         "width": width,
         "margin": margin,
+        "front_wall": front_wall,
     }
     return GridMesh(
         out,

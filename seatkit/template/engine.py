@@ -18,10 +18,11 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from seatkit.errors import InputError, RecipeError
+from seatkit.errors import InputError, ParamError, RecipeError
 from seatkit.model import Body, ControlMesh, PressureField
 from seatkit.template.checks import check_cage
 from seatkit.template.grid import Block, FaceState, FitState, GridMesh, segment_of_vertex
+from seatkit.template.options import check_step_options, did_you_mean
 from seatkit.template.schema import TemplateSpec, read_template, resolve_parameters
 from seatkit.template.steps import BUILTIN_STEPS, join_blocks
 
@@ -36,32 +37,90 @@ class YamlTemplate:
     spec : TemplateSpec
         The validated document.
     steps : mapping of str to TemplateStep, optional
-        Steps available to this template besides the built-in ones; names
-        not found here or built in are looked up in the plugin registry at
-        fit time.
+        The steps its ``steps:`` entries are resolved against. Given, the
+        template is bound at once (:meth:`bind`); otherwise it is bound when
+        it joins a registry (the registry calls :meth:`bind` with every
+        registered step), or, used on its own, to the built-in steps at its
+        first fit.
     """
 
     def __init__(self, spec: TemplateSpec, *, steps: Mapping[str, Any] | None = None):
         self.spec = spec
         self.name = spec.name
         self.description = spec.description or f"template {spec.name} from {spec.source}"
-        self._steps = dict(steps or {})
+        self._plan: list | None = None
+        if steps is not None:
+            self._plan = _plan(spec, steps)
 
     def __repr__(self) -> str:
         return f"YamlTemplate({self.name!r}, {self.spec.source!r})"
 
-    def _step(self, i: int, name: str):
-        if name in self._steps:
-            return self._steps[name]
-        if name in BUILTIN_STEPS:
-            return BUILTIN_STEPS[name]
-        from seatkit.plugins import get_plugin_manager
+    def bind(self, steps: Mapping[str, Any], *, missing_hint: str = "") -> "YamlTemplate":
+        """This template with its steps resolved against ``steps`` (a new object).
 
-        registry = get_plugin_manager().registry
-        if name in registry.names("template_step"):
-            return registry.get("template_step", name)
-        have = sorted(set(BUILTIN_STEPS) | set(self._steps) | set(registry.names("template_step")))
-        raise RecipeError(f"{self.spec.where(('steps', i, 'step'))}: unknown step {name!r}; available: {', '.join(have)}")
+        Every ``steps:`` entry is looked up and checked: an unknown step, an
+        option the step does not declare or a value of the wrong type or range
+        (:mod:`seatkit.template.options`), a step whose prerequisite
+        (``requires``) is not listed before it, a per-person step after the
+        grid was joined: each is a :class:`RecipeError`
+        ``file:line: steps[i].key: what was expected``.
+
+        Parameters
+        ----------
+        steps : mapping of str to TemplateStep
+        missing_hint : str
+            Added to an unknown-step message (e.g. the disabled plugins).
+        """
+        bound = YamlTemplate(self.spec)
+        bound._plan = _plan(self.spec, steps, missing_hint=missing_hint)
+        return bound
+
+    def step_labels(self) -> list[str]:
+        """How a recipe names each step (``template_params.steps``): its label, else its name."""
+        return [_label(s) for s in self.spec.steps]
+
+    def check_params(self, params: Mapping[str, Any] | None) -> None:
+        """Check a recipe's ``template_params`` without fitting.
+
+        Raises
+        ------
+        ParamError
+            With the key path inside ``template_params`` and what was expected.
+        """
+        self._overrides(params)
+
+    def _overrides(self, params) -> tuple[dict, dict]:
+        """(template parameters, {step index: options}) from a recipe's ``template_params``."""
+        params = dict(params or {})
+        steps = params.pop("steps", None)
+        values = resolve_parameters(self.spec, params)
+        per_step: dict[int, dict] = {}
+        if steps is None:
+            return values, per_step
+        if not isinstance(steps, Mapping):
+            raise ParamError(("steps",), f"expected a mapping of step label or index to options, got {steps!r}")
+        plan = self._bound_plan()
+        labels = self.step_labels()
+        for key, opts in steps.items():
+            i = _step_index(key, labels)
+            if i is None:
+                where = ", ".join(f"{j}: {lab}" for j, lab in enumerate(labels))
+                raise ParamError(("steps", key), f"template {self.name!r} has no step {key!r}; its steps are {where}{did_you_mean(key, labels)}")
+            if not isinstance(opts, Mapping):
+                raise ParamError(("steps", key), f"expected a mapping of option names to values, got {opts!r}")
+            step = plan[i][0]
+
+            def fail(path, message, key=key):
+                return ParamError(("steps", key) + tuple(path), message)
+
+            merged = {**_given(self.spec.steps[i]), **opts}
+            per_step[i] = check_step_options(step.name, step.options, merged, rows=self.spec.rows, columns=self.spec.columns, fail=fail)
+        return values, per_step
+
+    def _bound_plan(self) -> list:
+        if self._plan is None:
+            self._plan = _plan(self.spec, BUILTIN_STEPS)
+        return self._plan
 
     def fit(
         self,
@@ -82,17 +141,19 @@ class YamlTemplate:
         for i, (b, p) in enumerate(zip(bodies, pressures)):
             if p.pressure.shape != (len(b.vertices),):
                 raise InputError(f"person {i}: pressure has shape {p.pressure.shape}, the body has {len(b.vertices)} vertices")
-        p = resolve_parameters(self.spec, params)
+        p, per_step = self._overrides(params)
+        plan = self._bound_plan()
         state = FitState(self.spec, p, [self._block(i, b, pr) for i, (b, pr) in enumerate(zip(bodies, pressures))], np.random.default_rng(seed))
         state.meta["template"] = self.name
         state.meta["seed"] = int(seed)
         state.meta["special_cases"] = []
-        for i, step in enumerate(self.spec.steps):
-            options = {k: v for k, v in step.items() if k != "step"}
-            self._step(i, step["step"]).run(state, options=options)
+        for i, (step, options) in enumerate(plan):
+            options = per_step.get(i, options)
+            step.run(state, options=dict(options))
         if state.grid is None:
             state.grid = join_blocks(state)
         state.meta["faces"] = _face_report(state)
+        state.meta["supported_segments"] = _supported_segments(state)
         mesh = grid_to_mesh(state.grid, meta=state.meta)
         check_cage(mesh, bodies, tolerance=p["max_penetration"] + 1e-3)
         return mesh
@@ -110,6 +171,75 @@ class YamlTemplate:
             rows=list(range(len(self.spec.rows))),
             n_columns=len(self.spec.columns),
         )
+
+
+#: Keys of a ``steps:`` entry that are not options of the step.
+STEP_KEYS = ("step", "label")
+
+
+def _label(entry: Mapping) -> str:
+    return str(entry.get("label", entry["step"]))
+
+
+def _given(entry: Mapping) -> dict:
+    return {k: v for k, v in entry.items() if k not in STEP_KEYS}
+
+
+def _step_index(key, labels: list[str]) -> int | None:
+    """Index of the step a recipe names by label (unique), or by index (``3`` or ``"3"``)."""
+    if isinstance(key, str) and labels.count(key) == 1:
+        return labels.index(key)
+    if isinstance(key, bool):
+        return None
+    try:
+        i = int(key)
+    except (TypeError, ValueError):
+        return None
+    return i if 0 <= i < len(labels) and str(i) == str(key).strip() else None
+
+
+def _plan(spec: TemplateSpec, steps: Mapping[str, Any], *, missing_hint: str = "") -> list:
+    """[(step, options with defaults)] of a template's ``steps:``, checked (see :meth:`YamlTemplate.bind`)."""
+    plan = []
+    seen: list[str] = []
+    grid_step = None
+    labels = [_label(s) for s in spec.steps]
+    for i, entry in enumerate(spec.steps):
+        name = entry["step"]
+        if name not in steps:
+            have = ", ".join(sorted(steps)) or "none"
+            raise spec.doc.error(("steps", i, "step"), f"unknown step {name!r}; the registered steps are: {have}{did_you_mean(name, list(steps))}{missing_hint}")
+        step = steps[name]
+        if "label" in entry and labels.count(str(entry["label"])) > 1:
+            raise spec.doc.error(("steps", i, "label"), f"label {entry['label']!r} is given to two steps; a recipe names a step by a unique label")
+
+        def fail(path, message, i=i):
+            return spec.doc.error(("steps", i) + tuple(path), message)
+
+        options = check_step_options(name, step.options, entry, rows=spec.rows, columns=spec.columns, fail=fail, ignore=STEP_KEYS)
+        for need in step.requires:
+            if need not in seen:
+                raise spec.doc.error(("steps", i, "step"), f"step {name!r} needs step {need!r} before it; add '- step: {need}' earlier in steps")
+        stage = step.stage
+        if stage not in ("blocks", "grid"):
+            raise spec.doc.error(("steps", i, "step"), f"step {name!r} declares stage {stage!r}; expected 'blocks' or 'grid' (a plugin bug)")
+        if stage == "grid":
+            grid_step = grid_step or name
+        elif grid_step is not None:
+            raise spec.doc.error(("steps", i, "step"), f"step {name!r} fits each person's faces, but step {grid_step!r} before it already joined them into one grid; move it before {grid_step!r}")
+        seen.append(name)
+        plan.append((step, options))
+    return plan
+
+
+def _supported_segments(state: FitState) -> list[int]:
+    """Every segment listed by a fitted ('fit' or 'outer') face of a kept row, of any person."""
+    segs = set()
+    for block in state.blocks:
+        for (r, _c), f in block.faces.items():
+            if r in block.rows and f.plane is not None and f.spec.role in ("fit", "outer"):
+                segs.update(int(s) for s in f.segments)
+    return sorted(segs)
 
 
 def _face_report(state: FitState) -> list:
@@ -159,6 +289,10 @@ def grid_to_mesh(grid: GridMesh, *, meta: dict) -> ControlMesh:
 def load_template(path: str | Path | None = None, *, text: str | None = None, source: str = "<template>", steps: Mapping[str, Any] | None = None) -> YamlTemplate:
     """Load a YAML template file (or YAML ``text``) as a :class:`YamlTemplate`.
 
+    The document is read and checked (:func:`seatkit.template.schema.read_template`);
+    its steps are resolved and checked against ``steps`` when given, else when the
+    template joins a registry (:meth:`YamlTemplate.bind`).
+
     Raises
     ------
     RecipeError
@@ -167,13 +301,4 @@ def load_template(path: str | Path | None = None, *, text: str | None = None, so
     if path is None and text is None:
         raise RecipeError("load_template needs a path or text")
     spec = read_template(path if path is not None else source, text=text)
-    for i, step in enumerate(spec.steps):
-        name = step["step"]
-        known = name in BUILTIN_STEPS or (steps and name in steps)
-        if known:
-            obj = (steps or {}).get(name) or BUILTIN_STEPS[name]
-            allowed = set(getattr(obj, "options", {}) or {})
-            extra = sorted(set(step) - {"step"} - allowed)
-            if allowed and extra:
-                raise RecipeError(f"{spec.where(('steps', i, extra[0]))}: step {name!r} has no option {extra[0]!r}; its options are {', '.join(sorted(allowed))}")
     return YamlTemplate(spec, steps=steps)

@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
 
-from seatkit.errors import RecipeError
+from seatkit.errors import ParamError, RecipeError
+from seatkit.template.options import did_you_mean
 from seatkit.skeleton import SEGMENT_INDEX, SEGMENTS
 from seatkit.yamlio import Document, load_yaml, parse_yaml, validate
 
@@ -101,7 +102,7 @@ TEMPLATE_SCHEMA: dict = {
             "items": {
                 "type": "object",
                 "required": ["step"],
-                "properties": {"step": _NAME},
+                "properties": {"step": _NAME, "label": _NAME},
             },
         },
     },
@@ -219,6 +220,7 @@ def read_template(source: str | Path, *, text: str | None = None) -> TemplateSpe
                 raise doc.error(("rows", r, "faces", col, "segments"), "a 'bridge' face supports no segment of its own; remove 'segments' or use role 'fit'")
             label = f.get("label", f"{row['name']}.{col}")
             faces[(r, c)] = FaceSpec(r, c, role, tuple(SEGMENT_INDEX[s] for s in segs), label, float(f.get("width_fraction", 1.0)))
+    _check_roles(doc, columns, faces)
     people = data.get("people", {})
     lo, hi = int(people.get("min", 1)), int(people.get("max", 1))
     if hi < lo:
@@ -250,6 +252,23 @@ def read_template(source: str | Path, *, text: str | None = None) -> TemplateSpe
     )
 
 
+def _check_roles(doc: Document, columns: list, faces: dict) -> None:
+    """A face's role must suit its column: 'outer' at an end next to a 'fit' face, 'bridge' between two 'fit' faces."""
+    C = len(columns)
+    for (r, c), f in sorted(faces.items()):
+        path = ("rows", r, "faces", columns[c], "role")
+        if f.role == "outer":
+            inner = c + 1 if c == 0 else c - 1
+            if c not in (0, C - 1) or C < 2:
+                ends = f"{columns[0]!r} or {columns[-1]!r}" if C > 1 else "(none: one column)"
+                raise doc.error(path, f"role 'outer' fits a face of an end column ({ends}) through its inner neighbour's vertices; column {columns[c]!r} is not an end column")
+            if faces[(r, inner)].role != "fit":
+                raise doc.error(path, f"role 'outer' needs a 'fit' face beside it in column {columns[inner]!r}, which is {faces[(r, inner)].role!r}")
+        elif f.role == "bridge":
+            if not 0 < c < C - 1 or faces[(r, c - 1)].role != "fit" or faces[(r, c + 1)].role != "fit":
+                raise doc.error(path, f"role 'bridge' joins the 'fit' faces on both sides of it; column {columns[c]!r} has no 'fit' face on both sides")
+
+
 def resolve_parameters(spec: TemplateSpec, overrides: Mapping[str, Any] | None) -> dict:
     """Defaults, then the template's values, then ``overrides``; angles to radians.
 
@@ -261,18 +280,25 @@ def resolve_parameters(spec: TemplateSpec, overrides: Mapping[str, Any] | None) 
 
     Raises
     ------
-    RecipeError
-        For an unknown parameter or a value of the wrong type.
+    ParamError
+        For an unknown parameter or a value of the wrong type (key path
+        inside ``template_params``).
     """
     values = {k: v for k, (v, _, _) in PARAMETERS.items()}
     values.update(spec.parameters)
     for key, value in (overrides or {}).items():
         if key not in PARAMETERS:
-            msg = f"template_params.{key}: unknown parameter of template {spec.name!r}; expected one of {', '.join(PARAMETERS)}"
-            raise RecipeError(msg)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
-            msg = f"template_params.{key}: expected a non-negative number ({PARAMETERS[key][1]}), got {value!r}"
-            raise RecipeError(msg)
+            labels = [str(s.get("label", s["step"])) for s in spec.steps]
+            if key in labels:
+                hint = f"; step options go under steps: (template_params: {{steps: {{{key}: {{...}}}}}})"
+            else:
+                hint = did_you_mean(key, list(PARAMETERS) + ["steps"])
+            msg = f"unknown parameter of template {spec.name!r}; expected one of {', '.join(PARAMETERS)} or steps{hint}"
+            raise ParamError((key,), msg)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0 or not math.isfinite(value):
+            raise ParamError((key,), f"expected a non-negative number ({PARAMETERS[key][1]}), got {value!r}")
+        if PARAMETERS[key][1] == "count" and value < 1:
+            raise ParamError((key,), f"expected a whole number >= 1, got {value!r}")
         values[key] = value
     values["ransac_iterations"] = int(values["ransac_iterations"])
     for key in list(values):

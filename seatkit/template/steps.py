@@ -19,6 +19,7 @@ from seatkit.template.border import add_border
 from seatkit.template.checks import check_supportability
 from seatkit.template.clearance import lift_off_bodies
 from seatkit.template.grid import FitState, GridMesh
+from seatkit.template.options import Option
 from seatkit.template.planes import fit_support_plane
 from seatkit.template.special_cases import add_armrests, fit_outer_face, merge_crossed_legs
 
@@ -84,10 +85,12 @@ class FitPlanesStep:
 
     name = "fit-planes"
     description = "RANSAC supporting plane for each 'fit' face of the given rows and columns (paper Sec. 5.2)"
+    stage = "blocks"
+    requires = ()
     options = {
-        "rows": "rows to fit, in order (default: all)",
-        "columns": "columns to fit (default: all)",
-        "direction_penalty": "use p^d against the previous row's plane (bool, default false)",
+        "rows": Option("rows", "rows to fit, in order (default: all)"),
+        "columns": Option("columns", "columns to fit (default: all)"),
+        "direction_penalty": Option("bool", "use p^d against the previous row's plane", False),
     }
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
@@ -104,7 +107,12 @@ class BridgeStep:
 
     name = "bridge"
     description = "connect two fitted columns by a bridge column (its corners are its neighbours' inner corners)"
-    options = {"rows": "rows of the bridge (default: all)", "columns": "bridge columns (default: every bridge face)"}
+    stage = "blocks"
+    requires = ("fit-planes",)
+    options = {
+        "rows": Option("rows", "rows of the bridge (default: all)"),
+        "columns": Option("columns", "bridge columns (default: every bridge face)"),
+    }
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
         C = len(state.spec.columns)
@@ -125,6 +133,8 @@ class CornersStep:
 
     name = "corners"
     description = "intersect row and column lines of every fitted face and average the corner estimates"
+    stage = "blocks"
+    requires = ("fit-planes",)
     options = {}
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
@@ -140,12 +150,14 @@ class OuterColumnsStep:
 
     name = "outer-columns"
     description = "fit the outer column faces with their two inner vertices fixed, then shift them outwards"
+    stage = "blocks"
+    requires = ("corners",)
     options = {
-        "rows": "rows with outer faces (default: all)",
-        "columns": "outer columns (default: first and last)",
-        "min_width": "narrowest outer face, m (default 0.06)",
-        "margin": "width beyond the segment's extent, m (default 0.02)",
-        "candidates": "body vertices tried as the third point (count, default 400)",
+        "rows": Option("rows", "rows with outer faces (default: all)"),
+        "columns": Option("columns", "outer columns (default: first and last)"),
+        "min_width": Option("number", "narrowest outer face", 0.06, "m", 0.0, 1.0),
+        "margin": Option("number", "width beyond the segment's extent", 0.02, "m", 0.0, 0.5),
+        "candidates": Option("count", "body vertices tried as the third point", 400, "", 1, 100000),
     }
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
@@ -163,10 +175,12 @@ class CrossedLegsStep:
 
     name = "crossed-legs"
     description = "merge the two leg faces of a row into one plane when they are closer than min_distance"
+    stage = "blocks"
+    requires = ("fit-planes",)
     options = {
-        "rows": "leg rows (default: all)",
-        "columns": "the two leg columns, right then left",
-        "min_distance": "smallest gap between the two faces, m (default 0.02)",
+        "rows": Option("rows", "leg rows (default: all)"),
+        "columns": Option("columns", "the two leg columns, right then left (required)"),
+        "min_distance": Option("number", "smallest gap between the two faces", 0.02, "m", 0.0, 1.0),
     }
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
@@ -189,13 +203,15 @@ class NoBackrestStep:
 
     name = "no-backrest"
     description = "remove the given end rows when the load pushing their segments forwards is below min_load_fraction of the total"
+    stage = "blocks"
+    requires = ()
     options = {
-        "rows": "the backrest rows (must be the last or first rows)",
-        "min_load_fraction": "share of the total normal reaction, pushing the back forwards, below which the back needs no support (default 0.01)",
+        "rows": Option("rows", "the backrest rows (must be the last or first rows; default: none)"),
+        "min_load_fraction": Option("number", "share of the total normal reaction, pushing the back forwards, below which the back needs no support", 0.01, "1", 0.0, 1.0),
     }
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
-        names = options.get("rows", [])
+        names = options.get("rows") or []
         thr = float(options.get("min_load_fraction", 0.01))
         for block in state.blocks:
             rows = [state.spec.rows.index(n) for n in names]
@@ -222,10 +238,12 @@ class SupportabilityStep:
 
     name = "supportability"
     description = "raise UnsupportedPoseError when important vertices cannot reach their face without crossing the body"
+    stage = "blocks"
+    requires = ("corners",)
     options = {
-        "max_occluded_fraction": "share of a segment's importance that may be occluded (default 0.2)",
-        "max_roll_deg": "largest tilt of the body's left-right axis from horizontal, deg (default 45)",
-        "joint_reach": "an adjacent segment crossed within this distance of the joint does not count, m (default 0.1)",
+        "max_occluded_fraction": Option("number", "share of a segment's importance that may be occluded", 0.2, "1", 0.0, 1.0),
+        "max_roll_deg": Option("number", "largest tilt of the body's left-right axis from horizontal", 45.0, "deg", 0.0, 90.0),
+        "joint_reach": Option("number", "an adjacent segment crossed within this distance of the joint does not count", 0.1, "m", 0.0, 1.0),
     }
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
@@ -242,6 +260,8 @@ class JoinStep:
 
     name = "join"
     description = "assemble every person's block into one grid; neighbours are joined by a connector column"
+    stage = "grid"
+    requires = ("corners",)
     options = {}
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
@@ -307,14 +327,16 @@ class ArmrestsStep:
 
     name = "armrests"
     description = "add an armrest column and a connector column on each side when the arms can rest on one"
+    stage = "grid"
+    requires = ("corners",)
     options = {
-        "right": "segments of the right arm (default [RightArm, RightForeArm])",
-        "left": "segments of the left arm (default [LeftArm, LeftForeArm])",
-        "min_load_fraction": "share of the load the arm must carry to get an armrest (default 0.02)",
-        "min_distance": "smallest distance between armrest and grid, m (default 0.04)",
-        "max_tilt_deg": "steepest armrest plane, deg from horizontal (default 30)",
-        "reach_below": "grid row lines this far below the armrest (and reach_above above it) are spread along it, m (default 0.35)",
-        "reach_above": "see reach_below, m (default 0.1)",
+        "right": Option("segments", "segments of the right arm", ["RightArm", "RightForeArm"]),
+        "left": Option("segments", "segments of the left arm", ["LeftArm", "LeftForeArm"]),
+        "min_load_fraction": Option("number", "share of the load the arm must carry to get an armrest", 0.02, "1", 0.0, 1.0),
+        "min_distance": Option("number", "smallest distance between armrest and grid", 0.04, "m", 0.0, 1.0),
+        "max_tilt_deg": Option("number", "steepest armrest plane, from horizontal", 30.0, "deg", 0.0, 90.0),
+        "reach_below": Option("number", "grid row lines this far below the armrest (and reach_above above it) are spread along it", 0.35, "m", 0.0, 2.0),
+        "reach_above": Option("number", "see reach_below", 0.1, "m", 0.0, 2.0),
     }
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
@@ -328,11 +350,21 @@ class BorderStep:
 
     name = "border"
     description = "extend the grid by two rows/columns on every side down to a ground rectangle at y = 0"
+    stage = "grid"
+    requires = ("corners",)
     options = {
-        "width": "how far the first border ring extends the surface, m (default 0.05)",
-        "margin": "ground rectangle margin around the surface, m (default 0.05)",
-        "min_spacing": "smallest spacing of ground vertices along the rectangle, m (default 0.02)",
-        "clearance": "lift the finished cage off the bodies (the clearance step), bool (default true)",
+        "width": Option("number", "how far the first border ring extends the surface", 0.05, "m", 0.0, 1.0),
+        "margin": Option("number", "ground rectangle margin around the surface", 0.05, "m", 0.0, 1.0),
+        "min_spacing": Option("number", "smallest spacing of ground vertices along the rectangle", 0.02, "m", 0.001, 0.5),
+        "clearance": Option("bool", "lift the finished cage off the bodies (the clearance step)", True),
+        "front_wall": Option(
+            "choice",
+            "where the front wall stands: before-feet (in front of everything hanging below the front edge: the chair's "
+            "footrest) or behind-calves (under the front edge, behind the lower legs, which hang in front of it: a saddle stool)",
+            "before-feet", choices=("before-feet", "behind-calves"),
+        ),
+        "front_drop": Option("number", "behind-calves: height of the front face, from the surface's front edge down to the first ring", 0.08, "m", 0.01, 1.0),
+        "body_clearance": Option("number", "gap between the walls and the bodies (default: min_spacing)", None, "m", 0.0, 0.5),
     }
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
@@ -345,6 +377,9 @@ class BorderStep:
             min_spacing=float(options.get("min_spacing", 0.02)),
             meta=state.meta,
             bodies=[b.body for b in state.blocks],
+            front_wall=options.get("front_wall", "before-feet"),
+            front_drop=float(options.get("front_drop", 0.08)),
+            body_clearance=options.get("body_clearance"),
         )
         if options.get("clearance", True):
             lift_grid(state, {})
@@ -390,12 +425,14 @@ class ClearanceStep:
 
     name = "clearance"
     description = "move cage vertices along their normals, as little as possible, until no face sinks into a body"
+    stage = "grid"
+    requires = ("corners",)
     options = {
-        "sink": "deepest allowed sink of a face into the skin, m (default: half of max_penetration)",
-        "depth": "body vertices deeper than this below a face are on its far side, m (default 0.08)",
-        "max_move": "largest move of one vertex, m (default 0.3)",
-        "below_ground": "deepest a vertex may end below the ground (y = 0), m (default 0.03)",
-        "rounds": "linear programmes solved, each re-linearised at the moved cage (count, default 2)",
+        "sink": Option("number", "deepest allowed sink of a face into the skin (default: half of max_penetration)", None, "m", 0.0, 0.1),
+        "depth": Option("number", "body vertices deeper than this below a face are on its far side", 0.08, "m", 0.0, 1.0),
+        "max_move": Option("number", "largest move of one vertex", 0.3, "m", 0.0, 2.0),
+        "below_ground": Option("number", "deepest a vertex may end below the ground (y = 0)", 0.03, "m", 0.0, 1.0),
+        "rounds": Option("count", "linear programmes solved, each re-linearised at the moved cage", 2, "", 1, 20),
     }
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
