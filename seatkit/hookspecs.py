@@ -1,77 +1,118 @@
 """Hook specifications: how plugins add components to seatkit.
 
-Every hook is called with keyword arguments only. The registration hooks
-return a list of components (or ``None``); results of every plugin are merged
-and a duplicate name is refused with an error that names both plugins (see
-:mod:`seatkit.plugins`). Built-in plugins in ``plugins/`` use exactly these
-hooks through the ``seatkit`` entry point group, as a third party would.
+Every hook is called with keyword arguments only (these take none). Each
+registration hook is called **once per plugin manager**, when its registry
+is first built (:attr:`seatkit.plugins.SeatkitPluginManager.registry`: a
+build, a command, ``seatkit plugins``), and returns a list of components, or
+``None`` for none. Results are **merged** (no hook is ``firstresult``): the
+registry calls every plugin's implementation on its own, so that it knows
+which plugin registered which component, refuses a name registered twice
+with an error naming both plugins, and reports a plugin whose hook raises
+without losing the others. Components must implement their protocol
+(:mod:`seatkit.interfaces`); that is checked when they are registered.
+
+Built-in plugins (``plugins/``) implement these hooks with
+:data:`seatkit.hookimpl`, exactly as a third-party plugin does. Each hook is
+documented in docs/plugins.md and has a test of its own (tests/test_hooks.py);
+a meta-test keeps both true for every hook.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pluggy
+
+if TYPE_CHECKING:  # pragma: no cover
+    from seatkit.interfaces import BodyModel, Exporter, PressureSolver, Refiner, SupportTemplate, TemplateStep
 
 hookspec = pluggy.HookspecMarker("seatkit")
 
 
 @hookspec
-def seatkit_register_body_models() -> list:
+def seatkit_register_body_models() -> "list[BodyModel] | None":
     """Register body models (:class:`seatkit.interfaces.BodyModel`).
 
-    Called once, when the plugin manager first builds its registry.
-    Returns a list of components; every plugin's list is merged.
+    Called: once per plugin manager, when its registry is built.
+    Returns: a list of body models (``name`` is what a recipe's
+    ``bodies[].model`` and ``--body`` name), or None.
+    Results: merged over every plugin; a name given twice is an error.
     """
 
 
 @hookspec
-def seatkit_register_pressure_solvers() -> list:
+def seatkit_register_pressure_solvers() -> "list[PressureSolver] | None":
     """Register pressure solvers (:class:`seatkit.interfaces.PressureSolver`).
 
-    Called once, when the registry is built. Returns a list; all are merged.
+    Called: once per plugin manager, when its registry is built.
+    Returns: a list of solvers (``pressure.solver`` in a recipe,
+    ``--solver`` of ``seatkit build`` and ``seatkit pressure``), or None.
+    Results: merged over every plugin; a name given twice is an error.
     """
 
 
 @hookspec
-def seatkit_register_templates() -> list:
+def seatkit_register_templates() -> "list[SupportTemplate] | None":
     """Register support templates (:class:`seatkit.interfaces.SupportTemplate`).
 
     Most templates are YAML files wrapped by
-    :func:`seatkit.template.load_template`. Called once, when the registry is
-    built. Returns a list; all are merged.
+    :func:`seatkit.template.load_template`.
+
+    Called: once per plugin manager, when its registry is built; after every
+    plugin has registered, each template is bound to the registered template
+    steps (``SupportTemplate.bind``), and one whose steps are unknown or
+    misused is left out with its ``file:line`` problem reported.
+    Returns: a list of templates (``template`` in a recipe, ``--template``), or None.
+    Results: merged over every plugin; a name given twice is an error.
     """
 
 
 @hookspec
-def seatkit_register_template_steps() -> list:
+def seatkit_register_template_steps() -> "list[TemplateStep] | None":
     """Register template fitting steps (:class:`seatkit.interfaces.TemplateStep`).
 
-    A YAML template names steps under ``steps:``; a plugin can add new ones.
-    Called once, when the registry is built. Returns a list; all are merged.
+    A YAML template names steps under ``steps:``; a step declares its
+    options, prerequisites and stage (see "Writing a template step" in
+    docs/plugins.md).
+
+    Called: once per plugin manager, when its registry is built, before any
+    template is bound.
+    Returns: a list of steps, or None.
+    Results: merged over every plugin; a name given twice is an error.
     """
 
 
 @hookspec
-def seatkit_register_refiners() -> list:
+def seatkit_register_refiners() -> "list[Refiner] | None":
     """Register refiners (:class:`seatkit.interfaces.Refiner`).
 
-    Called once, when the registry is built. Returns a list; all are merged.
+    Called: once per plugin manager, when its registry is built.
+    Returns: a list of refiners (``refiners`` and
+    ``evaluate.baseline_refiners`` in a recipe, ``--refiner``), or None.
+    Results: merged over every plugin; a name given twice is an error.
     """
 
 
 @hookspec
-def seatkit_register_exporters() -> list:
+def seatkit_register_exporters() -> "list[Exporter] | None":
     """Register exporters (:class:`seatkit.interfaces.Exporter`).
 
-    Called once, when the registry is built. Returns a list; all are merged.
+    Called: once per plugin manager, when its registry is built.
+    Returns: a list of exporters (``exporters`` in a recipe, ``--exporter``), or None.
+    Results: merged over every plugin; a name given twice is an error.
     """
 
 
 @hookspec
-def seatkit_register_pose_dirs() -> list[Path]:
+def seatkit_register_pose_dirs() -> "list[Path] | None":
     """Register folders of pose YAML files for the pose library.
 
-    Called once, when the pose library is first listed. Returns a list of
-    directories; a pose name defined twice is refused naming both plugins.
+    Called: once per plugin manager, when its registry is built
+    (``registry.pose_dirs``, which the build, ``seatkit poses``, ``seatkit
+    body`` and ``seatkit pressure`` look library poses up in).
+    Returns: a list of directories, or None.
+    Results: merged over every plugin in registration order (a folder given
+    twice counts once); a pose name defined in two folders is an error
+    naming both plugins.
     """

@@ -149,6 +149,29 @@ class SupportTemplate(Protocol):
         """
         ...
 
+    def bind(self, steps: Mapping[str, "TemplateStep"]) -> "SupportTemplate":
+        """The template as it joins a registry, its steps resolved.
+
+        Called by the registry once every plugin's components are known, with
+        every registered :class:`TemplateStep` by name; returns the object to
+        register (``self`` for a template that uses no steps). Raises
+        :class:`~seatkit.errors.RecipeError` (file, line, key path) for a step
+        it cannot use: the template is then left out of the registry and the
+        problem is reported.
+        """
+        ...
+
+    def check_params(self, params: Mapping[str, Any] | None) -> None:
+        """Check a recipe's ``template_params`` before any geometry.
+
+        Raises
+        ------
+        ParamError
+            With the key path inside ``template_params``; the recipe checker
+            adds the recipe's file and line.
+        """
+        ...
+
 
 @runtime_checkable
 class Refiner(Protocol):
@@ -173,16 +196,21 @@ class Refiner(Protocol):
 class Exporter(Protocol):
     """Writes part of a build result to files.
 
-    An exporter may also have ``prepare()`` (not part of the protocol, so
-    optional): it imports what :meth:`export` needs (a big library) and
-    writes nothing. A build runs such exporters in its export worker
-    process, which calls ``prepare()`` while the design is computed (see
+    ``prepare_ahead`` says whether :meth:`prepare` is worth running ahead:
+    a build runs such exporters in its export worker process, which calls
+    ``prepare()`` while the design is computed (see
     ``seatkit.pipeline._Exports``); ``export`` then gets a pickled copy of
-    the result.
+    the result. Other exporters run in the build's process, and their
+    ``prepare()`` is called just before ``export``.
     """
 
     name: str
     description: str
+    prepare_ahead: bool
+
+    def prepare(self) -> None:
+        """Get ready to export (import a big library); write nothing. May do nothing."""
+        ...
 
     def export(self, result: BuildResult, directory: Path) -> dict[str, Path]:
         """Write files into ``directory`` and return them by role.
@@ -196,12 +224,33 @@ class Exporter(Protocol):
 class TemplateStep(Protocol):
     """One named fitting step a YAML template can list under ``steps``.
 
-    The template engine calls :meth:`run` with the fitting state (planes,
-    vertices and faces fitted so far) and the step's YAML options.
+    Attributes a step declares (see "Writing a template step" in
+    docs/plugins.md):
+
+    ``options``
+        ``{name: seatkit.template.Option}``: every option it accepts, with
+        type, unit, default and range. A template (or recipe) giving any
+        other key, or a value of the wrong type, is refused at load with the
+        file, line and key path.
+    ``requires``
+        Names of steps that must be listed before it (``("corners",)``).
+    ``stage``
+        ``"blocks"``: it works on each person's faces
+        (:class:`seatkit.template.Block`) and must come before any ``"grid"``
+        step; ``"grid"``: it works on the joined grid
+        (:class:`seatkit.template.GridMesh`, ``state.grid``).
+
+    The template engine calls :meth:`run` with the fitting state
+    (:class:`seatkit.template.FitState`) and the step's checked options
+    (every option given, and the default of every other option whose
+    default is not None).
     """
 
     name: str
     description: str
+    options: Mapping[str, Any]
+    requires: Sequence[str]
+    stage: str
 
     def run(self, state: Any, *, options: Mapping[str, Any]) -> None:
         """Advance the fitting ``state`` in place."""

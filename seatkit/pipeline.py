@@ -89,7 +89,7 @@ def make_bodies(recipe: Mapping, registry) -> list[Body]:
     for entry in recipe["bodies"]:
         model = registry.get("body_model", entry["model"])
         rig = model.make_body(params=entry["params"])
-        pose = load_pose(entry["pose"], frame=entry.get("frame", 0), rig=rig)
+        pose = load_pose(entry["pose"], frame=entry.get("frame", 0), rig=rig, dirs=registry.pose_dirs)
         bodies.append(model.pose(rig, pose, ground=True))
     offsets = [e.get("offset") for e in recipe["bodies"]]
     if all(o is not None for o in offsets):
@@ -225,9 +225,11 @@ def fit_baseline(recipe: Mapping, bodies, pressures, registry, segments) -> dict
     """Fit and evaluate the baseline design of a recipe (default ``flat-patch``).
 
     The baseline (what Sit & Relax starts from) is fitted to the same bodies,
-    asked to support the same body segments as our cage, refined by the same
-    ``catmull-clark-fit`` step with the same parameters (when the recipe uses
-    it), and evaluated the same way (:mod:`seatkit.evaluate`).
+    asked to support the same body segments as our cage (a baseline template
+    that declares a ``segments`` parameter gets them), refined by the
+    recipe's ``evaluate.baseline_refiners`` (default ``catmull-clark-fit``,
+    the Sit & Relax surface fit), and evaluated the same way
+    (:mod:`seatkit.evaluate`).
 
     Returns
     -------
@@ -242,11 +244,10 @@ def fit_baseline(recipe: Mapping, bodies, pressures, registry, segments) -> dict
     start = time.perf_counter()
     ev, p = recipe["evaluate"], recipe["pressure"]
     template = registry.get("template", ev["baseline"])
-    params = {"segments": [SEGMENTS[s] for s in segments]} if ev["baseline"] == "flat-patch" else {}
+    params = {"segments": [SEGMENTS[s] for s in segments]} if "segments" in getattr(template, "parameters", ()) else {}
     base = template.fit(bodies, pressures, params=params, seed=recipe["seed"])
-    for ref in recipe["refiners"]:
-        if ref["name"] == "catmull-clark-fit":
-            base = registry.get("refiner", ref["name"]).refine(base, bodies, pressures, params=ref["params"])
+    for ref in ev["baseline_refiners"]:
+        base = registry.get("refiner", ref["name"]).refine(base, bodies, pressures, params=ref["params"])
     surface = limit_surface(base, level=recipe["surface_level"])
     solver = registry.get("pressure_solver", p["solver"])
     metrics, fields = evaluate_design(
@@ -457,7 +458,7 @@ def _export_worker(receive, exporters: list) -> list[dict] | None:
 class _Exports:
     """The exporters of a build, some of them run by a worker process.
 
-    Exporters that have a ``prepare()`` method (the built-in ones whose time
+    Exporters whose ``prepare_ahead`` is true (the built-in ones whose time
     goes mostly into importing a big library: usd-core, trimesh, plotly) are
     run by a worker process forked when the build starts. It
     calls their ``prepare()`` while the main process computes the design (on
@@ -473,7 +474,7 @@ class _Exports:
         from seatkit.parallel import Background, can_fork
 
         self.exporters = list(exporters)
-        ahead = [i for i, e in enumerate(self.exporters) if callable(getattr(e, "prepare", None))]
+        ahead = [i for i, e in enumerate(self.exporters) if e.prepare_ahead]
         self.ahead = ahead if processes and can_fork() else []
         self.worker = None
         if self.ahead:
@@ -494,6 +495,7 @@ class _Exports:
         try:
             for i, exporter in enumerate(self.exporters):
                 if i not in self.ahead:
+                    exporter.prepare()
                     out[i] = exporter.export(result, directory)
         except BaseException:
             self.close()

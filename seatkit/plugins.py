@@ -4,25 +4,33 @@ One function, :func:`get_plugin_manager`, builds it, in the order pytest and
 tox use:
 
 1. add the hook specifications (:mod:`seatkit.hookspecs`);
-2. register the built-in plugins (``plugins/`` in the repository). They are
-   declared as ``seatkit`` entry points of the ``seatkit`` distribution, and
-   are loaded through those entry points exactly as a third-party plugin is;
-   only when seatkit runs from a source tree without being installed are
-   they imported by module name instead;
-3. load every other ``seatkit`` entry point (third-party plugins), unless
+2. register the built-in plugins (``plugins/`` in the repository, listed in
+   :data:`BUILTIN_PLUGINS`), always one way: imported by module name, as
+   pytest imports its own plugins (they are packages of the ``seatkit``
+   distribution, not entry points);
+3. load every ``seatkit`` entry point (third-party plugins), unless
    ``SEATKIT_DISABLE_PLUGIN_AUTOLOAD`` is set;
 4. ``check_pending()``: a plugin implementing a hook that does not exist is
    an error.
 
 A plugin named in ``disabled`` (``--disable-plugin NAME``) is blocked with
-:meth:`pluggy.PluginManager.set_blocked` before anything is loaded. A plugin
-that fails to import, or whose registration hook raises, is reported by name
-(``Error importing plugin "foo": reason``) in :attr:`SeatkitPluginManager.problems`
-and the rest keeps working.
+:meth:`pluggy.PluginManager.set_blocked` before anything is loaded; a name
+that is neither a built-in plugin nor an installed entry point is refused,
+listing the names. A plugin that fails to import, or whose registration hook
+raises, is reported by name (``Error importing plugin "foo": reason``) in
+:attr:`SeatkitPluginManager.problems` and the rest keeps working; an unknown
+component name then says what failed to load (a source tree that is not
+installed cannot import the built-in plugins).
 
 :class:`Registry` calls each registration hook of each plugin separately, so
 it knows which plugin registered which component, and refuses a name
-registered twice with an error naming both plugins.
+registered twice with an error naming both plugins. Once every component is
+known it binds each template to the registered steps
+(:meth:`seatkit.interfaces.SupportTemplate.bind`): a template whose steps
+are unknown (for instance because their plugin is disabled) or misused is
+left out, with its ``file:line`` problem reported. Every part of seatkit
+finds components through the registry of the plugin manager it was given;
+no module below the pipeline imports this one (a test checks it).
 """
 
 from __future__ import annotations
@@ -30,13 +38,14 @@ from __future__ import annotations
 import importlib
 import importlib.metadata
 import os
+from pathlib import Path
 from dataclasses import dataclass, field
 from typing import Any, Iterable
 
 import pluggy
 
 from seatkit import hookspecs
-from seatkit.errors import PluginError, RecipeError
+from seatkit.errors import PluginError, RecipeError, SeatkitError
 from seatkit.interfaces import COMPONENT_KINDS
 
 ENTRY_POINT_GROUP = "seatkit"
@@ -94,6 +103,7 @@ class SeatkitPluginManager(pluggy.PluginManager):
         self.add_hookspecs(hookspecs)
         self.infos: dict[str, PluginInfo] = {}
         self.problems: list[str] = []
+        self.disabled: tuple[str, ...] = ()
         self._registry: Registry | None = None
 
     def register_plugin(self, plugin: Any, name: str, *, distribution: str = "", version: str = "", builtin: bool = False) -> None:
@@ -143,33 +153,36 @@ def get_plugin_manager(*, disabled: Iterable[str] = (), autoload: bool | None = 
     if autoload is None:
         autoload = os.environ.get(AUTOLOAD_ENV, "") in ("", "0")
     pm = SeatkitPluginManager()
-    for name in disabled:
-        pm.set_blocked(name)
-
     eps = _entry_points()
-    by_name = {ep.name: ep for ep in eps}
+    known = sorted(set(BUILTIN_PLUGINS) | {ep.name for ep in eps})
+    disabled = tuple(dict.fromkeys(disabled))
+    for name in disabled:
+        if name not in known:
+            from seatkit.template.options import did_you_mean
+
+            msg = f"--disable-plugin {name!r}: no such plugin{did_you_mean(name, known)}; the plugins are: {', '.join(known)}"
+            raise PluginError(msg)
+        pm.set_blocked(name)
+    pm.disabled = disabled
     seatkit_version = ""
     try:
         seatkit_version = importlib.metadata.version("seatkit")
     except importlib.metadata.PackageNotFoundError:
         pass
 
-    # 2. built-in plugins, through their entry points when installed.
+    # 2. built-in plugins: imported by module name, the one way
     for name, module in BUILTIN_PLUGINS.items():
         if pm.is_blocked(name):
             continue
-        ep = by_name.get(name)
         try:
-            if ep is not None and _dist_of(ep)[0] == "seatkit":
-                plugin = ep.load()
-                dist, version = _dist_of(ep)
-            else:
-                plugin = importlib.import_module(module)
-                dist, version = "seatkit", seatkit_version
+            plugin = importlib.import_module(module)
         except Exception as e:  # a broken built-in must not take the CLI down
-            pm.problems.append(f'Error importing plugin "{name}": {type(e).__name__}: {e}')
+            hint = ""
+            if isinstance(e, ModuleNotFoundError) and e.name == module:
+                hint = " (the built-in plugins are packages of the installed seatkit: run pip install -e . in the checkout)"
+            pm.problems.append(f'Error importing plugin "{name}": {type(e).__name__}: {e}{hint}')
             continue
-        pm.register_plugin(plugin, name, distribution=dist, version=version, builtin=True)
+        pm.register_plugin(plugin, name, distribution="seatkit", version=seatkit_version, builtin=True)
 
     # 3. third-party plugins.
     if autoload:
@@ -177,8 +190,6 @@ def get_plugin_manager(*, disabled: Iterable[str] = (), autoload: bool | None = 
             if ep.name in pm.infos or pm.is_blocked(ep.name):
                 continue
             dist, version = _dist_of(ep)
-            if ep.name in BUILTIN_PLUGINS and dist == "seatkit":
-                continue
             try:
                 plugin = ep.load()
                 pm.register_plugin(plugin, ep.name, distribution=dist, version=version)
@@ -204,6 +215,8 @@ class Registry:
     def __init__(self, pm: SeatkitPluginManager):
         self._pm = pm
         self._items: dict[str, dict[str, tuple[Any, str]]] = {kind: {} for kind in KIND_HOOKS}
+        self._broken: dict[tuple[str, str], str] = {}
+        self.pose_dirs: list[tuple[Path, str]] = []
         for kind, hook_name in KIND_HOOKS.items():
             hook = getattr(pm.hook, hook_name)
             # pluggy returns implementations last-registered first; keep registration order.
@@ -216,6 +229,40 @@ class Registry:
                     continue
                 for component in components:
                     self._add(kind, component, plugin_name)
+        self._bind_templates()
+        self._collect_pose_dirs()
+
+    def _bind_templates(self) -> None:
+        """Resolve every template's steps against the registered ones (see the module doc)."""
+        steps = {n: c for n, (c, _) in self._items["template_step"].items()}
+        hint = f" (disabled plugins: {', '.join(self._pm.disabled)})" if self._pm.disabled else ""
+        for name, (template, plugin_name) in list(self._items["template"].items()):
+            try:
+                bound = template.bind(steps)
+            except SeatkitError as e:
+                message = f"{e}{hint}"
+                self._pm.problems.append(f'template {name!r} of plugin "{plugin_name}" cannot be used: {message}')
+                self._broken[("template", name)] = message
+                del self._items["template"][name]
+                info = self._pm.infos.get(plugin_name)
+                if info is not None and name in info.components.get("template", []):
+                    info.components["template"].remove(name)
+                continue
+            self._items["template"][name] = (bound, plugin_name)
+
+    def _collect_pose_dirs(self) -> None:
+        """Folders of pose files, each with its plugin, in registration order."""
+        hook = self._pm.hook.seatkit_register_pose_dirs
+        for impl in reversed(hook.get_hookimpls()):
+            try:
+                dirs = impl.function() or []
+            except Exception as e:
+                self._pm.problems.append(f'Error in plugin "{impl.plugin_name}" (seatkit_register_pose_dirs): {type(e).__name__}: {e}')
+                continue
+            for d in dirs:
+                d = Path(d).resolve()
+                if d not in {u for u, _ in self.pose_dirs}:
+                    self.pose_dirs.append((d, impl.plugin_name))
 
     def _add(self, kind: str, component: Any, plugin_name: str) -> None:
         label = KIND_LABELS[kind]
@@ -254,9 +301,19 @@ class Registry:
         try:
             return self._items[kind][name][0]
         except KeyError:
-            have = ", ".join(self.names(kind)) or "none"
-            msg = f"unknown {KIND_LABELS[kind]} {name!r}; available: {have}"
-            raise RecipeError(msg) from None
+            pass
+        if (kind, name) in self._broken:
+            raise RecipeError(f"{KIND_LABELS[kind]} {name!r} cannot be used: {self._broken[(kind, name)]}")
+        from seatkit.template.options import did_you_mean
+
+        have = ", ".join(self.names(kind)) or "none"
+        msg = f"unknown {KIND_LABELS[kind]} {name!r}; available: {have}{did_you_mean(name, self.names(kind))}"
+        if self._pm.disabled:
+            msg += f" (disabled plugins: {', '.join(self._pm.disabled)})"
+        failed = [p for p in self._pm.problems if p.startswith("Error importing")]
+        if failed:
+            msg += "; plugins that failed to load: " + "; ".join(failed)
+        raise RecipeError(msg)
 
     def plugin_of(self, kind: str, name: str) -> str:
         """Name of the plugin that registered a component."""

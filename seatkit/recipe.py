@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from seatkit.constants import DEFAULT_BODY_MASS, DEFAULT_LAMBDA, DEFAULT_MU, DEFAULT_SEED, DEFAULT_SUPPORT_DISTANCE
-from seatkit.errors import RecipeError
+from seatkit.errors import ParamError, RecipeError
 from seatkit.yamlio import Document, load_yaml, validate
 
 DEFAULT_REFINERS = ("optimize", "catmull-clark-fit")
@@ -44,6 +44,22 @@ DEFAULT_BODY_MODEL = "default-male"
 _NAME = {"type": "string", "minLength": 1}
 _PARAMS = {"type": "object"}
 _NUMBER_OR_INF = {"anyOf": [{"type": "number"}, {"type": "string", "enum": ["inf", "infinity"]}]}
+
+#: A refiner entry: a name, or ``{name, params}``.
+_REFINER = {
+    "anyOf": [
+        _NAME,
+        {
+            "type": "object",
+            "additionalProperties": False,
+            "required": ["name"],
+            "properties": {"name": _NAME, "params": _PARAMS},
+        },
+    ]
+}
+
+#: The baseline's refiners when the recipe names none: the Sit & Relax surface fit.
+DEFAULT_BASELINE_REFINERS = ("catmull-clark-fit",)
 
 RECIPE_SCHEMA: dict = {
     "type": "object",
@@ -83,20 +99,7 @@ RECIPE_SCHEMA: dict = {
                 "options": _PARAMS,
             },
         },
-        "refiners": {
-            "type": "array",
-            "items": {
-                "anyOf": [
-                    _NAME,
-                    {
-                        "type": "object",
-                        "additionalProperties": False,
-                        "required": ["name"],
-                        "properties": {"name": _NAME, "params": _PARAMS},
-                    },
-                ]
-            },
-        },
+        "refiners": {"type": "array", "items": _REFINER},
         "exporters": {"type": "array", "items": _NAME},
         "surface_level": {"type": "integer", "minimum": 1, "maximum": 4},
         "evaluate": {
@@ -105,6 +108,7 @@ RECIPE_SCHEMA: dict = {
             "properties": {
                 "enabled": {"type": "boolean"},
                 "baseline": {"anyOf": [_NAME, {"type": "null"}]},
+                "baseline_refiners": {"type": "array", "items": _REFINER},
                 "support_distance": {"type": "number", "exclusiveMinimum": 0},
             },
         },
@@ -125,7 +129,12 @@ def default_recipe() -> dict:
         "refiners": [{"name": n, "params": {}} for n in DEFAULT_REFINERS],
         "exporters": list(DEFAULT_EXPORTERS),
         "surface_level": DEFAULT_SURFACE_LEVEL,
-        "evaluate": {"enabled": True, "baseline": "flat-patch", "support_distance": DEFAULT_SUPPORT_DISTANCE},
+        "evaluate": {
+            "enabled": True,
+            "baseline": "flat-patch",
+            "baseline_refiners": [{"name": n, "params": {}} for n in DEFAULT_BASELINE_REFINERS],
+            "support_distance": DEFAULT_SUPPORT_DISTANCE,
+        },
         "output": None,
         "seed": DEFAULT_SEED,
     }
@@ -139,7 +148,8 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
             recipe[key] = data[key]
     recipe["template_params"] = dict(data.get("template_params", {}))
     recipe["placement"] = dict(data.get("placement", {}))
-    recipe["evaluate"].update(data.get("evaluate", {}))
+    recipe["evaluate"].update(copy.deepcopy(data.get("evaluate", {})))
+    recipe["evaluate"]["baseline_refiners"] = [_refiner_entry(r) for r in recipe["evaluate"]["baseline_refiners"]]
     if "bodies" in data:
         recipe["bodies"] = []
         for body in data["bodies"]:
@@ -151,10 +161,7 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
     if isinstance(pressure["lambda"], str):
         pressure["lambda"] = math.inf
     if "refiners" in data:
-        recipe["refiners"] = [
-            {"name": r, "params": {}} if isinstance(r, str) else {"name": r["name"], "params": dict(r.get("params", {}))}
-            for r in data["refiners"]
-        ]
+        recipe["refiners"] = [_refiner_entry(r) for r in data["refiners"]]
     if "exporters" in data:
         recipe["exporters"] = list(data["exporters"])
     if base_dir is not None:
@@ -165,6 +172,10 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
         if recipe["output"] is not None:
             recipe["output"] = str((base_dir / recipe["output"]).resolve())
     return recipe
+
+
+def _refiner_entry(r) -> dict:
+    return {"name": r, "params": {}} if isinstance(r, str) else {"name": r["name"], "params": dict(r.get("params", {}))}
 
 
 def looks_like_path(spec: str) -> bool:
@@ -353,6 +364,14 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
         need("exporter", name, ("exporters", i))
     if recipe["evaluate"]["enabled"] and recipe["evaluate"]["baseline"]:
         need("template", recipe["evaluate"]["baseline"], ("evaluate", "baseline"))
+        for i, ref in enumerate(recipe["evaluate"]["baseline_refiners"]):
+            need("refiner", ref["name"], ("evaluate", "baseline_refiners", i))
+    template = _get(registry, "template", recipe["template"])
+    if template is not None:
+        try:
+            template.check_params(recipe["template_params"])
+        except ParamError as e:
+            fail(("template_params",) + e.path, e.problem)
     lam = recipe["pressure"]["lambda"]
     if not (lam > 0):
         fail(("pressure", "lambda"), f"expected a positive number or inf, got {lam!r}")
@@ -364,16 +383,23 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
         path = body["params"].get("path")
         if path is not None and not Path(path).is_file():
             fail(("bodies", i, "params", "path"), f"file not found: {path}")
-        _check_pose(body["pose"], ("bodies", i, "pose"), fail)
+        _check_pose(body["pose"], ("bodies", i, "pose"), fail, registry)
 
 
-def _check_pose(spec: str, path, fail) -> None:
+def _get(registry, kind: str, name: str):
+    try:
+        return registry.get(kind, name)
+    except RecipeError:
+        return None
+
+
+def _check_pose(spec: str, path, fail, registry) -> None:
     if looks_like_path(spec):
         if not Path(spec).is_file():
             fail(path, f"pose file not found: {spec}")
         return
     from seatkit.body import list_poses
 
-    names = [p.name for p in list_poses()]
+    names = [p.name for p in list_poses(getattr(registry, "pose_dirs", None))]
     if spec not in names:
         fail(path, f"unknown pose {spec!r}; library poses: {', '.join(names)} (or give a .yaml or .bvh path)")

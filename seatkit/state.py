@@ -124,5 +124,10 @@ class DesignExporter:
     name = "design"
     description = "design.npz: the recipe, posed bodies and cages (for seatkit evaluate)"
 
+    prepare_ahead = False
+
+    def prepare(self) -> None:
+        """Nothing to prepare: this exporter imports nothing big."""
+
     def export(self, result: BuildResult, directory) -> dict[str, Path]:
         return {"design": save_design(result, Path(directory) / "design.npz")}

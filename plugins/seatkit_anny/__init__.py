@@ -9,9 +9,7 @@ the extra to install.
 
 from __future__ import annotations
 
-import pluggy
-
-hookimpl = pluggy.HookimplMarker("seatkit")
+from seatkit import hookimpl
 
 
 @hookimpl

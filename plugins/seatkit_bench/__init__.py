@@ -7,9 +7,7 @@ registers exactly as a third-party template plugin would.
 
 from __future__ import annotations
 
-import pluggy
-
-hookimpl = pluggy.HookimplMarker("seatkit")
+from seatkit import hookimpl
 
 
 @hookimpl

@@ -11,9 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Mapping
 
-import pluggy
-
-hookimpl = pluggy.HookimplMarker("seatkit")
+from seatkit import hookimpl
 
 
 def _params(name: str, params: Mapping[str, Any], allowed: tuple[str, ...]) -> dict:

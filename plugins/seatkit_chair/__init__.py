@@ -1,4 +1,4 @@
-"""Built-in plugin: the 3x7 chair template and the built-in template steps.
+"""Built-in plugin: the 3x7 chair and the saddle stool templates and the built-in template steps.
 
 It registers exactly as a third-party plugin would: a template is a YAML
 file wrapped by :func:`seatkit.template.load_template`, steps are objects
@@ -7,18 +7,16 @@ with ``name``, ``description`` and ``run``.
 
 from __future__ import annotations
 
-import pluggy
-
-hookimpl = pluggy.HookimplMarker("seatkit")
+from seatkit import hookimpl
 
 
 @hookimpl
 def seatkit_register_templates() -> list:
-    """The ``chair`` template (``templates/chair.yaml``)."""
+    """The ``chair`` and ``saddle`` templates (``templates/chair.yaml``, ``templates/saddle.yaml``)."""
     from seatkit.resources import template_path
     from seatkit.template import load_template
 
-    return [load_template(template_path("chair.yaml"))]
+    return [load_template(template_path("chair.yaml")), load_template(template_path("saddle.yaml"))]
 
 
 @hookimpl

@@ -7,9 +7,7 @@ imported when the hook runs.
 
 from __future__ import annotations
 
-import pluggy
-
-hookimpl = pluggy.HookimplMarker("seatkit")
+from seatkit import hookimpl
 
 
 @hookimpl

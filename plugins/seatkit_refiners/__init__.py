@@ -9,9 +9,7 @@ would.
 
 from __future__ import annotations
 
-import pluggy
-
-hookimpl = pluggy.HookimplMarker("seatkit")
+from seatkit import hookimpl
 
 
 @hookimpl

@@ -120,34 +120,23 @@ def builtin_pose_dir() -> Path:
     return data_path("poses")
 
 
-def pose_dirs() -> list[tuple[Path, str]]:
+def pose_dirs(dirs=None) -> list[tuple[Path, str]]:
     """Folders of pose YAML files, with the plugin that registered each.
 
-    The built-in folder is registered by the ``bodies`` plugin through
-    :func:`seatkit.hookspecs.seatkit_register_pose_dirs`; it is also used
-    directly when that plugin is blocked or the plugin manager is unavailable,
-    so the library always contains the shipped poses.
+    Parameters
+    ----------
+    dirs : sequence of (Path, str), optional
+        The folders a registry collected from
+        :func:`seatkit.hookspecs.seatkit_register_pose_dirs`
+        (``registry.pose_dirs``); default: the shipped library alone (what
+        the built-in ``bodies`` plugin registers).
 
     Returns
     -------
     list of (Path, str)
         (folder, plugin name), in registration order, without duplicates.
     """
-    from seatkit.plugins import get_plugin_manager
-
-    found: list[tuple[Path, str]] = []
-    pm = get_plugin_manager()
-    for impl in reversed(pm.hook.seatkit_register_pose_dirs.get_hookimpls()):
-        try:
-            dirs = impl.function() or []
-        except Exception as e:
-            msg = f'Error in plugin "{impl.plugin_name}" (seatkit_register_pose_dirs): {type(e).__name__}: {e}'
-            raise PluginError(msg) from e
-        for d in dirs:
-            found.append((Path(d).resolve(), impl.plugin_name))
-    builtin = builtin_pose_dir().resolve()
-    if builtin not in {d for d, _ in found}:
-        found.insert(0, (builtin, "seatkit"))
+    found = [(builtin_pose_dir().resolve(), "bodies")] if dirs is None else [(Path(d).resolve(), p) for d, p in dirs]
     unique: list[tuple[Path, str]] = []
     for d, plugin in found:
         if d not in {u for u, _ in unique}:
@@ -155,10 +144,10 @@ def pose_dirs() -> list[tuple[Path, str]]:
     return unique
 
 
-def _library() -> dict[str, tuple[Path, str]]:
+def _library(dirs=None) -> dict[str, tuple[Path, str]]:
     """Pose name -> (file, plugin); a name defined twice is an error."""
     poses: dict[str, tuple[Path, str]] = {}
-    for folder, plugin in pose_dirs():
+    for folder, plugin in pose_dirs(dirs):
         if not folder.is_dir():
             continue
         for path in sorted(p for p in folder.iterdir() if p.suffix in POSE_SUFFIXES):
@@ -174,15 +163,15 @@ def _library() -> dict[str, tuple[Path, str]]:
     return poses
 
 
-def find_pose(name: str) -> Path:
-    """Path of a library pose by name.
+def find_pose(name: str, dirs=None) -> Path:
+    """Path of a library pose by name (``dirs``: see :func:`pose_dirs`).
 
     Raises
     ------
     RecipeError
         Unknown name, listing the library.
     """
-    library = _library()
+    library = _library(dirs)
     try:
         return library[name][0]
     except KeyError:
@@ -190,8 +179,8 @@ def find_pose(name: str) -> Path:
         raise RecipeError(msg) from None
 
 
-def list_poses() -> list[PoseInfo]:
-    """Every library pose with its description and whether it is supported.
+def list_poses(dirs=None) -> list[PoseInfo]:
+    """Every library pose with its description and whether it is supported (``dirs``: see :func:`pose_dirs`).
 
     Returns
     -------
@@ -199,7 +188,7 @@ def list_poses() -> list[PoseInfo]:
         Sorted by name.
     """
     infos = []
-    for name, (path, _) in sorted(_library().items()):
+    for name, (path, _) in sorted(_library(dirs).items()):
         node = _compose(path)
         top = _mapping_items(node, path, "")
         description = ""
@@ -400,7 +389,7 @@ def load_pose_file(path, *, _chain: tuple[Path, ...] = ()) -> PoseSpec:
     return PoseSpec(angles, translation, description, supported, path)
 
 
-def load_pose(pose, *, frame: int | None = None, rig=None) -> Pose:
+def load_pose(pose, *, frame: int | None = None, rig=None, dirs=None) -> Pose:
     """Resolve a POSE argument into a :class:`Pose`.
 
     Parameters
@@ -412,6 +401,9 @@ def load_pose(pose, *, frame: int | None = None, rig=None) -> Pose:
         BVH frame (default: the BVH loader's default).
     rig : RiggedBody, optional
         Body the BVH motion is retargeted onto.
+    dirs : sequence of (Path, str), optional
+        Pose folders of a registry (``registry.pose_dirs``) a library name
+        is looked up in; default the shipped library (see :func:`pose_dirs`).
 
     Returns
     -------
@@ -437,4 +429,4 @@ def load_pose(pose, *, frame: int | None = None, rig=None) -> Pose:
         return load_bvh(path, **kwargs)
     if path.suffix.lower() in POSE_SUFFIXES or path.is_file():
         return load_pose_file(path).to_pose(name=path.stem)
-    return load_pose_file(find_pose(spec)).to_pose(name=spec)
+    return load_pose_file(find_pose(spec, dirs)).to_pose(name=spec)

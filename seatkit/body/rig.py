@@ -275,12 +275,12 @@ def load_rig(body: str | Path = "default-male", *, mass: float = DEFAULT_BODY_MA
     ----------
     body : str or Path
         ``default-male``, ``default-female``, a path to a seatkit ``.npz``
-        rig, or the name of a body model registered by a plugin (e.g.
-        ``anny``), built with ``params``.
+        rig (body models of plugins, e.g. ``anny``, are reached through a
+        registry instead: ``registry.get("body_model", name).make_body``).
     mass : float
         Total body mass, kg (default 75).
     params : mapping, optional
-        Model parameters for a registered body model.
+        Extra parameters of a glTF rig (``name_map``).
 
     Returns
     -------
@@ -302,12 +302,8 @@ def load_rig(body: str | Path = "default-male", *, mass: float = DEFAULT_BODY_MA
         return _load_gltf_rig(path, mass=mass, params=params)
     if suffix == ".npz" or path.exists():
         return load_rig_file(path, mass=mass)
-    from seatkit.plugins import get_plugin_manager
-
-    registry = get_plugin_manager().registry
-    if spec not in registry.names("body_model"):
-        have = ", ".join(sorted(set(DEFAULT_BODIES) | set(registry.names("body_model"))))
-        msg = f"unknown body {spec!r}: expected a path to a .npz rig or one of {have}"
-        raise RecipeError(msg)
-    model = registry.get("body_model", spec)
-    return model.make_body(params={"mass": mass, **dict(params or {})})
+    msg = (
+        f"unknown body {spec!r}: expected a path to a .npz/.glb/.gltf rig or one of {', '.join(sorted(DEFAULT_BODIES))} "
+        "(other body models are found through a plugin manager's registry: registry.get('body_model', name))"
+    )
+    raise RecipeError(msg)

@@ -41,9 +41,10 @@ def register(app: typer.Typer) -> None:
             msg = f"--out {out}: unknown mesh format {out.suffix!r}; expected .ply, .obj, .stl, .glb or .off"
             raise InputError(msg)
         spec = parse_body_spec(body_name)
-        model = plugin_manager(ctx).registry.get("body_model", spec["model"])
+        registry = plugin_manager(ctx).registry
+        model = registry.get("body_model", spec["model"])
         rig = model.make_body(params={**spec["params"], "mass": mass})
-        posed = model.pose(rig, load_pose(pose, frame=frame, rig=rig), ground=not no_ground)
+        posed = model.pose(rig, load_pose(pose, frame=frame, rig=rig, dirs=registry.pose_dirs), ground=not no_ground)
         mesh = trimesh.Trimesh(posed.vertices, posed.faces, process=False)
         data = mesh.export(file_type=suffix)
         write_bytes_atomic(out, data.encode() if isinstance(data, str) else data)

@@ -7,7 +7,7 @@ import typer
 
 def register(app: typer.Typer) -> None:
     @app.command()
-    def poses() -> None:
+    def poses(ctx: typer.Context) -> None:
         """List the library poses, their description and whether the method can support them."""
         from rich.console import Console
         from rich.table import Table
@@ -18,6 +18,8 @@ def register(app: typer.Typer) -> None:
         table.add_column("pose", style="bold", no_wrap=True)
         table.add_column("supported", no_wrap=True)
         table.add_column("description")
-        for info in list_poses():
+        from seatkit.cli import plugin_manager
+
+        for info in list_poses(plugin_manager(ctx).registry.pose_dirs):
             table.add_row(info.name, "yes" if info.supported else "no", info.description)
         Console(soft_wrap=True).print(table)

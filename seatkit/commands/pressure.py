@@ -1,4 +1,10 @@
-"""``seatkit pressure``: the paper's pressure model on a posed body."""
+"""``seatkit pressure``: the paper's pressure model on a posed body.
+
+The body model and the pressure solver are the registered components the
+build uses (``--body`` as in ``seatkit build``, ``--solver`` a registered
+pressure solver, default ``qp``); ``--backend`` picks the QP backend of the
+``qp`` solver (its ``backend`` option).
+"""
 
 from __future__ import annotations
 
@@ -12,6 +18,7 @@ import typer
 def register(app: typer.Typer) -> None:
     @app.command()
     def pressure(
+        ctx: typer.Context,
         pose: str = typer.Option(
             "upright-sitting", "--pose", "-p", metavar="POSE",
             help="Library pose name (see 'seatkit poses'), a pose YAML file, or a .bvh file.",
@@ -22,13 +29,14 @@ def register(app: typer.Typer) -> None:
             help="Moment/pressure balance of the paper's Eq. 4 (SI units); 'inf' = rigid body.",
         ),
         mu: float = typer.Option(0.5, "--mu", help="Coulomb friction coefficient."),
-        solver: str = typer.Option(
-            "auto", "--solver",
-            help="auto (dual Newton, PIQP fallback), newton, piqp or clarabel.",
+        solver: str = typer.Option("qp", "--solver", help="Registered pressure solver (see 'seatkit plugins'; default qp)."),
+        backend: Optional[str] = typer.Option(
+            None, "--backend",
+            help="QP backend of the qp solver: auto (dual Newton, PIQP fallback), newton, piqp or clarabel.",
         ),
         body_name: str = typer.Option(
-            "default-male", "--body", "-b", metavar="NAME|PATH",
-            help="default-male, default-female, a seatkit .npz rig, or a registered body model.",
+            "default-male", "--body", "-b", metavar="BODY",
+            help="default-male, default-female, a .npz/.glb file, or MODEL:key=value,... (a registered body model).",
         ),
         mass: float = typer.Option(75.0, "--mass", help="Body mass in kg."),
         exclude: Optional[str] = typer.Option(
@@ -40,9 +48,10 @@ def register(app: typer.Typer) -> None:
         """Solve for the reaction forces holding the body ("supported everywhere") and write them."""
         import numpy as np
 
-        from seatkit.body import load_pose, load_rig, pose_rig
-        from seatkit.pressure import solve_pressure
+        from seatkit.body import load_pose
+        from seatkit.cli import plugin_manager
         from seatkit.pressure.field import write_npz, write_ply, write_pressure_png
+        from seatkit.recipe import parse_body_spec
         from seatkit.skeleton import SEGMENTS
 
         if exclude is None:
@@ -51,9 +60,14 @@ def register(app: typer.Typer) -> None:
             names = []
         else:
             names = [n.strip() for n in exclude.split(",") if n.strip()]
-        rig = load_rig(body_name, mass=mass)
-        posed = pose_rig(rig, load_pose(pose, frame=frame, rig=rig))
-        field = solve_pressure(posed, lam=lam, mu=mu, exclude=names, backend=solver)
+        registry = plugin_manager(ctx).registry
+        spec = parse_body_spec(body_name)
+        model = registry.get("body_model", spec["model"])
+        pressure_solver = registry.get("pressure_solver", solver)
+        rig = model.make_body(params={**spec["params"], "mass": mass})
+        posed = model.pose(rig, load_pose(pose, frame=frame, rig=rig, dirs=registry.pose_dirs), ground=True)
+        options = {"backend": backend} if backend is not None else {}
+        field = pressure_solver.solve(posed, lam=lam, mu=mu, exclude=names, options=options)
         out.mkdir(parents=True, exist_ok=True)
         npz = write_npz(out / "pressure.npz", posed, field)
         ply = write_ply(out / "pressure.ply", posed, field)
@@ -63,7 +77,7 @@ def register(app: typer.Typer) -> None:
         click.echo(
             f"{posed.name}: {field.params['n_contact']} contact vertices, total reaction "
             f"{field.force[:, 1].sum():.2f} N (weight {posed.mass * 9.81:.2f} N), max pressure {field.pressure.max():.0f} Pa, "
-            f"max joint moment {moments[j]:.2f} N m at {SEGMENTS[j + 1]}, {field.params['backend']} "
+            f"max joint moment {moments[j]:.2f} N m at {SEGMENTS[j + 1]}, {field.params.get('backend', solver)} "
             f"{field.solve_seconds:.3f} s"
         )
         for f in (npz, ply, png):

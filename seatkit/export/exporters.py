@@ -73,6 +73,8 @@ class UsdExporter:
         kind = "text" if fmt == "usda" else "binary"
         self.description = f"cage.{fmt} ({kind} USD): Catmull-Clark cage with creases, bodies coloured by pressure"
 
+    prepare_ahead = True
+
     def prepare(self) -> None:
         """Import usd-core (and load its plugins), ahead of :meth:`export`."""
         from seatkit.export.usd import prepare_usd
@@ -97,6 +99,11 @@ class ObjCageExporter:
     name = "obj"
     description = "cage.obj: the Catmull-Clark control mesh (creases only in USD)"
 
+    prepare_ahead = False
+
+    def prepare(self) -> None:
+        """Nothing to prepare: this exporter imports nothing big."""
+
     def export(self, result, directory: Path) -> dict[str, Path]:
         from seatkit.export.meshes import write_cage_obj
 
@@ -111,6 +118,11 @@ class SurfaceExporter:
 
     def __init__(self, formats=(".obj", ".ply", ".stl", ".glb")):
         self.formats = tuple(formats)
+
+    prepare_ahead = False
+
+    def prepare(self) -> None:
+        """Nothing to prepare: this exporter imports nothing big."""
 
     def export(self, result, directory: Path) -> dict[str, Path]:
         from seatkit.export.meshes import write_surface
@@ -130,6 +142,8 @@ class ShellExporter:
     def __init__(self, thickness: float = DEFAULT_SHELL_THICKNESS):
         self.thickness = float(thickness)
 
+    prepare_ahead = True
+
     def prepare(self) -> None:
         """Import trimesh, ahead of :meth:`export`."""
         import trimesh  # noqa: F401
@@ -146,6 +160,11 @@ class BodyPlyExporter:
 
     name = "body-ply"
     description = "body.ply: the posed body with vertex colours from pressure (one file per person)"
+
+    prepare_ahead = False
+
+    def prepare(self) -> None:
+        """Nothing to prepare: this exporter imports nothing big."""
 
     def export(self, result, directory: Path) -> dict[str, Path]:
         from seatkit.export.meshes import write_body_ply

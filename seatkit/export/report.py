@@ -838,6 +838,11 @@ class ReportPngExporter:
     name = "report-png"
     description = "pressure.png, cage.png, surface.png, comparison.png: renders of the body, cage, surface and baseline"
 
+    prepare_ahead = False
+
+    def prepare(self) -> None:
+        """Nothing to prepare: this exporter imports nothing big."""
+
     def export(self, result, directory: Path) -> dict[str, Path]:
         return render_pngs(result, directory)
 
@@ -847,6 +852,8 @@ class ReportHtmlExporter:
 
     name = "report-html"
     description = "report.html: interactive 3D view (plotly, embedded, offline) and the metrics table"
+
+    prepare_ahead = True
 
     def prepare(self) -> None:
         """Import plotly's HTML writer (it imports more on first use), ahead of :meth:`export`."""

@@ -135,6 +135,22 @@ class FlatPatchTemplate:
 
     name = "flat-patch"
     description = "Flat quad patch under the body at the chair's resolution (Sit & Relax baseline)"
+    #: Its parameters (``template_params``); ``segments`` makes a build's
+    #: baseline support the same body segments as the design it is compared with.
+    parameters = tuple(FLAT_PATCH_DEFAULTS)
+
+    def bind(self, steps):
+        """Itself: the flat patch uses no template steps."""
+        return self
+
+    def check_params(self, params) -> None:
+        """Check ``template_params`` (keys and types of :data:`FLAT_PATCH_DEFAULTS`)."""
+        from seatkit.errors import ParamError
+
+        try:
+            merge_params("flat-patch", FLAT_PATCH_DEFAULTS, params)
+        except RecipeError as e:
+            raise ParamError((), str(e)) from None
 
     def fit(
         self,

@@ -301,4 +301,11 @@ def load_template(path: str | Path | None = None, *, text: str | None = None, so
     if path is None and text is None:
         raise RecipeError("load_template needs a path or text")
     spec = read_template(path if path is not None else source, text=text)
+    if steps is None:
+        # early feedback: the entries of built-in steps are checked now, the
+        # others when the template joins a registry
+        for i, entry in enumerate(spec.steps):
+            step = BUILTIN_STEPS.get(entry["step"])
+            if step is not None:
+                check_step_options(step.name, step.options, entry, rows=spec.rows, columns=spec.columns, fail=lambda path, m, i=i: spec.doc.error(("steps", i) + tuple(path), m), ignore=STEP_KEYS)
     return YamlTemplate(spec, steps=steps)
