@@ -341,6 +341,8 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
                 node_doc, node_rec = node_doc[part], node_rec[part]
         except (KeyError, IndexError, TypeError):
             return False
+        if isinstance(node_doc, str) and isinstance(node_rec, dict) and node_rec.get("name") == node_doc:
+            return True  # a refiner given by name, normalised to {name, params}
         return node_doc == node_rec or (isinstance(node_doc, str) and looks_like_path(node_doc))
 
     def fail(path, message):

@@ -147,10 +147,11 @@ class FlatPatchTemplate:
         """Check ``template_params`` (keys and types of :data:`FLAT_PATCH_DEFAULTS`)."""
         from seatkit.errors import ParamError
 
-        try:
-            merge_params("flat-patch", FLAT_PATCH_DEFAULTS, params)
-        except RecipeError as e:
-            raise ParamError((), str(e)) from None
+        for key, value in dict(params or {}).items():
+            try:
+                merge_params("flat-patch", FLAT_PATCH_DEFAULTS, {key: value})
+            except RecipeError as e:
+                raise ParamError((key,), str(e).split(": ", 1)[-1]) from None
 
     def fit(
         self,

@@ -341,18 +341,38 @@ class GridMesh:
 
 @dataclass
 class FitState:
-    """What the steps of one fit share.
+    """What the steps of one fit share: the view a template step reads and changes.
+
+    The engine makes one per fit and passes it to every step's ``run`` in
+    the order of the template's ``steps:``. What a step may do with it
+    (docs/plugins.md, "Writing a template step"):
+
+    * read everything;
+    * a ``"blocks"`` step changes the faces of each person
+      (``blocks[i].faces[(row, column)]``: ``plane``, ``segments``,
+      ``supported``, ``weight``, ``info``; :meth:`Block.set_frame` gives a
+      plane its frame), the corner estimates (``blocks[i].estimates``, via
+      :meth:`Block.add_estimates`) and ``blocks[i].rows`` (the rows kept);
+    * a ``"grid"`` step changes ``grid`` (a :class:`GridMesh`: replace it,
+      or change ``grid.vertices`` in place; its row ``i`` is template row
+      ``blocks[0].rows[i]`` before the border, whose two rings add two rows
+      and columns on every side);
+    * any step adds facts to ``meta`` (JSON-able; shown in report.json);
+    * random choices use ``rng`` only (same seed, same cage).
 
     Attributes
     ----------
     spec : TemplateSpec
+        The template: ``rows``, ``columns`` (names), ``faces`` (by
+        (row, column) index), ``source`` (file, for messages).
     params : dict
-        Resolved parameters (SI, radians).
+        Resolved template parameters (SI; ``*_deg`` also in radians
+        without the suffix).
     blocks : list of Block
-        One per person.
+        One per person, in seat order.
     rng : numpy.random.Generator
     grid : GridMesh or None
-        Set by the ``join`` step.
+        Set by the ``join`` step (or the first ``"grid"`` step).
     meta : dict
         Special cases taken, diagnostics; copied to ``ControlMesh.meta``.
     """

@@ -65,6 +65,9 @@ class Option:
         Inclusive range of a ``number`` or ``count``.
     choices : tuple of str
         The values of a ``choice``.
+    required : bool
+        The step cannot run without it (a template that leaves it out is
+        refused at load).
     """
 
     type: str
@@ -74,6 +77,7 @@ class Option:
     minimum: float | None = None
     maximum: float | None = None
     choices: tuple = ()
+    required: bool = False
 
     def __post_init__(self):
         if self.type not in OPTION_TYPES:
@@ -183,6 +187,8 @@ def check_step_options(
             raise fail((key,) if index is None else (key, index), problem)
         out[key] = value
     for key, opt in declared.items():
+        if key not in out and opt.required:
+            raise fail((), f"step {step_name!r} needs option {key!r} ({opt.expected()}: {opt.description})")
         if key not in out and opt.default is not None:
             out[key] = opt.default
     return out
@@ -195,7 +201,7 @@ def options_table(step) -> str:
         return "(no options)"
     lines = ["| option | type | unit | default | allowed | meaning |", "|---|---|---|---|---|---|"]
     for key, opt in options.items():
-        default = "—" if opt.default is None else _fmt(opt.default)
+        default = "required" if opt.required else "—" if opt.default is None else _fmt(opt.default)
         allowed = opt.expected()
         lines.append(f"| `{key}` | {opt.type} | {opt.unit or '—'} | {default} | {allowed} | {opt.description} |")
     return "\n".join(lines)
@@ -209,3 +215,33 @@ def _fmt(value) -> str:
     if isinstance(value, float):
         return f"{value:g}"
     return str(value)
+
+
+def update_docs(path) -> bool:
+    """Rewrite every ``<!-- options of NAME -->`` block of a Markdown file from the built-in steps' schemas.
+
+    Returns whether the file changed.
+    """
+    import re
+    from pathlib import Path
+
+    from seatkit.template.steps import BUILTIN_STEPS
+
+    path = Path(path)
+    text = path.read_text()
+
+    def table(m):
+        name = m.group(1)
+        return f"<!-- options of {name} -->\n{options_table(BUILTIN_STEPS[name])}\n<!-- end -->"
+
+    new = re.sub(r"<!-- options of ([\w-]+) -->\n.*?\n<!-- end -->", table, text, flags=re.S)
+    if new != text:
+        path.write_text(new)
+    return new != text
+
+
+if __name__ == "__main__":  # python -m seatkit.template.options docs/templates.md
+    import sys
+
+    for arg in sys.argv[1:]:
+        print(f"{arg}: {'updated' if update_docs(arg) else 'up to date'}")

@@ -256,12 +256,14 @@ def _check_roles(doc: Document, columns: list, faces: dict) -> None:
     """A face's role must suit its column: 'outer' at an end next to a 'fit' face, 'bridge' between two 'fit' faces."""
     C = len(columns)
     for (r, c), f in sorted(faces.items()):
+        if f.role == "outer" and (c not in (0, C - 1) or C < 2):
+            ends = f"{columns[0]!r} or {columns[-1]!r}" if C > 1 else "(none: one column)"
+            msg = f"role 'outer' fits a face of an end column ({ends}) through its inner neighbour's vertices; column {columns[c]!r} is not an end column"
+            raise doc.error(("rows", r, "faces", columns[c], "role"), msg)
+    for (r, c), f in sorted(faces.items()):
         path = ("rows", r, "faces", columns[c], "role")
         if f.role == "outer":
             inner = c + 1 if c == 0 else c - 1
-            if c not in (0, C - 1) or C < 2:
-                ends = f"{columns[0]!r} or {columns[-1]!r}" if C > 1 else "(none: one column)"
-                raise doc.error(path, f"role 'outer' fits a face of an end column ({ends}) through its inner neighbour's vertices; column {columns[c]!r} is not an end column")
             if faces[(r, inner)].role != "fit":
                 raise doc.error(path, f"role 'outer' needs a 'fit' face beside it in column {columns[inner]!r}, which is {faces[(r, inner)].role!r}")
         elif f.role == "bridge":
