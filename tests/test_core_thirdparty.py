@@ -76,3 +76,55 @@ def test_example_template_fits_the_default_body():
     mesh = stool.fit([body], [pressure], seed=0)
     assert mesh.faces.shape == ((2 + 4) * (3 + 4), 4)
     assert {"thigh.left", "thigh.right", "shank.left", "shank.right"} <= set(mesh.face_labels)
+
+
+LEVEL = ROOT / "examples" / "seatkit-level-plugin"
+
+
+@pytest.fixture(scope="module")
+def installed_level(tmp_path_factory):
+    target = tmp_path_factory.mktemp("site-level")
+    cmd = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--target", str(target), str(LEVEL)]
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert list(target.glob("seatkit_level-*.dist-info"))
+    return target
+
+
+def test_python_step_example_is_installed_and_builds(installed_level, tmp_path):
+    import json
+
+    plugins = run_seatkit(installed_level, "plugins")
+    assert plugins.returncode == 0, plugins.stderr
+    line = next(l for l in plugins.stdout.splitlines() if l.strip().startswith("level"))
+    assert "seatkit-level" in line and "template step: level-rows" in line and "template: level-stool" in line
+    recipe = tmp_path / "recipe.yaml"
+    recipe.write_text(
+        "template: level-stool\nrefiners: []\nexporters: [obj]\nevaluate: {enabled: false}\n"
+        "template_params:\n  steps:\n    level-rows: {max_change: 0.1}\n"
+    )
+    out = tmp_path / "out"
+    done = run_seatkit(installed_level, "build", "--recipe", str(recipe), "--out", str(out), "--quiet")
+    assert done.returncode == 0, done.stderr
+    meta = json.loads((out / "report.json").read_text())["control_mesh"]["meta"]
+    assert meta["level-rows"]["rows"] == ["thigh"] and 0.0 <= meta["level-rows"]["largest_change_m"] <= 0.1
+    # the levelled vertex lines (the thigh row's two lines; the border adds two rings) stay level
+    # up to what the clearance step moved afterwards
+    import numpy as np
+    import trimesh
+
+    cage = trimesh.load(out / "cage.obj", process=False)
+    V = np.asarray(cage.vertices).reshape(2 + 5, 3 + 5, 3)
+    for b in (3, 4):  # the thigh row's vertex lines, inside the rings
+        spread = np.ptp(V[b, 2:-2, 1])
+        assert spread <= meta["clearance"]["max_move"] + 1e-9
+    # the same step from the disabled plugin: refused, one line
+    done = run_seatkit(installed_level, "--disable-plugin", "level", "build", "--recipe", str(recipe), "--out", str(out))
+    assert done.returncode == 1
+    err = done.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("seatkit: error: ") and "unknown template 'level-stool'" in err[0]
+    assert "(disabled plugins: level)" in err[0]
+    # a name that is no plugin is refused, listing the names
+    done = run_seatkit(installed_level, "--disable-plugin", "levle", "templates")
+    assert done.returncode == 1
+    assert "no such plugin; did you mean 'level'?" in done.stderr and "the plugins are: " in done.stderr
