@@ -1,6 +1,6 @@
 """Benchmark of control-mesh generation by the chair template (paper Section 5).
 
-Run:  python benchmarks/bench_template.py [--repeat 7] [--images docs/images/templates]
+Run:  python benchmarks/bench_template.py [--repeat 7] [--images docs/images/templates] [--template saddle]
 
 Prints, for the default male body in the upright-sitting pose (its pressure
 from the QP solver, not timed):
@@ -43,7 +43,8 @@ class Timed:
     """A template step that records how long each run takes."""
 
     def __init__(self, step, log):
-        self.name, self.description, self.options = step.name, step.description, getattr(step, "options", {})
+        self.name, self.description, self.options = step.name, step.description, step.options
+        self.requires, self.stage = step.requires, step.stage
         self._step, self._log = step, log
 
     def run(self, state, *, options):
@@ -56,17 +57,18 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=7)
     parser.add_argument("--images", default=None, help="folder for <pose>.png pictures of every supported pose")
+    parser.add_argument("--template", default="chair", help="a template of templates/ (chair, saddle, ...)")
     args = parser.parse_args()
 
     print(f"python {platform.python_version()}, {os.cpu_count()} cores, {platform.machine()}")
     rig = load_rig("default-male")
-    template = load_template(template_path("chair.yaml"))
+    template = load_template(template_path(f"{args.template}.yaml"))
     body = pose_rig(rig, load_pose("upright-sitting"))
     pressure = solve_pressure(body)
     print(f"body: {len(body.vertices)} vertices, {len(body.faces)} triangles")
 
     log: list = []
-    timed = load_template(template_path("chair.yaml"), steps={name: Timed(step, log) for name, step in BUILTIN_STEPS.items()})
+    timed = load_template(template_path(f"{args.template}.yaml"), steps={name: Timed(step, log) for name, step in BUILTIN_STEPS.items()})
     check = engine_module.check_cage
 
     def timed_check(*a, **k):
@@ -114,7 +116,7 @@ def main() -> None:
             if args.images:
                 from seatkit.template.render import render_cage
 
-                render_cage(m, [b], os.path.join(args.images, f"{info.name}.png"), title=f"chair: {info.name}", dpi=70)
+                render_cage(m, [b], os.path.join(args.images, f"{info.name}.png"), title=f"{args.template}: {info.name}", dpi=70)
     print(f"\nopen3d imported: {'open3d' in sys.modules}")
 
 

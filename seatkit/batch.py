@@ -178,17 +178,22 @@ def _is_recipe(path: Path) -> bool:
     return isinstance(data, dict) and ("template" in data or "bodies" in data) and "joints" not in data
 
 
-def run_item(recipe: dict) -> dict:
+def run_item(recipe: dict, disabled: Sequence[str] = ()) -> dict:
     """Run one build (on a worker); never raises for a user error.
+
+    A plugin manager cannot travel to a Dask worker: the worker builds its
+    own from the installed plugins, with the same ``disabled`` plugins
+    (``--disable-plugin``) as the command, and passes it to the build.
 
     Returns a plain dict (picklable): status, seconds, error, metrics.
     """
     from seatkit.pipeline import build
+    from seatkit.plugins import get_plugin_manager
 
     start = time.perf_counter()
     try:
         # one build per core already: no forked baseline process on top
-        result = build(recipe, overwrite=True, processes=False)
+        result = build(recipe, pm=get_plugin_manager(disabled=disabled), overwrite=True, processes=False)
     except SeatkitError as e:
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
         return {"status": "failed", "seconds": time.perf_counter() - start, "error": first}
@@ -229,6 +234,7 @@ def run_batch(
     scheduler: str | None = None,
     workers: int | None = None,
     progress: Callable[[int, int, ItemResult], None] | None = None,
+    disabled: Sequence[str] = (),
 ) -> list[ItemResult]:
     """Run every item on Dask; write ``out/summary.csv`` and ``out/summary.png``.
 
@@ -242,6 +248,8 @@ def run_batch(
     workers : int, optional
     progress : callable, optional
         Called as ``progress(done, total, item_result)`` after each item.
+    disabled : sequence of str
+        Plugins the workers' plugin managers block (see :func:`run_item`).
 
     Returns
     -------
@@ -276,7 +284,7 @@ def run_batch(
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
             client = Client(cluster)
         try:
-            futures = {client.submit(run_item, it.recipe, key=f"seatkit-{it.name}-{it.recipe['seed']}", pure=False): it for it in todo}
+            futures = {client.submit(run_item, it.recipe, tuple(disabled), key=f"seatkit-{it.name}-{it.recipe['seed']}", pure=False): it for it in todo}
             for fut in as_completed(futures):
                 it = futures[fut]
                 try:

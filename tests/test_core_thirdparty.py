@@ -11,14 +11,18 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "examples" / "seatkit-stool-plugin"
 
 
-@pytest.fixture(scope="module")
-def installed_example(tmp_path_factory):
-    target = tmp_path_factory.mktemp("site")
-    cmd = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--target", str(target), str(EXAMPLE)]
+def _pip_install(target, project, dist):
+    """``pip install --target`` an example plugin; the folder to put on PYTHONPATH."""
+    cmd = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--target", str(target), str(project)]
     done = subprocess.run(cmd, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
-    assert list(target.glob("seatkit_stool-*.dist-info"))
+    assert list(target.glob(f"{dist}-*.dist-info"))
     return target
+
+
+@pytest.fixture(scope="module")
+def installed_example(tmp_path_factory):
+    return _pip_install(tmp_path_factory.mktemp("site"), EXAMPLE, "seatkit_stool")
 
 
 def run_seatkit(site, *args):
@@ -83,12 +87,7 @@ LEVEL = ROOT / "examples" / "seatkit-level-plugin"
 
 @pytest.fixture(scope="module")
 def installed_level(tmp_path_factory):
-    target = tmp_path_factory.mktemp("site-level")
-    cmd = [sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--no-build-isolation", "--target", str(target), str(LEVEL)]
-    done = subprocess.run(cmd, capture_output=True, text=True)
-    assert done.returncode == 0, done.stderr
-    assert list(target.glob("seatkit_level-*.dist-info"))
-    return target
+    return _pip_install(tmp_path_factory.mktemp("site-level"), LEVEL, "seatkit_level")
 
 
 def test_python_step_example_is_installed_and_builds(installed_level, tmp_path):

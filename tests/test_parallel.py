@@ -149,6 +149,12 @@ class _BrokenBaseline:
     def fit(self, bodies, pressures, *, params=None, seed=0):
         raise UnsupportedPoseError("the broken baseline cannot fit this pose", parts=["Hips"])
 
+    def bind(self, steps):
+        return self
+
+    def check_params(self, params):
+        return None
+
 
 class _Exploding:
     name = "explode"
@@ -256,7 +262,7 @@ def test_the_export_worker_writes_the_same_files_as_the_main_process(tmp_path):
     # the roles are listed in recipe order whichever process wrote them
     files = list(json.loads((tmp_path / "c" / "report.json").read_text())["files"])
     assert files == list(json.loads((tmp_path / "b" / "report.json").read_text())["files"])
-    # usd and report-html have prepare(): they are the worker's
+    # usd and report-html have prepare_ahead: they are the worker's
     from seatkit.plugins import get_plugin_manager
 
     reg = get_plugin_manager().registry
@@ -271,8 +277,10 @@ class _FailingExporter:
 
     def __init__(self, name, prepare):
         self.name = name
-        if prepare:
-            self.prepare = lambda: None
+        self.prepare_ahead = prepare
+
+    def prepare(self):
+        return None
 
     def export(self, result, directory):
         (Path(directory) / f"{self.name}.txt").write_text("half")

@@ -444,3 +444,60 @@ def test_docs_option_tables_are_generated_from_the_step_schemas():
     for name, step in BUILTIN_STEPS.items():
         block = f"<!-- options of {name} -->\n{options_table(step)}\n<!-- end -->"
         assert block in docs, f"docs/templates.md: the options table of step {name!r} is not the one its schema gives; run python -m seatkit.template.options docs/templates.md"
+
+
+# -- fuzz: whatever a template or recipe gives a step, the answer is a located RecipeError or a plan
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_VALUES = st.recursive(
+    st.none() | st.booleans() | st.integers(-10, 10**6) | st.floats(allow_nan=True, allow_infinity=True) | st.text(max_size=12),
+    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=3),
+    max_leaves=8,
+)
+_KEYS = st.sampled_from(["width", "margin", "min_spacing", "clearance", "front_wall", "front_drop", "body_clearance", "rows", "widht", "step"]) | st.text(max_size=10)
+
+
+@settings(max_examples=80, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.dictionaries(_KEYS, _VALUES, max_size=4))
+def test_fuzzed_step_options_give_a_located_error_or_a_plan(options):
+    import yaml
+
+    from seatkit.template.engine import YamlTemplate
+
+    entry = {"step": "border", **{k: v for k, v in options.items() if k != "step"}}
+    text = STOOL.replace("  - step: border\n    width: 0.04                 # m\n", yaml.safe_dump([entry], default_flow_style=False).replace("- ", "  - ", 1).replace("\n  ", "\n    ").rstrip() + "\n")
+    try:
+        t = load_template(text=text, source="fuzz.yaml")
+        t = t.bind(BUILTIN_STEPS)
+    except RecipeError as e:
+        assert str(e).startswith("fuzz.yaml"), str(e)
+        return
+    assert isinstance(t, YamlTemplate)
+    # the same values as a recipe override: a ParamError with its key path, or accepted
+    from seatkit.errors import ParamError
+
+    try:
+        t.check_params({"steps": {"border": {k: v for k, v in options.items() if k != "step"}}})
+    except ParamError as e:
+        assert e.path[:2] == ("steps", "border")
+
+
+def test_seatkit_pressure_uses_the_registry_and_its_backend_flag_is_not_a_solver(tmp_path):
+    from typer.testing import CliRunner
+
+    from seatkit.cli import app
+
+    runner = CliRunner()
+    done = runner.invoke(app, ["pressure", "--solver", "newton", "--out", str(tmp_path / "a")])
+    assert done.exit_code == 1
+    assert "unknown pressure solver 'newton'; available: qp" in done.output and "Traceback" not in done.output
+    done = runner.invoke(app, ["pressure", "--backend", "newton", "--body", "default-female", "--mass", "60", "--out", str(tmp_path / "b")])
+    assert done.exit_code == 0, done.output
+    # the qp solver of the registry, with its backend option, on the registry's body model
+    assert "default-female:upright-sitting" in done.output and "newton" in done.output
+    assert "(weight 588.60 N)" in done.output and "total reaction 588.60 N" in done.output
+    assert (tmp_path / "b" / "pressure.npz").is_file()
+    done = runner.invoke(app, ["--disable-plugin", "qp", "pressure", "--out", str(tmp_path / "c")])
+    assert done.exit_code == 1 and "(disabled plugins: qp)" in done.output

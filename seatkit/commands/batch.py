@@ -9,7 +9,7 @@ import click
 import typer
 
 
-def _progress_runner(items, out, scheduler, workers):
+def _progress_runner(items, out, scheduler, workers, disabled=()):
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from seatkit.batch import run_batch
@@ -22,7 +22,7 @@ def _progress_runner(items, out, scheduler, workers):
         def report(done, total, res):
             bar.update(task, completed=done, description=f"{res.name}: {res.status}")
 
-        return run_batch(items, out, scheduler=scheduler, workers=workers, progress=report)
+        return run_batch(items, out, scheduler=scheduler, workers=workers, progress=report, disabled=disabled)
 
 
 def _print_outcome(results, out: Path) -> None:
@@ -54,7 +54,7 @@ def register(app: typer.Typer) -> None:
         found = collect_items(items, template=template, out=out, seed=seed)
         for it in found:
             check_recipe(it.recipe, pm.registry)
-        results = _progress_runner(found, out, scheduler, workers)
+        results = _progress_runner(found, out, scheduler, workers, pm.disabled)
         _print_outcome(results, out)
 
     @app.command()
@@ -78,5 +78,5 @@ def register(app: typer.Typer) -> None:
         found = sweep_items(template=template, pose=pose, body=body, vary=grid, out=out, seed=seed)
         for it in found:
             check_recipe(it.recipe, pm.registry)
-        results = _progress_runner(found, out, scheduler, workers)
+        results = _progress_runner(found, out, scheduler, workers, pm.disabled)
         _print_outcome(results, out)

@@ -1,7 +1,11 @@
 """The YAML template engine: :class:`YamlTemplate` runs a template's steps.
 
 A :class:`YamlTemplate` is a :class:`seatkit.interfaces.SupportTemplate`
-built from a validated template file. ``fit`` makes one block of faces per
+built from a validated template file. When it joins a registry it is bound
+to the registered steps (:meth:`YamlTemplate.bind`): each ``steps:`` entry
+is resolved and checked against the step's option schema, prerequisites
+and stage, so that every mistake is a ``file:line`` error before any
+geometry. ``fit`` makes one block of faces per
 body, runs the declared steps in order (each a registered
 :class:`seatkit.interfaces.TemplateStep`), joins the blocks into one grid,
 and turns it into a :class:`seatkit.model.ControlMesh` after checking that

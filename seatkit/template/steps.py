@@ -1,9 +1,11 @@
 """The built-in fitting steps a template lists under ``steps:``.
 
 Each step is a :class:`seatkit.interfaces.TemplateStep`: a ``name``, a
-``description``, an ``options`` dict of accepted keys with their meaning,
-and ``run(state, *, options)``, which advances the :class:`FitState` in
-place. Steps that fit faces run once per person (block); ``join``,
+``description``, ``options`` (every accepted key as a
+:class:`seatkit.template.options.Option`: type, unit, default, range; the
+docs tables are generated from them), ``requires`` (steps that must come
+before it), ``stage`` (``blocks`` or ``grid``) and ``run(state, *,
+options)``, which advances the :class:`FitState` in place. Steps that fit faces run once per person (block); ``join``,
 ``armrests`` and ``border`` work on the joined grid. A plugin adds a step by
 returning an object of this shape from ``seatkit_register_template_steps``.
 """
