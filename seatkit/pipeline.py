@@ -246,7 +246,11 @@ def fit_baseline(recipe: Mapping, bodies, pressures, registry, segments) -> dict
     template = registry.get("template", ev["baseline"])
     params = {"segments": [SEGMENTS[s] for s in segments]} if "segments" in getattr(template, "parameters", ()) else {}
     base = template.fit(bodies, pressures, params=params, seed=recipe["seed"])
-    for ref in ev["baseline_refiners"]:
+    from seatkit.recipe import DEFAULT_BASELINE_REFINERS
+
+    # a design.npz written before evaluate.baseline_refiners existed: the default
+    refs = ev.get("baseline_refiners", [{"name": n, "params": {}} for n in DEFAULT_BASELINE_REFINERS])
+    for ref in refs:
         base = registry.get("refiner", ref["name"]).refine(base, bodies, pressures, params=ref["params"])
     surface = limit_surface(base, level=recipe["surface_level"])
     solver = registry.get("pressure_solver", p["solver"])

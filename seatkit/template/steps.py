@@ -181,7 +181,7 @@ class CrossedLegsStep:
     requires = ("fit-planes",)
     options = {
         "rows": Option("rows", "leg rows (default: all)"),
-        "columns": Option("columns", "the two leg columns, right then left (required)"),
+        "columns": Option("columns", "the two leg columns, right then left", required=True),
         "min_distance": Option("number", "smallest gap between the two faces", 0.02, "m", 0.0, 1.0),
     }
 
