@@ -62,6 +62,12 @@ BUILTIN_PLUGINS: dict[str, str] = {
     "anny": "seatkit_anny",
 }
 
+#: What an uninstalled checkout is told (once).
+NOT_INSTALLED = (
+    "seatkit's built-in plugins (packages of the seatkit distribution) cannot be imported: "
+    "this checkout is not installed; run pip install -e . in it"
+)
+
 #: Registration hook of each component kind.
 KIND_HOOKS: dict[str, str] = {
     "body_model": "seatkit_register_body_models",
@@ -104,6 +110,8 @@ class SeatkitPluginManager(pluggy.PluginManager):
         self.infos: dict[str, PluginInfo] = {}
         self.problems: list[str] = []
         self.disabled: tuple[str, ...] = ()
+        #: a built-in plugin's module is missing: seatkit runs from a checkout that is not installed
+        self.not_installed = False
         self._registry: Registry | None = None
 
     def register_plugin(self, plugin: Any, name: str, *, distribution: str = "", version: str = "", builtin: bool = False) -> None:
@@ -177,12 +185,14 @@ def get_plugin_manager(*, disabled: Iterable[str] = (), autoload: bool | None = 
         try:
             plugin = importlib.import_module(module)
         except Exception as e:  # a broken built-in must not take the CLI down
-            hint = ""
             if isinstance(e, ModuleNotFoundError) and e.name == module:
-                hint = " (the built-in plugins are packages of the installed seatkit: run pip install -e . in the checkout)"
-            pm.problems.append(f'Error importing plugin "{name}": {type(e).__name__}: {e}{hint}')
+                pm.not_installed = True
+            pm.problems.append(f'Error importing plugin "{name}": {type(e).__name__}: {e}')
             continue
         pm.register_plugin(plugin, name, distribution="seatkit", version=seatkit_version, builtin=True)
+
+    if pm.not_installed:
+        pm.problems.append(NOT_INSTALLED)
 
     # 3. third-party plugins.
     if autoload:
@@ -311,7 +321,9 @@ class Registry:
         if self._pm.disabled:
             msg += f" (disabled plugins: {', '.join(self._pm.disabled)})"
         failed = [p for p in self._pm.problems if p.startswith("Error importing")]
-        if failed:
+        if self._pm.not_installed:
+            msg += f"; {NOT_INSTALLED} ({len(failed)} plugins failed to load, e.g. {failed[0]})"
+        elif failed:
             msg += "; plugins that failed to load: " + "; ".join(failed)
         raise RecipeError(msg)
 

@@ -127,3 +127,18 @@ def test_python_step_example_is_installed_and_builds(installed_level, tmp_path):
     done = run_seatkit(installed_level, "--disable-plugin", "levle", "templates")
     assert done.returncode == 1
     assert "no such plugin; did you mean 'level'?" in done.stderr and "the plugins are: " in done.stderr
+
+
+def test_an_uninstalled_checkout_says_what_failed_to_import(tmp_path):
+    # the checkout on the path, its dependencies too, but not its installation (no site: no .pth finder)
+    deps = [p for p in sys.path if p.endswith("site-packages")]
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), *deps])
+    code = "import sys; from seatkit.cli import main; sys.argv = ['seatkit', 'build', '--template', 'chair']; main()"
+    done = subprocess.run([sys.executable, "-S", "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path)
+    assert done.returncode == 1, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("seatkit: error: template: unknown template 'chair'; available: none; ")
+    assert "this checkout is not installed; run pip install -e . in it" in last
+    assert "ModuleNotFoundError: No module named 'seatkit_bodies'" in last
+    assert "Traceback" not in done.stderr

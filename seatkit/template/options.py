@@ -195,11 +195,13 @@ def check_step_options(
 
 
 def options_table(step) -> str:
-    """The Markdown table of a step's options (as in ``docs/templates.md``)."""
-    options: Mapping[str, Option] = getattr(step, "options", {}) or {}
+    """The Markdown table of a step's options, after a line with its stage and prerequisites (as in ``docs/templates.md``)."""
+    options: Mapping[str, Option] = step.options or {}
+    requires = ", ".join(f"`{r}`" for r in step.requires) or "no other step"
+    head = f"Stage `{step.stage}`; needs {requires} before it."
     if not options:
-        return "(no options)"
-    lines = ["| option | type | unit | default | allowed | meaning |", "|---|---|---|---|---|---|"]
+        return head + " No options."
+    lines = [head, "", "| option | type | unit | default | allowed | meaning |", "|---|---|---|---|---|---|"]
     for key, opt in options.items():
         default = "required" if opt.required else "—" if opt.default is None else _fmt(opt.default)
         allowed = opt.expected()
