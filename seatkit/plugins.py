@@ -178,33 +178,17 @@ def get_plugin_manager(*, disabled: Iterable[str] = (), autoload: bool | None = 
     except importlib.metadata.PackageNotFoundError:
         pass
 
-    # 2. built-in plugins: imported by module name, the one way
+    # 2. built-in plugins: imported by module name, through the same call as a third party's
     for name, module in BUILTIN_PLUGINS.items():
-        if pm.is_blocked(name):
-            continue
-        try:
-            plugin = importlib.import_module(module)
-        except Exception as e:  # a broken built-in must not take the CLI down
-            if isinstance(e, ModuleNotFoundError) and e.name == module:
-                pm.not_installed = True
-            pm.problems.append(f'Error importing plugin "{name}": {type(e).__name__}: {e}')
-            continue
-        pm.register_plugin(plugin, name, distribution="seatkit", version=seatkit_version, builtin=True)
-
+        _import_plugin(pm, name, lambda module=module: importlib.import_module(module), "seatkit", seatkit_version, builtin=True)
     if pm.not_installed:
         pm.problems.append(NOT_INSTALLED)
 
-    # 3. third-party plugins.
+    # 3. third-party plugins: their entry points
     if autoload:
         for ep in eps:
-            if ep.name in pm.infos or pm.is_blocked(ep.name):
-                continue
-            dist, version = _dist_of(ep)
-            try:
-                plugin = ep.load()
-                pm.register_plugin(plugin, ep.name, distribution=dist, version=version)
-            except Exception as e:
-                pm.problems.append(f'Error importing plugin "{ep.name}": {type(e).__name__}: {e}')
+            if ep.name not in pm.infos:
+                _import_plugin(pm, ep.name, ep.load, *_dist_of(ep))
 
     # 4. hooks that do not exist are a plugin bug.
     try:
@@ -212,6 +196,19 @@ def get_plugin_manager(*, disabled: Iterable[str] = (), autoload: bool | None = 
     except pluggy.PluginValidationError as e:
         raise PluginError(f"plugin {e.plugin!r} implements an unknown hook: {e}") from e
     return pm
+
+
+def _import_plugin(pm: SeatkitPluginManager, name: str, load, distribution: str, version: str, *, builtin: bool = False) -> None:
+    """Load one plugin and register it, unless it is blocked; a failure is a problem named after it."""
+    if pm.is_blocked(name):
+        return
+    try:
+        plugin = load()
+        pm.register_plugin(plugin, name, distribution=distribution, version=version, builtin=builtin)
+    except Exception as e:  # a broken plugin must not take the CLI down
+        if builtin and isinstance(e, ModuleNotFoundError) and e.name == BUILTIN_PLUGINS.get(name):
+            pm.not_installed = True
+        pm.problems.append(f'Error importing plugin "{name}": {type(e).__name__}: {e}')
 
 
 class Registry:
