@@ -378,11 +378,23 @@ def _build(recipe, *, pm, progress, write, overwrite, processes) -> BuildResult:
         check_recipe(recipe, registry, document=document)
 
     exporters = [registry.get("exporter", name) for name in recipe["exporters"]] if write else []
-    with _Exports(exporters, processes=processes) as exports:
+    # Hold the output folder from before the design to the final rename
+    # (seatkit.output): a second build into it, or a folder that cannot be
+    # written, is refused now rather than after the whole design; what a
+    # killed build left beside it is cleaned up.
+    with _claim(recipe, write=write, overwrite=overwrite), _Exports(exporters, processes=processes) as exports:
         result = _design(recipe, registry, timer, write=write, processes=processes)
         if write:
             _write(result, exports, timer, overwrite=overwrite)
     return result
+
+
+def _claim(recipe: Mapping, *, write: bool, overwrite: bool):
+    from contextlib import nullcontext
+
+    from seatkit.output import claim_output
+
+    return claim_output(output_target(recipe), overwrite=overwrite) if write else nullcontext()
 
 
 def _design(recipe, registry, timer: _Timer, *, write: bool, processes: bool) -> BuildResult:
@@ -519,7 +531,12 @@ def _write(result: BuildResult, exports: _Exports, timer: _Timer, *, overwrite: 
     recipe, mesh, pressures = result.recipe, result.control_mesh, result.pressures
     target = output_target(recipe)
     target.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.staging-", dir=target.parent))
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.staging-", dir=target.parent))
+    except OSError as e:
+        from seatkit.output import output_error
+
+        raise output_error(e, target) from e
     mask = os.umask(0)
     os.umask(mask)
     os.chmod(staging, 0o777 & ~mask)  # mkdtemp makes 0700 folders
@@ -556,6 +573,11 @@ def _write(result: BuildResult, exports: _Exports, timer: _Timer, *, overwrite: 
         files["report"] = target / "report.json"
         mark_complete(staging, run_id=recipe_id(recipe), files=files)
         _finish_output(staging, target, overwrite=overwrite)
+    except OSError as e:  # a full disk, a folder made read-only meanwhile: one line naming the folder
+        from seatkit.output import output_error
+
+        shutil.rmtree(staging, ignore_errors=True)
+        raise output_error(e, target) from e
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
