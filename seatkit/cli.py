@@ -108,7 +108,9 @@ def build(
     solver: Optional[str] = typer.Option(None, "--solver", help="Pressure solver (default qp)."),
     lam: Optional[float] = typer.Option(None, "--lambda", help="Moment/pressure balance (default 0.013; inf = rigid)."),
     mu: Optional[float] = typer.Option(None, "--mu", help="Friction coefficient (default 0.5)."),
-    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output folder (default seatkit-out/TEMPLATE)."),
+    out: Optional[Path] = typer.Option(
+        None, "--out", "-o", help="Output folder (default seatkit-out/ and the recipe's name, or the template and poses)."
+    ),
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (RANSAC); same seed, same files."),
     level: Optional[int] = typer.Option(None, "--level", help="Subdivision level of the exported surface (1-4)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace an output folder seatkit did not write."),
@@ -140,6 +142,8 @@ def build(
         seed=seed,
         surface_level=level,
     )
+    if merged["output"] is None and recipe is not None and not (template or pose or body or mass is not None or frame is not None):
+        merged["output"] = str(Path("seatkit-out") / recipe.stem)  # the recipe's design, named after it
     check_recipe(merged, pm.registry, document=document)
 
     if quiet or as_json:
@@ -173,7 +177,7 @@ def build(
     table.add_row("[bold]total[/]", f"[bold]{total:.3f}[/]")
     console = stderr_console()
     console.print(table)
-    console.print(f"wrote {len(result.files)} files to {summary['output']}")
+    click.echo(f"wrote {len(result.files)} files to {summary['output']}", err=True)  # one line, never wrapped
 
 
 @app.command()

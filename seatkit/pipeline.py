@@ -197,9 +197,60 @@ def _finish_output(staging: Path, target: Path, *, overwrite: bool) -> None:
         os.replace(staging, target)
 
 
+#: Longest default output folder name; longer ones end in a hash of the whole name.
+MAX_DESIGN_NAME = 96
+
+
+def design_name(recipe: Mapping) -> str:
+    """A folder name that tells one design from another: template, then each person.
+
+    Each person is their ``name`` if the recipe gives one, else their pose
+    (a library name, or a pose file's stem, with ``-frameN`` for a BVH),
+    followed by the body when it is not the default (``-default-female``,
+    a body file's stem) and the mass when one is given (``-60kg``); people
+    are joined by ``+`` in seat order::
+
+        chair-upright-sitting
+        chair-reclined-sitting-default-female-60kg
+        bench-upright-sitting+reclined-sitting+crossed-legs-knees
+
+    Other body parameters add a short hash of them, so that two designs
+    for different bodies never share a default folder.
+    """
+    from seatkit.recipe import DEFAULT_BODY_MODEL, looks_like_path
+
+    people = []
+    for entry in recipe["bodies"]:
+        if entry.get("name"):
+            people.append(str(entry["name"]))
+            continue
+        pose = str(entry["pose"])
+        part = Path(pose).stem if looks_like_path(pose) else pose
+        if pose.lower().endswith(".bvh"):
+            part += f"-frame{int(entry.get('frame') or 0)}"
+        params = dict(entry.get("params") or {})
+        model = entry.get("model", DEFAULT_BODY_MODEL)
+        if model == "file":
+            part += "-" + Path(str(params.pop("path", "body"))).stem
+        elif model != DEFAULT_BODY_MODEL:
+            part += f"-{model}"
+        mass = params.pop("mass", None)
+        if isinstance(mass, (int, float)):
+            part += f"-{float(mass):g}kg"
+        if params:
+            part += "-" + hashlib.sha256(json.dumps(params, sort_keys=True, default=str).encode()).hexdigest()[:6]
+        people.append(part)
+    name = f"{recipe['template']}-{'+'.join(people)}"
+    name = "".join(c if c.isalnum() or c in "-_.+" else "-" for c in name).strip("-.") or "design"
+    if len(name) > MAX_DESIGN_NAME:
+        digest = hashlib.sha256(name.encode()).hexdigest()[:8]
+        name = f"{name[: MAX_DESIGN_NAME - 9]}-{digest}"
+    return name
+
+
 def output_target(recipe: Mapping) -> Path:
-    """The output folder of a recipe (default ``seatkit-out/TEMPLATE``)."""
-    return Path(recipe["output"] or Path("seatkit-out") / recipe["template"])
+    """The output folder of a recipe (default ``seatkit-out/`` + :func:`design_name`)."""
+    return Path(recipe["output"] or Path("seatkit-out") / design_name(recipe))
 
 
 def _save_unsupported(error: UnsupportedPoseError, recipe: Mapping) -> None:
