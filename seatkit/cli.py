@@ -188,14 +188,18 @@ def plugins(ctx: typer.Context) -> None:
 
     pm = plugin_manager(ctx)
     registry = pm.registry  # builds components, fills infos
-    table = Table(show_edge=False)
-    for col in ("plugin", "distribution", "version", "components"):
-        table.add_column(col)
+    # fits the terminal (80 columns when not a terminal): the components
+    # column wraps, one kind of component per line
+    table = Table(show_edge=False, show_lines=True)
+    table.add_column("plugin", no_wrap=True)
+    table.add_column("distribution", overflow="fold")
+    table.add_column("version", no_wrap=True)
+    table.add_column("components", ratio=1, overflow="fold")
     for name, info in sorted(pm.infos.items()):
-        comps = "; ".join(f"{kind.replace('_', ' ')}: {', '.join(names)}" for kind, names in sorted(info.components.items()))
+        comps = "\n".join(f"{kind.replace('_', ' ')}: {', '.join(names)}" for kind, names in sorted(info.components.items()))
         label = f"{name} (built-in)" if info.builtin else name
         table.add_row(label, info.distribution or "-", info.version or "-", comps or "-")
-    Console(width=200).print(table)
+    Console().print(table)
     for problem in pm.problems:
         click.echo(f"problem: {problem}")
     del registry
@@ -204,9 +208,17 @@ def plugins(ctx: typer.Context) -> None:
 @app.command()
 def templates(ctx: typer.Context) -> None:
     """List the furniture templates that can be built (seatkit build --template NAME)."""
+    from rich.console import Console
+    from rich.table import Table
+
     pm = plugin_manager(ctx)
+    table = Table(box=None, show_edge=False, pad_edge=False)  # fits the terminal: descriptions wrap
+    table.add_column("template", style="bold", no_wrap=True)
+    table.add_column("description", ratio=1)
+    table.add_column("plugin", no_wrap=True)
     for name, component, plugin in pm.registry.items("template"):
-        click.echo(f"{name:<16} {component.description}  [{plugin}]")
+        table.add_row(name, component.description, plugin)
+    Console().print(table)
 
 
 def _register_command_modules() -> None:
