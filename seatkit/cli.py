@@ -172,8 +172,9 @@ def build(
     table.add_column("seconds", justify="right")
     for stage, seconds in result.timings.items():
         table.add_row(stage, f"{seconds:.3f}")
-    # stages marked "(parallel)" ran on another thread during the others
-    total = sum(v for k, v in result.timings.items() if not k.endswith("(parallel)"))
+    from seatkit.pipeline import total_seconds
+
+    total = total_seconds(result.timings)  # stages marked "(parallel)" ran beside the others
     table.add_row("[bold]total[/]", f"[bold]{total:.3f}[/]")
     console = stderr_console()
     console.print(table)

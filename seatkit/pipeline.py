@@ -69,6 +69,15 @@ class _Timer:
             self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - start
 
 
+def total_seconds(timings: Mapping[str, float]) -> float:
+    """A build's wall time from its stage timings.
+
+    Stages marked ``(parallel)`` ran on another process or thread during
+    the others and are left out.
+    """
+    return float(sum(v for k, v in timings.items() if not str(k).endswith("(parallel)")))
+
+
 def recipe_id(recipe: Mapping) -> str:
     """A short stable hash of a recipe (identifies a run's inputs)."""
     text = json.dumps(recipe, sort_keys=True, default=str)
@@ -598,6 +607,11 @@ def _write(result: BuildResult, exports: _Exports, timer: _Timer, *, overwrite: 
                 for role, path in written.items():
                     files[role] = target / Path(path).name
         result.timings = timer.timings
+        html_report = staging / "report.html"
+        if "report_html" in files and html_report.exists():
+            from seatkit.export.report import finish_report_html
+
+            finish_report_html(html_report, timer.timings)  # the export stage's time, and the total
         report = {
             "seatkit_run": recipe_id(recipe),
             "recipe": _jsonable(recipe),

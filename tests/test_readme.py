@@ -87,6 +87,12 @@ def test_every_readme_command_works_as_written_in_a_fresh_folder(tmp_path):
         if words[1] == "evaluate":
             assert "ours" in done.stdout and "flat-patch" in done.stdout
             assert (tmp_path / words[2] / "evaluation.json").exists()
+            # every figure the report shows, for the design the README built first
+            html = (tmp_path / words[2] / "report.html").read_text()
+            for label in ("avg. dist.", "avg. moment", "max. moment", "avg. press.", "max. press.", "max. penetration", "max. body depth"):
+                assert label in done.stdout and f"<td>{label}</td>" in html
+            assert "person 1: upright-sitting, default-male, 75 kg" in done.stdout
+            assert "<td>export</td>" in html and "<th>total</th>" in html
         if words[1] == "batch":
             out = tmp_path / words[words.index("--out") + 1]
             poses = sorted(p.stem for p in (tmp_path / words[2]).glob("*.yaml"))

@@ -210,23 +210,12 @@ def write_ply(path, body, field) -> Path:
     return path
 
 
-def write_pressure_png(path, body, field, *, views=("front", "back", "bottom"), title: str | None = None) -> Path:
-    """Pressure map of the body (front and back, and from below), in Pa.
+def write_pressure_png(path, body, field, *, title: str | None = None) -> Path:
+    """Pressure map of the body: the build's ``pressure.png`` (front, back, from below).
 
-    The colour scale runs from 0 to the 99th percentile of the loaded
-    vertices so that a few peak vertices do not wash out the picture.
+    The report's colour scale (light at 0 Pa, dark at the peak) and layout,
+    the bar from 0 to the peak (:func:`seatkit.export.report.write_importance_png`).
     """
-    from seatkit.body.render import render_body
+    from seatkit.export.report import write_importance_png
 
-    loaded = field.pressure[field.pressure > 0]
-    vmax = float(np.percentile(loaded, 99)) if loaded.size else 1.0
-    return render_body(
-        body,
-        path,
-        scalars=field.pressure,
-        views=views,
-        cmap="inferno",
-        clim=(0.0, vmax),
-        scalar_label="pressure (Pa)",
-        title=title,
-    )
+    return write_importance_png(path, body, field.pressure, title=title)
