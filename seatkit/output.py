@@ -26,8 +26,9 @@ the design is computed to the final rename:
 
 :func:`output_error` turns an :class:`OSError` met while writing (a full
 disk, a folder made read-only meanwhile) into the same kind of one-line
-error. Platforms without ``fcntl`` (Windows) get the checks and the
-clean-up of folders older than :data:`STALE_AGE_S` but no lock.
+error. Platforms without ``fcntl`` (Windows), and file systems that refuse
+locks, get the checks and the clean-up of folders older than
+:data:`STALE_AGE_S` but no lock.
 """
 
 from __future__ import annotations
@@ -161,6 +162,11 @@ def _lock(target: Path) -> int | None:
                 "wait for it to finish or choose another --out"
             )
             raise OutputError(msg) from None
+        except OSError:  # a file system without locks (some network mounts): build unlocked
+            os.close(fd)
+            with contextlib.suppress(OSError):
+                os.unlink(path)
+            return None
         # A build that just finished unlinks the lock file: make sure the file
         # locked is still the one at that name, or try again on the new one.
         try:
@@ -168,8 +174,9 @@ def _lock(target: Path) -> int | None:
         except FileNotFoundError:
             same = False
         if same:
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+            with contextlib.suppress(OSError):  # the holder's id is for messages only (a full disk may refuse it)
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
             return fd
         os.close(fd)
 
