@@ -33,7 +33,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from seatkit.errors import SeatkitError, UnsupportedPoseError
-from seatkit.io import RUN_MARKER, mark_complete, write_text_atomic
+from seatkit.io import mark_complete, write_text_atomic
 from seatkit.model import Body, BuildResult
 from seatkit.recipe import check_recipe, load_recipe
 
@@ -186,18 +186,10 @@ def _finish_output(staging: Path, target: Path, *, overwrite: bool) -> None:
     A previous seatkit run in ``target`` is replaced; a folder with other
     files is refused unless ``overwrite``.
     """
+    from seatkit.output import check_writable
+
     if target.exists():
-        if not target.is_dir():
-            msg = f"output path {target} exists and is not a folder"
-            raise SeatkitError(msg)
-        entries = list(target.iterdir())
-        ours = (target / RUN_MARKER).exists()
-        if entries and not ours and not overwrite:
-            msg = (
-                f"output folder {target} holds files that seatkit did not write; "
-                "choose another --out or pass --overwrite"
-            )
-            raise SeatkitError(msg)
+        check_writable(target, overwrite=overwrite)  # checked before the design too (seatkit.output.claim_output)
         trash = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
         os.replace(target, trash / target.name)
         os.replace(staging, target)

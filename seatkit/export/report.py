@@ -347,11 +347,19 @@ def _draw_cage(image, scene: _Scene, name: str, view: str, family: str) -> None:
     py = np.clip(mid_xy[..., 1].astype(np.int64), 0, frame.height - 1)
     by_cage = scene.raster(name, view, family).depth[py, px] > mid_z + CAGE_DEPTH_MARGIN
     by_body = scene.raster("body", view, family).depth[py, px] > mid_z + CAGE_DEPTH_MARGIN
+    # runs of pieces of one kind along each edge, each drawn as one straight line:
+    # 0 behind the cage (left out), 1 behind the body only (light), 2 in front
+    kind = np.where(by_cage, 0, np.where(by_body, 1, 2))
+    change = np.ones(kind.shape, dtype=bool)
+    change[:, 1:] = kind[:, 1:] != kind[:, :-1]
+    run_edge, run_start = np.nonzero(change)
+    same_edge = np.append(run_edge[1:] == run_edge[:-1], False)
+    run_end = np.where(same_edge, np.append(run_start[1:], 0), kind.shape[1])  # point index ending the run
+    run_kind = kind[run_edge, run_start]
     draw = ImageDraw.Draw(image)
-    for e, k in zip(*np.nonzero(~by_cage & by_body)):  # behind the body only: light, so the cage shows through
-        draw.line([tuple(xy[e, k]), tuple(xy[e, k + 1])], fill=CAGE_EDGE_HIDDEN, width=1)
-    for e, k in zip(*np.nonzero(~by_cage & ~by_body)):
-        draw.line([tuple(xy[e, k]), tuple(xy[e, k + 1])], fill=CAGE_EDGE, width=2)
+    for wanted, fill, width in ((1, CAGE_EDGE_HIDDEN, 1), (2, CAGE_EDGE, 2)):  # the light lines first
+        for e, a, b in zip(*(x[run_kind == wanted].tolist() for x in (run_edge, run_start, run_end))):
+            draw.line([tuple(xy[e, a]), tuple(xy[e, b])], fill=fill, width=width)
     pxy, pz = frame.project(verts)
     ix = np.clip(pxy[:, 0].astype(np.int64), 0, frame.width - 1)
     iy = np.clip(pxy[:, 1].astype(np.int64), 0, frame.height - 1)
