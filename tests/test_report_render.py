@@ -362,3 +362,19 @@ def test_html_time_table_gets_the_export_stage_and_the_total(tmp_path):
     assert "<tr><td>export</td><td>2.000</td></tr>" in text
     assert "<tr><th>total</th><th>3.100</th></tr>" in text  # the parallel stage is not added
     assert text.count("Time per stage") == 1 and "Plotly.newPlot" in text
+
+
+def test_seatkit_pressure_ply_has_the_builds_body_ply_colours(tmp_path):
+    from seatkit.export.meshes import pressure_colors
+    from seatkit.pressure.field import write_ply
+
+    res = evaluated_result()
+    body, field = res.bodies[0], res.pressures[0]
+    data = write_ply(tmp_path / "pressure.ply", body, field).read_bytes()
+    head, _, rest = data.partition(b"end_header\n")
+    n = len(body.vertices)
+    vertex = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1"), ("pressure", "<f4")])
+    verts = np.frombuffer(rest[: n * vertex.itemsize], dtype=vertex)
+    rgb = np.stack([verts["red"], verts["green"], verts["blue"]], axis=1)
+    assert np.array_equal(rgb, pressure_colors(field.pressure)[:, :3])
+    assert np.allclose(verts["pressure"], field.pressure.astype(np.float32))

@@ -35,7 +35,7 @@ import numpy as np
 from seatkit.constants import GRAVITY
 from seatkit.skeleton import N_SEGMENTS, PARENTS
 
-__all__ = ["equilibrium_residuals", "write_npz", "write_ply", "write_pressure_png", "pressure_colors", "NPZ_KEYS"]
+__all__ = ["equilibrium_residuals", "write_npz", "write_ply", "write_pressure_png", "NPZ_KEYS"]
 
 NPZ_KEYS = (
     "vertices",
@@ -167,19 +167,13 @@ def write_npz(path, body, field) -> Path:
     return path
 
 
-def pressure_colors(pressure: np.ndarray, *, vmax: float | None = None, cmap: str = "inferno") -> np.ndarray:
-    """(n, 4) uint8 RGBA colours of a pressure field (0 Pa dark grey-blue)."""
-    from matplotlib import colormaps
-
-    vmax = float(np.percentile(pressure[pressure > 0], 99)) if vmax is None and (pressure > 0).any() else (vmax or 1.0)
-    t = np.clip(pressure / vmax, 0.0, 1.0)
-    rgba = colormaps[cmap](t)
-    rgba[pressure <= 0] = (0.55, 0.6, 0.7, 1.0)
-    return (rgba * 255).round().astype(np.uint8)
-
-
 def write_ply(path, body, field) -> Path:
-    """Binary PLY of the body coloured by pressure (with a ``pressure`` vertex property in Pa)."""
+    """Binary PLY of the body coloured by pressure (with a ``pressure`` vertex property in Pa).
+
+    The colours are the build's ``body.ply`` ones (:func:`seatkit.export.meshes.pressure_colors`:
+    magma reversed, 0 Pa light, the peak dark).
+    """
+    from seatkit.export.meshes import pressure_colors
     from seatkit.io import atomic_write
 
     path = Path(path)
