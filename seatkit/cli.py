@@ -108,7 +108,9 @@ def build(
     solver: Optional[str] = typer.Option(None, "--solver", help="Pressure solver (default qp)."),
     lam: Optional[float] = typer.Option(None, "--lambda", help="Moment/pressure balance (default 0.013; inf = rigid)."),
     mu: Optional[float] = typer.Option(None, "--mu", help="Friction coefficient (default 0.5)."),
-    out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output folder (default seatkit-out/TEMPLATE)."),
+    out: Optional[Path] = typer.Option(
+        None, "--out", "-o", help="Output folder (default seatkit-out/ and the recipe's name, or the template and poses)."
+    ),
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (RANSAC); same seed, same files."),
     level: Optional[int] = typer.Option(None, "--level", help="Subdivision level of the exported surface (1-4)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace an output folder seatkit did not write."),
@@ -140,6 +142,8 @@ def build(
         seed=seed,
         surface_level=level,
     )
+    if merged["output"] is None and recipe is not None and not (template or pose or body or mass is not None or frame is not None):
+        merged["output"] = str(Path("seatkit-out") / recipe.stem)  # the recipe's design, named after it
     check_recipe(merged, pm.registry, document=document)
 
     if quiet or as_json:
@@ -168,12 +172,13 @@ def build(
     table.add_column("seconds", justify="right")
     for stage, seconds in result.timings.items():
         table.add_row(stage, f"{seconds:.3f}")
-    # stages marked "(parallel)" ran on another thread during the others
-    total = sum(v for k, v in result.timings.items() if not k.endswith("(parallel)"))
+    from seatkit.pipeline import total_seconds
+
+    total = total_seconds(result.timings)  # stages marked "(parallel)" ran beside the others
     table.add_row("[bold]total[/]", f"[bold]{total:.3f}[/]")
     console = stderr_console()
     console.print(table)
-    console.print(f"wrote {len(result.files)} files to {summary['output']}")
+    click.echo(f"wrote {len(result.files)} files to {summary['output']}", err=True)  # one line, never wrapped
 
 
 @app.command()
@@ -184,14 +189,18 @@ def plugins(ctx: typer.Context) -> None:
 
     pm = plugin_manager(ctx)
     registry = pm.registry  # builds components, fills infos
-    table = Table(show_edge=False)
-    for col in ("plugin", "distribution", "version", "components"):
-        table.add_column(col)
+    # fits the terminal (80 columns when not a terminal): the components
+    # column wraps, one kind of component per line
+    table = Table(show_edge=False, show_lines=True)
+    table.add_column("plugin", no_wrap=True)
+    table.add_column("distribution", overflow="fold")
+    table.add_column("version", no_wrap=True)
+    table.add_column("components", ratio=1, overflow="fold")
     for name, info in sorted(pm.infos.items()):
-        comps = "; ".join(f"{kind.replace('_', ' ')}: {', '.join(names)}" for kind, names in sorted(info.components.items()))
+        comps = "\n".join(f"{kind.replace('_', ' ')}: {', '.join(names)}" for kind, names in sorted(info.components.items()))
         label = f"{name} (built-in)" if info.builtin else name
         table.add_row(label, info.distribution or "-", info.version or "-", comps or "-")
-    Console(width=200).print(table)
+    Console().print(table)
     for problem in pm.problems:
         click.echo(f"problem: {problem}")
     del registry
@@ -200,9 +209,17 @@ def plugins(ctx: typer.Context) -> None:
 @app.command()
 def templates(ctx: typer.Context) -> None:
     """List the furniture templates that can be built (seatkit build --template NAME)."""
+    from rich.console import Console
+    from rich.table import Table
+
     pm = plugin_manager(ctx)
+    table = Table(box=None, show_edge=False, pad_edge=False)  # fits the terminal: descriptions wrap
+    table.add_column("template", style="bold", no_wrap=True)
+    table.add_column("description", ratio=1)
+    table.add_column("plugin", no_wrap=True)
     for name, component, plugin in pm.registry.items("template"):
-        click.echo(f"{name:<16} {component.description}  [{plugin}]")
+        table.add_row(name, component.description, plugin)
+    Console().print(table)
 
 
 def _register_command_modules() -> None:

@@ -76,17 +76,22 @@ class SolverError(SeatkitError):
 
 
 class MissingExtraError(SeatkitError):
-    """An optional dependency is needed: the message names the pip extra."""
+    """An optional dependency is needed: the message names the pip extra.
 
-    def __init__(self, package: str, extra: str):
-        super().__init__(
-            f"this feature needs the optional package '{package}': "
-            f"install it with pip install 'seatkit[{extra}]'"
-        )
+    ``first`` is a command that must run before the extra is installed (the
+    anny extra needs ``pip install torch==2.13.0`` first), named in the
+    message.
+    """
+
+    def __init__(self, package: str, extra: str, first: str | None = None):
+        install = f"pip install 'seatkit[{extra}]'"
+        how = f"{first} first, then {install}" if first else install
+        super().__init__(f"this feature needs the optional package '{package}': install it with {how}")
         self.package = package
         self.extra = extra
+        self.first = first
 
     def __reduce__(self):
         # rebuilt from its own arguments, so that it survives pickling (a
         # forked worker of seatkit.parallel, a Dask worker)
-        return (type(self), (self.package, self.extra))
+        return (type(self), (self.package, self.extra, self.first))

@@ -387,12 +387,3 @@ TABLE_COLUMNS = (
     ("max_pressure_pa", "max. press.", "Pa", 1.0),
 )
 
-
-def comparison_rows(ours: Mapping, baseline: Mapping) -> list[tuple[str, str, str]]:
-    """(column, ours, baseline) formatted like the paper's Table 1."""
-    rows = []
-    for key, label, unit, scale in TABLE_COLUMNS:
-        a, b = ours.get(key), baseline.get(key)
-        fmt = (lambda x: "-" if x is None else f"{x * scale:.2f} {unit}")
-        rows.append((label, fmt(a), fmt(b)))
-    return rows

@@ -26,7 +26,9 @@ message and attributes (a :class:`~seatkit.errors.SeatkitError` stays one, so
 the command line prints it as the usual one-line message), with the child's
 traceback attached as a note. Every child is reaped: :meth:`Background.result`
 waits for it, :meth:`Background.close` stops and reaps one whose result is no
-longer wanted (and waits for a thread, which cannot be stopped).
+longer wanted (and waits for a thread, which cannot be stopped). A child ends
+with its parent even when the parent is killed outright (``kill -9``): the
+kernel sends it SIGKILL then (``prctl(PR_SET_PDEATHSIG)``, Linux).
 """
 
 from __future__ import annotations
@@ -77,6 +79,39 @@ def forking() -> bool:
     process.
     """
     return _FORKING.get()
+
+
+#: prctl(2) option: the signal a process gets when its parent dies (Linux).
+_PR_SET_PDEATHSIG = 1
+_PRCTL = None
+
+
+def _prctl():
+    """libc's ``prctl`` (looked up once, in the parent: the child should not load libraries)."""
+    global _PRCTL
+    if _PRCTL is None:
+        try:
+            import ctypes
+
+            _PRCTL = ctypes.CDLL(None, use_errno=True).prctl
+        except (OSError, AttributeError):  # not glibc/musl Linux
+            _PRCTL = False
+    return _PRCTL
+
+
+def _die_with_parent(parent: int) -> None:
+    """Have the kernel kill this forked child when its parent dies, however it dies.
+
+    A build killed with ``kill -9`` cannot stop its helpers itself; with
+    ``PR_SET_PDEATHSIG`` they end with it instead of finishing their work
+    (and holding the build's output lock) for nothing. The request is checked
+    against a parent that died before it was made.
+    """
+    prctl = _prctl()
+    if prctl:
+        prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if os.getppid() != parent:
+        os._exit(1)
 
 
 def _portable_error(exc: BaseException) -> BaseException:
@@ -197,10 +232,13 @@ class Background:
                 pass
         out_r, out_w = os.pipe()
         in_r, in_w = os.pipe() if inbox else (None, None)
+        parent = os.getpid()
+        _prctl()
         pid = os.fork()
         if pid == 0:  # the child: compute, answer, leave without running any of the parent's clean-up
             status = 0
             try:
+                _die_with_parent(parent)
                 os.close(out_r)
                 if inbox:
                     os.close(in_w)

@@ -33,7 +33,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from seatkit.errors import SeatkitError, UnsupportedPoseError
-from seatkit.io import RUN_MARKER, mark_complete, write_text_atomic
+from seatkit.io import mark_complete, write_text_atomic
 from seatkit.model import Body, BuildResult
 from seatkit.recipe import check_recipe, load_recipe
 
@@ -67,6 +67,15 @@ class _Timer:
             yield
         finally:
             self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - start
+
+
+def total_seconds(timings: Mapping[str, float]) -> float:
+    """A build's wall time from its stage timings.
+
+    Stages marked ``(parallel)`` ran on another process or thread during
+    the others and are left out.
+    """
+    return float(sum(v for k, v in timings.items() if not str(k).endswith("(parallel)")))
 
 
 def recipe_id(recipe: Mapping) -> str:
@@ -177,18 +186,10 @@ def _finish_output(staging: Path, target: Path, *, overwrite: bool) -> None:
     A previous seatkit run in ``target`` is replaced; a folder with other
     files is refused unless ``overwrite``.
     """
+    from seatkit.output import check_writable
+
     if target.exists():
-        if not target.is_dir():
-            msg = f"output path {target} exists and is not a folder"
-            raise SeatkitError(msg)
-        entries = list(target.iterdir())
-        ours = (target / RUN_MARKER).exists()
-        if entries and not ours and not overwrite:
-            msg = (
-                f"output folder {target} holds files that seatkit did not write; "
-                "choose another --out or pass --overwrite"
-            )
-            raise SeatkitError(msg)
+        check_writable(target, overwrite=overwrite)  # checked before the design too (seatkit.output.claim_output)
         trash = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
         os.replace(target, trash / target.name)
         os.replace(staging, target)
@@ -197,9 +198,60 @@ def _finish_output(staging: Path, target: Path, *, overwrite: bool) -> None:
         os.replace(staging, target)
 
 
+#: Longest default output folder name; longer ones end in a hash of the whole name.
+MAX_DESIGN_NAME = 96
+
+
+def design_name(recipe: Mapping) -> str:
+    """A folder name that tells one design from another: template, then each person.
+
+    Each person is their ``name`` if the recipe gives one, else their pose
+    (a library name, or a pose file's stem, with ``-frameN`` for a BVH),
+    followed by the body when it is not the default (``-default-female``,
+    a body file's stem) and the mass when one is given (``-60kg``); people
+    are joined by ``+`` in seat order::
+
+        chair-upright-sitting
+        chair-reclined-sitting-default-female-60kg
+        bench-upright-sitting+reclined-sitting+crossed-legs-knees
+
+    Other body parameters add a short hash of them, so that two designs
+    for different bodies never share a default folder.
+    """
+    from seatkit.recipe import DEFAULT_BODY_MODEL, looks_like_path
+
+    people = []
+    for entry in recipe["bodies"]:
+        if entry.get("name"):
+            people.append(str(entry["name"]))
+            continue
+        pose = str(entry["pose"])
+        part = Path(pose).stem if looks_like_path(pose) else pose
+        if pose.lower().endswith(".bvh"):
+            part += f"-frame{int(entry.get('frame') or 0)}"
+        params = dict(entry.get("params") or {})
+        model = entry.get("model", DEFAULT_BODY_MODEL)
+        if model == "file":
+            part += "-" + Path(str(params.pop("path", "body"))).stem
+        elif model != DEFAULT_BODY_MODEL:
+            part += f"-{model}"
+        mass = params.pop("mass", None)
+        if isinstance(mass, (int, float)):
+            part += f"-{float(mass):g}kg"
+        if params:
+            part += "-" + hashlib.sha256(json.dumps(params, sort_keys=True, default=str).encode()).hexdigest()[:6]
+        people.append(part)
+    name = f"{recipe['template']}-{'+'.join(people)}"
+    name = "".join(c if c.isalnum() or c in "-_.+" else "-" for c in name).strip("-.") or "design"
+    if len(name) > MAX_DESIGN_NAME:
+        digest = hashlib.sha256(name.encode()).hexdigest()[:8]
+        name = f"{name[: MAX_DESIGN_NAME - 9]}-{digest}"
+    return name
+
+
 def output_target(recipe: Mapping) -> Path:
-    """The output folder of a recipe (default ``seatkit-out/TEMPLATE``)."""
-    return Path(recipe["output"] or Path("seatkit-out") / recipe["template"])
+    """The output folder of a recipe (default ``seatkit-out/`` + :func:`design_name`)."""
+    return Path(recipe["output"] or Path("seatkit-out") / design_name(recipe))
 
 
 def _save_unsupported(error: UnsupportedPoseError, recipe: Mapping) -> None:
@@ -383,11 +435,23 @@ def _build(recipe, *, pm, progress, write, overwrite, processes) -> BuildResult:
         check_recipe(recipe, registry, document=document)
 
     exporters = [registry.get("exporter", name) for name in recipe["exporters"]] if write else []
-    with _Exports(exporters, processes=processes) as exports:
+    # Hold the output folder from before the design to the final rename
+    # (seatkit.output): a second build into it, or a folder that cannot be
+    # written, is refused now rather than after the whole design; what a
+    # killed build left beside it is cleaned up.
+    with _claim(recipe, write=write, overwrite=overwrite), _Exports(exporters, processes=processes) as exports:
         result = _design(recipe, registry, timer, write=write, processes=processes)
         if write:
             _write(result, exports, timer, overwrite=overwrite)
     return result
+
+
+def _claim(recipe: Mapping, *, write: bool, overwrite: bool):
+    from contextlib import nullcontext
+
+    from seatkit.output import claim_output
+
+    return claim_output(output_target(recipe), overwrite=overwrite) if write else nullcontext()
 
 
 def _design(recipe, registry, timer: _Timer, *, write: bool, processes: bool) -> BuildResult:
@@ -525,7 +589,12 @@ def _write(result: BuildResult, exports: _Exports, timer: _Timer, *, overwrite: 
     recipe, mesh, pressures = result.recipe, result.control_mesh, result.pressures
     target = output_target(recipe)
     target.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.staging-", dir=target.parent))
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.staging-", dir=target.parent))
+    except OSError as e:
+        from seatkit.output import output_error
+
+        raise output_error(e, target) from e
     mask = os.umask(0)
     os.umask(mask)
     os.chmod(staging, 0o777 & ~mask)  # mkdtemp makes 0700 folders
@@ -536,6 +605,11 @@ def _write(result: BuildResult, exports: _Exports, timer: _Timer, *, overwrite: 
                 for role, path in written.items():
                     files[role] = target / Path(path).name
         result.timings = timer.timings
+        html_report = staging / "report.html"
+        if "report_html" in files and html_report.exists():
+            from seatkit.export.report import finish_report_html
+
+            finish_report_html(html_report, timer.timings)  # the export stage's time, and the total
         report = {
             "seatkit_run": recipe_id(recipe),
             "recipe": _jsonable(recipe),
@@ -562,6 +636,11 @@ def _write(result: BuildResult, exports: _Exports, timer: _Timer, *, overwrite: 
         files["report"] = target / "report.json"
         mark_complete(staging, run_id=recipe_id(recipe), files=files)
         _finish_output(staging, target, overwrite=overwrite)
+    except OSError as e:  # a full disk, a folder made read-only meanwhile: one line naming the folder
+        from seatkit.output import output_error
+
+        shutil.rmtree(staging, ignore_errors=True)
+        raise output_error(e, target) from e
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise

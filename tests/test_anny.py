@@ -32,8 +32,14 @@ def test_plugin_registers_a_body_model():
 def test_missing_extra_is_reported(monkeypatch):
     monkeypatch.setattr(anny_model, "_STATE", {})
     monkeypatch.setitem(sys.modules, "anny", None)  # import anny -> ImportError
-    with pytest.raises(MissingExtraError, match=r"seatkit\[anny\]"):
+    with pytest.raises(MissingExtraError) as info:
         anny_model.AnnyBodyModel().make_body(params={})
+    # the torch-first step of docs/bodies.md, then the extra
+    assert str(info.value) == (
+        "this feature needs the optional package 'anny': install it with "
+        "pip install torch==2.13.0 first, then pip install 'seatkit[anny]'"
+    )
+    assert "pip install torch==2.13.0" in (anny_model.Path(__file__).parents[1] / "docs" / "bodies.md").read_text()
 
 
 @pytest.mark.parametrize(

@@ -99,3 +99,22 @@ def test_sweep_grid_and_vary_parsing(tmp_path):
     items = sweep_items(template=TEMPLATE, pose="upright-sitting", body="default-male", vary={"mass": values}, out=tmp_path)
     assert [it.recipe["bodies"][0]["params"]["mass"] for it in items] == values
     assert len({it.recipe["output"] for it in items}) == 5
+
+
+def test_the_command_exits_1_when_an_item_failed_and_0_when_none_did(batch_run, tmp_path):
+    from typer.testing import CliRunner
+
+    from seatkit.cli import app
+
+    src, out, _, _, _, _ = batch_run
+    good = [str(p) for p in sorted(src.glob("[0-4]-*.yaml"))]
+    unsupported = tmp_path / "feet.yaml"  # passes the checks, fails in the template fit
+    unsupported.write_text("template: chair\nbodies:\n  - pose: feet-tucked\nrefiners: []\nexporters: [obj]\n")
+    runner = CliRunner()
+    failed = runner.invoke(app, ["batch", *good, str(unsupported), "--out", str(out), "--workers", "1"])
+    assert failed.exit_code == 1, failed.output
+    assert "failed: feet: " in failed.stderr
+    assert "0 built, 5 already complete, 1 failed" in failed.stdout
+    clean = runner.invoke(app, ["batch", *good, "--out", str(out), "--workers", "1"])
+    assert clean.exit_code == 0, clean.output
+    assert "0 built, 5 already complete, 0 failed" in clean.stdout

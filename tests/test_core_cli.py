@@ -71,3 +71,18 @@ def test_unsupported_pose_is_one_error_and_saves_diagnostics_beside_the_output(t
     assert not out.exists()  # no design, no output folder
     saved = json.loads((tmp_path / "design-unsupported.json").read_text())
     assert saved["unsupported_parts"] and "diagnostics" in saved
+
+
+def test_plugins_and_templates_fit_an_80_column_terminal():
+    wide = {}
+    for command in ("plugins", "templates"):
+        result = runner.invoke(app, [command], env={"COLUMNS": "80"}, catch_exceptions=False)
+        assert result.exit_code == 0
+        widths = [len(line) for line in result.output.splitlines()]
+        assert max(widths) <= 80, f"seatkit {command}: a line of {max(widths)} columns"
+        wide[command] = " ".join(result.output.split())
+    # nothing was cut: every component and template is still listed in full
+    for name in ("catmull-clark-fit", "report-html", "default-female", "crossed-legs", "clearance", "flat-patch"):
+        assert name in wide["plugins"]
+    for name in ("bench", "chair", "flat-patch", "(Sit & Relax baseline)"):
+        assert name in wide["templates"]

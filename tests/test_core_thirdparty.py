@@ -40,7 +40,8 @@ def test_example_plugin_is_listed_by_plugins_and_templates(installed_example):
     assert "seatkit-stool" in line and "0.1.0" in line and "template: stool" in line
     templates = run_seatkit(installed_example, "templates")
     assert templates.returncode == 0, templates.stderr
-    assert any(l.startswith("stool") and "[stool]" in l for l in templates.stdout.splitlines())
+    # columns template, description (wrapped), plugin: the row's first line names both
+    assert any(l.split()[:1] == ["stool"] and l.split()[-1] == "stool" for l in templates.stdout.splitlines())
 
 
 def test_autoload_switch_hides_the_example(installed_example):

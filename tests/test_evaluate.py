@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from seatkit.evaluate import SurfaceQuery, closest_point_on_triangles, comparison_rows
+from seatkit.evaluate import SurfaceQuery, closest_point_on_triangles
 from seatkit.model import Surface
 
 
@@ -76,14 +76,6 @@ def test_surface_query_within_skips_only_points_that_are_farther():
     assert np.all(np.isfinite(near[full <= 0.05]))
     assert np.all(full[~np.isfinite(near)] > 0.05)
     assert query.query(np.zeros((0, 3)))[0].shape == (0,)
-
-
-def test_comparison_rows_format_like_table_1():
-    ours = {"avg_distance_m": 0.04, "avg_moment_nm": 4.23, "max_moment_nm": 11.47, "avg_pressure_pa": 433.85, "max_pressure_pa": 3598.34}
-    base = dict(ours, avg_distance_m=0.0642)
-    rows = comparison_rows(ours, base)
-    assert rows[0] == ("avg. dist.", "4.00 cm", "6.42 cm")
-    assert rows[-1] == ("max. press.", "3598.34 Pa", "3598.34 Pa")
 
 
 def test_design_file_round_trips(tmp_path):

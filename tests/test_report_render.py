@@ -128,12 +128,12 @@ def test_pressure_png_shows_the_dark_end_of_the_scale_on_the_body(pngs):
     img = _rgb(files["report_pressure_png"])
     pos, stops = report._colorscale_stops()
     dark = np.round(255 * stops[-2]).astype(int)  # the scale's second-darkest stop
-    panels = img[:, : 2 * report.PANEL_WIDTH]  # exclude the colour bar
+    panels = img[:, : 3 * report.PANEL_WIDTH]  # exclude the colour bar
     # shading darkens the colours, so look for hue close to the dark stops in the back view
     back = panels[:, report.PANEL_WIDTH :]
     purple = (back[..., 2] > back[..., 1] + 30) & (back[..., 0] > back[..., 1] + 15)
     assert purple.sum() > 100, "no high-pressure colour on the back view"
-    assert _near(img[:, 2 * report.PANEL_WIDTH :], dark, tol=8) > 10  # the colour bar holds the same scale
+    assert _near(img[:, 3 * report.PANEL_WIDTH :], dark, tol=8) > 10  # the colour bar holds the same scale
 
 
 @pytest.mark.skipif(not can_fork(), reason="forked processes on Linux only")
@@ -166,10 +166,101 @@ def test_comparison_only_with_a_baseline(tmp_path):
     assert not (tmp_path / "comparison.png").exists()
 
 
-def test_contact_scale_is_a_percentile_of_loaded_pressures():
-    p = np.concatenate([np.zeros(100), np.linspace(100, 1000, 1000), [1e6]])
-    assert report.contact_scale(p) == pytest.approx(np.percentile(p[p > 1.0], report.CONTACT_PERCENTILE))
+def test_contact_scale_reaches_the_peak_of_every_design_it_compares():
+    ours = np.concatenate([np.zeros(100), np.linspace(100, 1000, 1000), [7400.0]])
+    baseline = np.concatenate([np.zeros(100), np.linspace(100, 2000, 1000), [10300.0]])
+    assert report.contact_scale(ours) == 7400.0
+    assert report.contact_scale(ours, baseline) == 10300.0  # never below either peak
+    assert report.contact_scale(ours, None) == 7400.0
     assert report.contact_scale(None) == 0.0
+    assert report.contact_scale(np.full(5, 0.5)) == 0.0  # below LOADED_PRESSURE: nothing loaded
+
+
+def test_comparison_png_scale_covers_both_peaks(pngs):
+    res = evaluated_result()
+    peaks = [res.extra["contact_pressures"][0].pressure.max(), res.extra["baseline"]["contact_pressures"][0].pressure.max()]
+    scene = report._scene(res)
+    assert report.contact_scale(scene.contact, scene.baseline_contact) == pytest.approx(max(peaks))
+    # the bar's dark end (the top) is the scale's darkest colour, and it stands for that peak
+    bar = report._colorbar(report.PANEL_HEIGHT, max(peaks), "kPa")
+    top = np.asarray(bar)[31, 12]
+    assert np.abs(top - np.round(255 * report._colorscale_stops()[1][-1])).max() <= 2
+
+
+def test_table_rows_name_each_persons_pose_body_and_mass():
+    from types import SimpleNamespace
+
+    bodies = [SimpleNamespace(name="default-male:upright-sitting", mass=75.0), SimpleNamespace(name="me.glb:lounger", mass=60.4)]
+    labels = report.person_labels(bodies)
+    assert labels == ["person 1: upright-sitting, default-male, 75 kg", "person 2: lounger, me.glb, 60 kg"]
+    metrics = {"ours": [{"avg_distance_m": 0.04}, {"avg_distance_m": 0.0642}], "baseline": [{}, {}]}
+    rows, names = report.table_rows(metrics, labels)
+    assert [r[0] for r in rows] == labels
+    assert rows[1][1][0] == "6.42 cm" and rows[1][2][0] == "-"
+    assert names == ["avg. dist.", "avg. moment", "max. moment", "avg. press.", "max. press.", "max. penetration", "max. body depth"]
+    assert [r[0] for r in report.table_rows(metrics)[0]] == ["person 1", "person 2"]
+
+
+def test_seatkit_pressure_png_is_the_builds_pressure_png(tmp_path):
+    from seatkit.pressure.field import write_pressure_png
+
+    res = evaluated_result()
+    body, field = res.bodies[0], res.pressures[0]
+    alone = write_pressure_png(tmp_path / "alone.png", body, field)
+    built = report._pressure_png(report._scene(res), tmp_path / "built.png")
+    assert alone.read_bytes() == built.read_bytes()  # the same picture, byte for byte
+    img = _rgb(alone)
+    # three views, then the bar: light (0 Pa) at the bottom, the darkest colour at the top (the peak)
+    assert img.shape[1] == 3 * report.PANEL_WIDTH + 92
+    pos, stops = report._colorscale_stops()
+    bar = img[:, 3 * report.PANEL_WIDTH :]
+    top, bottom = 34 + 22 + 31, 34 + 22 + report.PANEL_HEIGHT - 31
+    assert np.abs(bar[top, 12] - np.round(255 * stops[-1])).max() <= 2
+    assert np.abs(bar[bottom, 12] - np.round(255 * stops[0])).max() <= 2
+
+
+def _cube_scene():
+    """A unit cube as the cage, and a small body far from it."""
+    from types import SimpleNamespace
+
+    v = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], dtype=float)
+    quads = np.array([[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]])
+    tet = np.array([[5, 5, 5], [5.1, 5, 5], [5, 5.1, 5], [5, 5, 5.1]])
+    tfaces = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+    body = report._Mesh(tet, tfaces, report.vertex_normals(tet, tfaces), closed=True)
+    return report._Scene(
+        body=body, importance=np.zeros(4), contact=None, surface=None, cage=SimpleNamespace(vertices=v, faces=quads),
+        baseline_surface=None, baseline_contact=None, baseline_cage=None, baseline_name="", metrics={},
+    ), v
+
+
+def test_cage_edges_behind_the_cages_own_faces_are_not_drawn():
+    from PIL import Image
+
+    scene, v = _cube_scene()
+    report.VIEWS["test-cube"] = (35.0, 20.0)
+    try:
+        frame = scene.frame("test-cube", "scene")
+        img = Image.new("RGB", (frame.width, frame.height), (255, 255, 255))
+        report._draw_cage(img, scene, "cage", "test-cube", "scene")
+        px = np.asarray(img).astype(int)
+        xy, depth = frame.project(v)
+    finally:
+        del report.VIEWS["test-cube"]
+    # seen from the front, the side and above, the far corner is the one at
+    # (0, 0, 0): its three edges are hidden by the cube's faces; the other nine are drawn
+    hidden_corner = int(np.argmin(depth))
+    assert np.allclose(v[hidden_corner], [0, 0, 0])
+    edges = {tuple(sorted((int(a), int(b)))) for q in scene.cage.faces for a, b in zip(q, np.roll(q, -1))}
+    drawn = {}
+    for a, b in edges:
+        pts = [xy[a] * (1 - t) + xy[b] * t for t in np.linspace(0.3, 0.7, 5)]
+        drawn[(a, b)] = all(
+            (np.abs(px[int(y) - 1 : int(y) + 2, int(x) - 1 : int(x) + 2] - report.CAGE_EDGE).max(axis=-1) <= 40).any() for x, y in pts
+        )
+    hidden = {e for e in edges if hidden_corner in e}
+    assert not any(drawn[e] for e in hidden), "an edge behind the cage's own faces was drawn"
+    assert all(drawn[e] for e in edges - hidden)
 
 
 def test_table_rows_never_invent_numbers():
@@ -241,3 +332,49 @@ def test_exporters_follow_the_protocol():
     assert names == ["report-png", "report-html"]
     for e in report.report_exporters():
         assert isinstance(e, Exporter) and e.description
+
+
+def test_html_body_shows_the_contact_on_the_skin_and_the_view_fits_the_window(tmp_path):
+    from seatkit.evaluate import LOADED_PRESSURE
+
+    res = evaluated_result()
+    fig = report.figure_dict(res)
+    body = fig["data"][0]
+    kpa = _decode(body["intensity"])
+    contact = res.extra["contact_pressures"][0].pressure
+    assert np.all(kpa[contact <= LOADED_PRESSURE] == 0.0) and np.all(kpa[contact > LOADED_PRESSURE] > 0.0)
+    skin = "rgb({},{},{})".format(*(int(round(255 * c)) for c in report.BODY_RGB))
+    scale = body["colorscale"]
+    assert scale[0] == [0.0, skin]  # no contact: the body's colour, not the scale's light end
+    assert 0.0 < scale[1][0] <= 0.02 and scale[-1][0] == 1.0
+    assert body["cmax"] >= kpa.max()  # the scale reaches the peak
+    text = report.write_report_html(res, tmp_path / "report.html").read_text()
+    assert "#view-box { width: 100%; max-width: 960px; height: clamp(420px, 72vh, 760px); }" in text
+    assert "person 1: " in text and ", 75 kg" in text
+
+
+def test_html_time_table_gets_the_export_stage_and_the_total(tmp_path):
+    res = evaluated_result()
+    path = report.write_report_html(res, tmp_path / "report.html")
+    timings = {"bodies": 0.1, "template": 1.0, "baseline (parallel)": 5.0, "export": 2.0}
+    assert report.finish_report_html(path, timings)
+    text = path.read_text()
+    assert "<tr><td>export</td><td>2.000</td></tr>" in text
+    assert "<tr><th>total</th><th>3.100</th></tr>" in text  # the parallel stage is not added
+    assert text.count("Time per stage") == 1 and "Plotly.newPlot" in text
+
+
+def test_seatkit_pressure_ply_has_the_builds_body_ply_colours(tmp_path):
+    from seatkit.export.meshes import pressure_colors
+    from seatkit.pressure.field import write_ply
+
+    res = evaluated_result()
+    body, field = res.bodies[0], res.pressures[0]
+    data = write_ply(tmp_path / "pressure.ply", body, field).read_bytes()
+    head, _, rest = data.partition(b"end_header\n")
+    n = len(body.vertices)
+    vertex = np.dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1"), ("pressure", "<f4")])
+    verts = np.frombuffer(rest[: n * vertex.itemsize], dtype=vertex)
+    rgb = np.stack([verts["red"], verts["green"], verts["blue"]], axis=1)
+    assert np.array_equal(rgb, pressure_colors(field.pressure)[:, :3])
+    assert np.allclose(verts["pressure"], field.pressure.astype(np.float32))

@@ -121,6 +121,11 @@ def _first_use_progress(cache: Path):
             progress.update(task, description="anny: cache ready")
 
 
+#: The step before ``pip install 'seatkit[anny]'`` (docs/bodies.md): the torch
+#: build the extra pins, installed on its own first.
+TORCH_FIRST = "pip install torch==2.13.0"
+
+
 def _load_anny() -> dict:
     """The anny model and its bone-to-segment grouping, built once per process."""
     with _LOCK:
@@ -140,7 +145,7 @@ def _load_anny() -> dict:
                 import anny
                 import anny.paths
             except ImportError:
-                raise MissingExtraError("anny", "anny") from None
+                raise MissingExtraError("anny", "anny", first=TORCH_FIRST) from None
             anny.paths.set_anny_cache_path(cache)
             progress = _first_use_progress(cache) if first_use else contextlib.nullcontext()
             with progress:
@@ -398,7 +403,7 @@ class AnnyBodyModel:
     name = "anny"
     description = (
         "Parametric MakeHuman body via anny (gender, age, height, weight, muscle, proportions, stature); "
-        "needs seatkit[anny]"
+        f"needs {TORCH_FIRST}, then seatkit[anny]"
     )
 
     def make_body(self, *, params: Mapping[str, Any]):

@@ -31,6 +31,8 @@ def _print_outcome(results, out: Path) -> None:
         click.echo(f"failed: {r.name}: {r.error}", err=True)
     counts = {s: sum(r.status == s for r in results) for s in ("ok", "skipped", "failed")}
     click.echo(f"{counts['ok']} built, {counts['skipped']} already complete, {counts['failed']} failed; summary: {out / 'summary.csv'}")
+    if failed:  # scripts must be able to tell: exit 1 when any item failed
+        raise typer.Exit(1)
 
 
 def register(app: typer.Typer) -> None:

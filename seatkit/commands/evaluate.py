@@ -58,7 +58,7 @@ def register(app: typer.Typer) -> None:
         Writes DIR/evaluation.json. Our design is compared with the flat-patch
         baseline refined the same way.
         """
-        from seatkit.evaluate import comparison_rows
+        from seatkit.export.report import person_labels, table_rows
         from seatkit.io import write_text_atomic
         from seatkit.pipeline import _jsonable
 
@@ -74,16 +74,18 @@ def register(app: typer.Typer) -> None:
         from rich.table import Table
 
         console = Console()
-        for i, ours in enumerate(metrics["ours"]):
-            other = (metrics.get("baseline") or [{}] * (i + 1))[i]
-            table = Table(title=f"person {i + 1}: {result.bodies[i].name}", show_edge=False)
-            table.add_column("")
+        # the rows the report's pictures and report.html show (seatkit.export.report.table_rows)
+        rows, labels = table_rows(metrics, person_labels(result.bodies))
+        for i, (person, ours_cells, base_cells) in enumerate(rows):
+            ours = metrics["ours"][i] if i < len(metrics["ours"]) else {}
+            table = Table(title=person, show_edge=False)
+            table.add_column("the paper's Table 1")
             table.add_column("ours", justify="right")
             if metrics.get("baseline"):
                 table.add_column(metrics["baseline_template"], justify="right")
             if not ours.get("supported", True):
-                console.print(f"person {i + 1}: our surface cannot hold this person: {ours.get('reason')}")
-            for label, a, b in comparison_rows(ours, other):
+                console.print(f"{person}: our surface cannot hold this person: {ours.get('reason')}")
+            for label, a, b in zip(labels, ours_cells, base_cells):
                 table.add_row(label, a, *([b] if metrics.get("baseline") else []))
             console.print(table)
         console.print(f"wrote {Path(directory) / 'evaluation.json'}")

@@ -74,10 +74,6 @@ VIEWS = {
     "three-quarter": (35.0, 20.0),
     "from below": (160.0, -50.0),
 }
-#: The contact-pressure colour scale saturates at this percentile of the loaded
-#: vertices' pressure (a few vertices at the peak would leave the rest pale);
-#: the peak is printed beside it.
-CONTACT_PERCENTILE = 99.0
 BACKGROUND = np.array([0.965, 0.965, 0.975])
 #: Body colour where no pressure is drawn; surface and cage colours.
 BODY_RGB = np.array([0.86, 0.79, 0.72])
@@ -94,8 +90,13 @@ SURFACE_ALPHA, CAGE_ALPHA = 0.55, 0.22
 COLORSCALE, COLORSCALE_REVERSED = "Magma", True
 #: Size of the HTML report's meshes: coordinates are rounded to this, m.
 HTML_ROUNDING = 1e-3
-#: Height of the HTML report's 3D view, CSS pixels.
-HTML_VIEW_HEIGHT = 720
+#: Size of the HTML report's 3D view: as wide as the page up to this, CSS
+#: pixels, and this fraction of the window's height (within the bounds), so
+#: that the view and the start of the figures fit one screen.
+HTML_VIEW_MAX_WIDTH, HTML_VIEW_VH, HTML_VIEW_HEIGHT_PX = 960, 72, (420, 760)
+#: Opacity of the limit surfaces in the HTML view: light enough to show the
+#: contact pressure on the body through the seat and the back.
+HTML_SURFACE_OPACITY = 0.35
 
 
 # ----------------------------------------------------------------------------- colours
@@ -135,14 +136,16 @@ def pressure_rgb(pressure: np.ndarray, vmax: float) -> np.ndarray:
 def contact_scale(*fields) -> float:
     """Top of the contact-pressure colour scale, Pa (0 with no loaded vertex).
 
-    :data:`CONTACT_PERCENTILE` of the pressures above
-    :data:`seatkit.evaluate.LOADED_PRESSURE` over every given field.
+    The highest pressure above :data:`seatkit.evaluate.LOADED_PRESSURE` over
+    every given field: a picture that compares designs draws both on one
+    scale that reaches both peaks, so no design's peak is clipped (and a
+    peak that looks darker is higher).
     """
     from seatkit.evaluate import LOADED_PRESSURE
 
     loaded = [f[f > LOADED_PRESSURE] for f in fields if f is not None]
     loaded = np.concatenate(loaded) if loaded else np.zeros(0)
-    return float(np.percentile(loaded, CONTACT_PERCENTILE)) if loaded.size else 0.0
+    return float(loaded.max()) if loaded.size else 0.0
 
 
 def _nice_ticks(vmax: float, count: int = 5) -> np.ndarray:
@@ -187,6 +190,7 @@ class _Scene:
     baseline_name: str
     metrics: dict
     surface_level: int = 0
+    people: list = field(default_factory=list)  # one label per person (pose, body, mass)
     _rasters: dict = field(default_factory=dict)
     _frames: dict = field(default_factory=dict)
 
@@ -280,7 +284,24 @@ def _scene(result) -> _Scene:
         baseline_name=str(metrics.get("baseline_template") or "baseline"),
         metrics=metrics,
         surface_level=int(getattr(result.surface, "level", 0) or 0),
+        people=person_labels(bodies),
     )
+
+
+def person_labels(bodies) -> list[str]:
+    """``person N: POSE, BODY, MASS kg`` for each body, in seat order.
+
+    A body's name is ``BODY:POSE`` (:meth:`seatkit.body.rig.RigModel.pose`);
+    one without a colon is shown whole.
+    """
+    labels = []
+    for i, body in enumerate(bodies):
+        model, sep, pose = str(getattr(body, "name", "") or "").partition(":")
+        what = f"{pose}, {model}" if sep else model
+        mass = getattr(body, "mass", None)
+        parts = [p for p in (what, f"{float(mass):.0f} kg" if mass else "") if p]
+        labels.append(f"person {i + 1}: {', '.join(parts)}" if parts else f"person {i + 1}")
+    return labels
 
 
 # ----------------------------------------------------------------------------- drawing
@@ -292,8 +313,21 @@ def _font(size: int):
     return ImageFont.load_default(size=size)
 
 
+#: Points tested along each cage edge for visibility, and the depth margin, m:
+#: a point of an edge lies on the cage's own faces, so it is hidden only when
+#: the body or another face is nearer than it by more than the margin.
+CAGE_EDGE_SAMPLES, CAGE_DEPTH_MARGIN = 24, 0.012
+
+
 def _draw_cage(image, scene: _Scene, name: str, view: str, family: str) -> None:
-    """Draw a cage's edges on a PIL image: solid where in front of the body, light where hidden."""
+    """Draw a cage's edges on a PIL image, with the lines its own faces hide removed.
+
+    Each edge is cut into :data:`CAGE_EDGE_SAMPLES` pieces. A piece behind
+    a nearer face of the cage is left out: the cage reads as the solid it
+    is, and the edges of its far side never cross those of its near side. A
+    piece behind the body only is drawn light and thin (the cage shows
+    through the body); the rest solid. Control points likewise.
+    """
     from PIL import ImageDraw
 
     cage = scene.cage if name == "cage" else scene.baseline_cage
@@ -303,19 +337,37 @@ def _draw_cage(image, scene: _Scene, name: str, view: str, family: str) -> None:
     quads = np.asarray(cage.faces, dtype=np.int64)
     edges = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
     edges = np.unique(edges, axis=0)
-    xy, z = frame.project(cage.vertices)
-    # an edge is hidden when the body is nearer than the edge at its midpoint
-    mid_xy = 0.5 * (xy[edges[:, 0]] + xy[edges[:, 1]])
-    mid_z = 0.5 * (z[edges[:, 0]] + z[edges[:, 1]])
-    px = np.clip(mid_xy[:, 0].astype(np.int64), 0, frame.width - 1)
-    py = np.clip(mid_xy[:, 1].astype(np.int64), 0, frame.height - 1)
-    body_z = scene.raster("body", view, family).depth[py, px]
-    hidden = body_z > mid_z + 0.005
+    verts = np.asarray(cage.vertices, dtype=np.float64)
+    t = (np.arange(CAGE_EDGE_SAMPLES + 1) / CAGE_EDGE_SAMPLES)[None, :, None]
+    pts = verts[edges[:, 0]][:, None] * (1 - t) + verts[edges[:, 1]][:, None] * t  # (e, k+1, 3)
+    xy, z = frame.project(pts.reshape(-1, 3))
+    xy, z = xy.reshape(len(edges), -1, 2), z.reshape(len(edges), -1)
+    mid_xy, mid_z = 0.5 * (xy[:, 1:] + xy[:, :-1]), 0.5 * (z[:, 1:] + z[:, :-1])
+    px = np.clip(mid_xy[..., 0].astype(np.int64), 0, frame.width - 1)
+    py = np.clip(mid_xy[..., 1].astype(np.int64), 0, frame.height - 1)
+    by_cage = scene.raster(name, view, family).depth[py, px] > mid_z + CAGE_DEPTH_MARGIN
+    by_body = scene.raster("body", view, family).depth[py, px] > mid_z + CAGE_DEPTH_MARGIN
+    # runs of pieces of one kind along each edge, each drawn as one straight line:
+    # 0 behind the cage (left out), 1 behind the body only (light), 2 in front
+    kind = np.where(by_cage, 0, np.where(by_body, 1, 2))
+    change = np.ones(kind.shape, dtype=bool)
+    change[:, 1:] = kind[:, 1:] != kind[:, :-1]
+    run_edge, run_start = np.nonzero(change)
+    same_edge = np.append(run_edge[1:] == run_edge[:-1], False)
+    run_end = np.where(same_edge, np.append(run_start[1:], 0), kind.shape[1])  # point index ending the run
+    run_kind = kind[run_edge, run_start]
     draw = ImageDraw.Draw(image)
-    for (a, b), hid in zip(edges.tolist(), hidden.tolist()):  # a few hundred edges
-        draw.line([tuple(xy[a]), tuple(xy[b])], fill=CAGE_EDGE_HIDDEN if hid else CAGE_EDGE, width=1 if hid else 2)
-    for x, y in xy.tolist():
-        draw.ellipse([x - 2, y - 2, x + 2, y + 2], fill=CAGE_EDGE)
+    for wanted, fill, width in ((1, CAGE_EDGE_HIDDEN, 1), (2, CAGE_EDGE, 2)):  # the light lines first
+        for e, a, b in zip(*(x[run_kind == wanted].tolist() for x in (run_edge, run_start, run_end))):
+            draw.line([tuple(xy[e, a]), tuple(xy[e, b])], fill=fill, width=width)
+    pxy, pz = frame.project(verts)
+    ix = np.clip(pxy[:, 0].astype(np.int64), 0, frame.width - 1)
+    iy = np.clip(pxy[:, 1].astype(np.int64), 0, frame.height - 1)
+    front = scene.raster(name, view, family).depth[iy, ix] <= pz + CAGE_DEPTH_MARGIN
+    clear = scene.raster("body", view, family).depth[iy, ix] <= pz + CAGE_DEPTH_MARGIN
+    for (x, y), f, c in zip(pxy.tolist(), front.tolist(), clear.tolist()):
+        if f:
+            draw.ellipse([x - 2, y - 2, x + 2, y + 2], fill=CAGE_EDGE if c else CAGE_EDGE_HIDDEN)
 
 
 def _colorbar(height: int, vmax_pa: float, label: str):
@@ -362,7 +414,7 @@ def _sheet(title: str, panels, *, colorbar=None, table=None, table_head=("ours",
     n_rows = math.ceil(len(panels) / columns)
     title_h, caption_h, line_h = 34, 22, 19
     rows, labels = table if table is not None else ([], [])
-    table_h = len(rows) * (len(labels) + 1) * line_h + 16 if rows else 0
+    table_h = len(rows) * (len(labels) + 2) * line_h + 16 if rows else 0
     grid_w, grid_h = columns * PANEL_WIDTH, n_rows * (PANEL_HEIGHT + caption_h)
     width = grid_w + (colorbar.width if colorbar is not None else 0)
     sheet = Image.new("RGB", (width, title_h + grid_h + table_h), tuple(int(255 * c) for c in BACKGROUND))
@@ -381,7 +433,9 @@ def _sheet(title: str, panels, *, colorbar=None, table=None, table_head=("ours",
     bold = _font(14)
     col_right = (400, 560)
     for person, ours, base in rows:
-        draw.text((12, y), f"{person} (paper's Table 1)", fill=TEXT, font=bold)
+        draw.text((12, y), person, fill=TEXT, font=bold)  # who: pose, body, mass
+        y += line_h
+        draw.text((28, y), "the paper's Table 1", fill=TEXT, font=font)
         for x, head in zip(col_right, table_head):
             draw.text((x, y), head, fill=TEXT, font=bold, anchor="ra")
         y += line_h
@@ -432,16 +486,39 @@ class _PngWriter:
 
 
 
-def _pressure_png(scene: _Scene, path: Path, save=_write_png) -> Path:
+def _pressure_png(scene: _Scene, path: Path, save=_write_png, title: str | None = None) -> Path:
     vmax = float(scene.importance.max())
     colors = pressure_rgb(scene.importance, vmax)
     panels = []
-    for view in ("front", "back"):
+    for view in ("front", "back", "from below"):
         img = rs.composite(BACKGROUND, [scene.layer("body", view, "body", colors)])
         panels.append((_pil(img), view))
     bar = _colorbar(PANEL_HEIGHT, vmax, "kPa")
-    title = f"Importance pressure (supported everywhere), peak {vmax / 1000:.2f} kPa"
+    title = f"{title or 'Importance pressure (supported everywhere)'}, peak {vmax / 1000:.2f} kPa"
     return save(_sheet(title, panels, colorbar=bar), path)
+
+
+def write_importance_png(path, body, pressure, *, title: str | None = None) -> Path:
+    """The build's ``pressure.png`` for one body and its pressure (Pa), alone.
+
+    What ``seatkit pressure`` writes: front, back and from below, the
+    report's colour scale from 0 to the peak, whose value the title prints.
+    """
+    pressure = np.asarray(getattr(pressure, "pressure", pressure), dtype=np.float64)
+    verts, faces = np.asarray(body.vertices, dtype=np.float64), np.asarray(body.faces, dtype=np.int64)
+    scene = _Scene(
+        body=_Mesh(verts, faces, vertex_normals(verts, faces), closed=True),
+        importance=pressure,
+        contact=None,
+        surface=None,
+        cage=None,
+        baseline_surface=None,
+        baseline_contact=None,
+        baseline_cage=None,
+        baseline_name="",
+        metrics={},
+    )
+    return _pressure_png(scene, Path(path), title=title)
 
 
 def _cage_png(scene: _Scene, path: Path, save=_write_png) -> Path:
@@ -474,7 +551,7 @@ def _surface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
         return save(_sheet(title, panels), path)
     below = rs.composite(BACKGROUND, [_body_layer(scene, "from below", "body", contact, vmax)])
     panels.append((_pil(below), "contact pressure, from below (surface hidden)"))
-    title += f"; contact pressure: peak {contact.max() / 1000:.1f} kPa, scale {vmax / 1000:.1f} kPa"
+    title += f"; contact pressure: peak {vmax / 1000:.1f} kPa (the top of the scale)"
     return save(_sheet(title, panels, colorbar=_colorbar(PANEL_HEIGHT, vmax, "kPa")), path)
 
 
@@ -486,8 +563,12 @@ def _fmt(value, scale: float, unit: str) -> str:
     return f"{value * scale:.2f} {unit}"
 
 
-def table_rows(metrics: dict) -> tuple[list[tuple[str, list[str], list[str]]], list[str]]:
+def table_rows(metrics: dict, people=None) -> tuple[list[tuple[str, list[str], list[str]]], list[str]]:
     """The Table 1 figures per person, formatted with units.
+
+    ``people`` labels the persons (:func:`person_labels`); default
+    ``person N``. The pictures, the HTML report and ``seatkit evaluate``
+    all show these rows.
 
     Returns
     -------
@@ -518,7 +599,7 @@ def table_rows(metrics: dict) -> tuple[list[tuple[str, list[str], list[str]]], l
                 cells.append(["not supported" if k not in geometric else _fmt(person.get(k), s, u) for k, _, u, s in cols])
             else:
                 cells.append([_fmt(person.get(k), s, u) for k, _, u, s in cols])
-        rows.append((f"person {i + 1}", *cells))
+        rows.append((people[i] if people and i < len(people) else f"person {i + 1}", *cells))
     return rows, [label for _, label, _, _ in cols]
 
 
@@ -541,7 +622,7 @@ def _comparison_png(scene: _Scene, path: Path, save=_write_png) -> Path:
         panels.append((_pil(below), f"{label}: contact pressure, peak {contact.max() / 1000:.1f} kPa"))
     bar = _colorbar(PANEL_HEIGHT, vmax, "kPa") if vmax > 0 else None
     title = f"Ours vs the {scene.baseline_name} baseline (contact pressure on one scale, up to {vmax / 1000:.1f} kPa)"
-    return save(_sheet(title, panels, colorbar=bar, table=table_rows(scene.metrics), table_head=("ours", scene.baseline_name), columns=2), path)
+    return save(_sheet(title, panels, colorbar=bar, table=table_rows(scene.metrics, scene.people), table_head=("ours", scene.baseline_name), columns=2), path)
 
 
 def render_pngs(result, directory, *, split: bool | None = None) -> dict[str, Path]:
@@ -627,7 +708,13 @@ def _mesh_trace(vertices, faces, *, name: str, visible: bool, **style) -> dict:
 
 
 def _pressure_trace(scene: _Scene, pressure: np.ndarray, vmax: float, *, name: str, visible: bool, title: str) -> dict:
-    kpa = np.round(pressure / 1000.0, 3)
+    from seatkit.evaluate import LOADED_PRESSURE
+
+    # unloaded vertices (no contact) are exactly 0 and drawn in the body's
+    # colour, loaded ones on the pressure scale: the contact patches stand
+    # out from the skin instead of a pale scale colour covering the body
+    kpa = np.where(pressure > LOADED_PRESSURE, np.round(pressure / 1000.0, 3), 0.0)
+    cmax = max(round(vmax / 1000.0, 3), float(kpa.max()))
     return _mesh_trace(
         scene.body.vertices,
         scene.body.faces,
@@ -635,19 +722,32 @@ def _pressure_trace(scene: _Scene, pressure: np.ndarray, vmax: float, *, name: s
         visible=visible,
         intensity=_typed(kpa, "float32"),
         intensitymode="vertex",
-        colorscale=_plotly_colorscale(),
+        colorscale=_plotly_colorscale(unloaded=LOADED_PRESSURE / 1000.0 / cmax if cmax > 0 else None),
         cmin=0.0,
-        cmax=round(vmax / 1000.0, 3),
+        cmax=cmax,
         colorbar={"title": {"text": title}, "len": 0.6},
         hovertemplate="%{intensity:.2f} kPa<extra>" + html.escape(name) + "</extra>",
-        lighting={"ambient": 0.55, "diffuse": 0.7, "specular": 0.05},
+        lighting={"ambient": 0.6, "diffuse": 0.6, "specular": 0.05},
     )
 
 
-def _plotly_colorscale() -> list:
-    """The pressure colour scale as plotly.js stops (the PNGs' scale exactly)."""
+def _plotly_colorscale(unloaded: float | None = None) -> list:
+    """The pressure colour scale as plotly.js stops (the PNGs' scale exactly).
+
+    With ``unloaded`` (a fraction of the scale), 0 is drawn in the body's
+    colour and the scale starts at that fraction.
+    """
     pos, rgb = _colorscale_stops()
-    return [[round(float(p), 4), "rgb({},{},{})".format(*(int(round(255 * c)) for c in col))] for p, col in zip(pos, rgb)]
+
+    def css(col):
+        return "rgb({},{},{})".format(*(int(round(255 * c)) for c in col))
+
+    if unloaded is None:
+        return [[round(float(p), 4), css(col)] for p, col in zip(pos, rgb)]
+    # plotly.js samples the scale into 256 colours: the body colour needs one of its own
+    start = min(max(float(unloaded), 2.0 / 255.0), 0.02)
+    pos = start + (1.0 - start) * pos
+    return [[0.0, css(BODY_RGB)], *([float(p), css(col)] for p, col in zip(pos, rgb))]
 
 
 def _cage_trace(cage, *, name: str, visible: bool, color: str) -> dict:
@@ -701,7 +801,7 @@ def figure_dict(result) -> dict:
         add("importance", _pressure_trace(scene, scene.importance, float(scene.importance.max()), name="body: importance pressure", visible=True, title="importance<br>kPa"))
     for group in (first,):
         if scene.surface is not None:
-            add(group, _mesh_trace(scene.surface.vertices, scene.surface.faces, name="limit surface (ours)", visible=group == first, color="rgb(107,153,204)", opacity=0.5, flatshading=False))
+            add(group, _mesh_trace(scene.surface.vertices, scene.surface.faces, name="limit surface (ours)", visible=group == first, color="rgb(107,153,204)", opacity=HTML_SURFACE_OPACITY, flatshading=False))
         if scene.cage is not None:
             add(group, _cage_trace(scene.cage, name="cage (ours)", visible=group == first, color="rgb(25,70,160)"))
     if scene.baseline_surface is not None:
@@ -710,7 +810,7 @@ def figure_dict(result) -> dict:
             add("baseline", _pressure_trace(scene, scene.baseline_contact, vmax_contact, name=f"body: contact pressure ({name})", visible=False, title="contact<br>kPa"))
         else:
             add("baseline", _mesh_trace(scene.body.vertices, scene.body.faces, name="body", visible=False, color="rgb(219,201,184)"))
-        add("baseline", _mesh_trace(scene.baseline_surface.vertices, scene.baseline_surface.faces, name=f"limit surface ({name})", visible=False, color="rgb(204,148,102)", opacity=0.5))
+        add("baseline", _mesh_trace(scene.baseline_surface.vertices, scene.baseline_surface.faces, name=f"limit surface ({name})", visible=False, color="rgb(204,148,102)", opacity=HTML_SURFACE_OPACITY))
         if scene.baseline_cage is not None:
             add("baseline", _cage_trace(scene.baseline_cage, name=f"cage ({name})", visible=False, color="rgb(150,80,30)"))
     labels = {
@@ -737,9 +837,11 @@ def figure_dict(result) -> dict:
             "xaxis": {"title": {"text": "x (m)"}},
             "yaxis": {"title": {"text": "y (m), up"}},
             "zaxis": {"title": {"text": "z (m), front"}},
+            # from behind, to the side and below the seat: the back and the
+            # seat, where the body touches, through the translucent surface
             "camera": {
                 "up": {"x": 0, "y": 1, "z": 0},
-                "eye": {"x": 1.3, "y": 0.7, "z": 1.9},
+                "eye": {"x": -1.5, "y": -0.35, "z": -1.45},
                 "center": {"x": 0, "y": -0.1, "z": 0},
             },
         },
@@ -764,7 +866,7 @@ def _metrics_html(result) -> str:
     metrics = result.metrics or {}
     parts = []
     if metrics.get("ours") or metrics.get("baseline"):
-        rows, labels = table_rows(metrics)
+        rows, labels = table_rows(metrics, person_labels(result.bodies))
         base = html.escape(str(metrics.get("baseline_template") or "baseline"))
         for person, ours, bl in rows:
             parts.append(f"<h3>{html.escape(person)}</h3><table><tr><th>quantity</th><th>ours</th><th>{base}</th></tr>")
@@ -772,12 +874,45 @@ def _metrics_html(result) -> str:
             parts.append("</table>")
     else:
         parts.append("<p>No evaluation in this build (built with evaluation switched off): no metrics.</p>")
-    timings = result.timings or {}
-    if timings:
-        parts.append("<h2>Time per stage</h2><table><tr><th>stage</th><th>seconds</th></tr>")
-        parts += [f"<tr><td>{html.escape(str(k))}</td><td>{float(v):.3f}</td></tr>" for k, v in timings.items()]
-        parts.append("</table>")
+    parts.append(timings_html(result.timings or {}))
     return "\n".join(parts)
+
+
+_TIMINGS_START, _TIMINGS_END = "<!-- seatkit:timings -->", "<!-- /seatkit:timings -->"
+
+
+def timings_html(timings: dict) -> str:
+    """The report's "Time per stage" table: every stage and the total.
+
+    Stages marked ``(parallel)`` ran beside the others and are not added to
+    the total (:func:`seatkit.pipeline.total_seconds`). The table sits between
+    markers so that the build can put in the export stage once it has ended
+    (:func:`finish_report_html`).
+    """
+    from seatkit.pipeline import total_seconds
+
+    if not timings:
+        return f"{_TIMINGS_START}{_TIMINGS_END}"
+    rows = [f"<tr><td>{html.escape(str(k))}</td><td>{float(v):.3f}</td></tr>" for k, v in timings.items()]
+    rows.append(f"<tr><th>total</th><th>{total_seconds(timings):.3f}</th></tr>")
+    note = "<p>Stages marked (parallel) ran beside the others and are not part of the total.</p>"
+    return f"{_TIMINGS_START}<h2>Time per stage</h2><table><tr><th>stage</th><th>seconds</th></tr>{''.join(rows)}</table>{note}{_TIMINGS_END}"
+
+
+def finish_report_html(path, timings: dict) -> bool:
+    """Replace the time table of a written ``report.html`` with the build's final one.
+
+    ``report.html`` is written during the export stage, before that stage's
+    time is known; the build calls this once it is (with ``export`` and the
+    total). Returns whether the file held a table to replace.
+    """
+    path = Path(path)
+    text = path.read_text(encoding="utf-8")
+    start, end = text.find(_TIMINGS_START), text.find(_TIMINGS_END)
+    if start < 0 or end < start:
+        return False
+    write_text_atomic(path, text[:start] + timings_html(timings) + text[end + len(_TIMINGS_END) :])
+    return True
 
 
 _PAGE = """<!DOCTYPE html>
@@ -788,7 +923,7 @@ body {{ font-family: sans-serif; margin: 1em 2em; color: #222; }}
 table {{ border-collapse: collapse; margin: 0.5em 0 1em; }}
 td, th {{ border: 1px solid #bbb; padding: 0.25em 0.8em; text-align: right; }}
 td:first-child, th:first-child {{ text-align: left; }}
-#view {{ width: 100%; height: {height}px; }}
+#view-box {{ width: 100%; max-width: {max_width}px; height: clamp({min_h}px, {vh}vh, {max_h}px); }}
 </style></head>
 <body>
 <h1>{title}</h1>
@@ -818,14 +953,18 @@ def write_report_html(result, path) -> Path:
         validate=False,
         div_id="view",
         default_width="100%",
-        default_height=f"{HTML_VIEW_HEIGHT}px",
+        default_height="100%",
         config={"displaylogo": False, "responsive": True},
     )
     recipe = result.recipe or {}
-    poses = ", ".join(str(b.name) for b in result.bodies)
-    summary = html.escape(f"template: {recipe.get('template', '?')}; people: {len(result.bodies)} ({poses})")
+    people = "; ".join(person_labels(result.bodies))
+    summary = html.escape(f"template: {recipe.get('template', '?')}; {people}")
     title = html.escape(f"seatkit build: {recipe.get('template', '')}")
-    page = _PAGE.format(height=HTML_VIEW_HEIGHT, title=title, summary=summary, plot=plot, metrics=_metrics_html(result))
+    low, high = HTML_VIEW_HEIGHT_PX
+    page = _PAGE.format(
+        max_width=HTML_VIEW_MAX_WIDTH, vh=HTML_VIEW_VH, min_h=low, max_h=high,
+        title=title, summary=summary, plot=f'<div id="view-box">{plot}</div>', metrics=_metrics_html(result),
+    )
     return write_text_atomic(Path(path), page)
 
 

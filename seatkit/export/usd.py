@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from seatkit.errors import InputError, MissingExtraError
+from seatkit.errors import InputError, SeatkitError
 from seatkit.io import atomic_path
 
 __all__ = ["write_usd", "read_usd_cage", "prepare_usd", "CAGE_PRIM", "ROOT_PRIM"]
@@ -36,7 +36,8 @@ def _pxr():
     try:
         from pxr import Gf, Sdf, Usd, UsdGeom, Vt
     except ImportError as exc:  # pragma: no cover - usd-core is a dependency
-        raise MissingExtraError("usd-core", "usd") from exc
+        msg = "writing USD needs the package 'usd-core', a dependency of seatkit that is missing: pip install 'usd-core>=24.0'"
+        raise SeatkitError(msg) from exc
     return Gf, Sdf, Usd, UsdGeom, Vt
 
 

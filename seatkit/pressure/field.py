@@ -35,7 +35,7 @@ import numpy as np
 from seatkit.constants import GRAVITY
 from seatkit.skeleton import N_SEGMENTS, PARENTS
 
-__all__ = ["equilibrium_residuals", "write_npz", "write_ply", "write_pressure_png", "pressure_colors", "NPZ_KEYS"]
+__all__ = ["equilibrium_residuals", "write_npz", "write_ply", "write_pressure_png", "NPZ_KEYS"]
 
 NPZ_KEYS = (
     "vertices",
@@ -167,19 +167,13 @@ def write_npz(path, body, field) -> Path:
     return path
 
 
-def pressure_colors(pressure: np.ndarray, *, vmax: float | None = None, cmap: str = "inferno") -> np.ndarray:
-    """(n, 4) uint8 RGBA colours of a pressure field (0 Pa dark grey-blue)."""
-    from matplotlib import colormaps
-
-    vmax = float(np.percentile(pressure[pressure > 0], 99)) if vmax is None and (pressure > 0).any() else (vmax or 1.0)
-    t = np.clip(pressure / vmax, 0.0, 1.0)
-    rgba = colormaps[cmap](t)
-    rgba[pressure <= 0] = (0.55, 0.6, 0.7, 1.0)
-    return (rgba * 255).round().astype(np.uint8)
-
-
 def write_ply(path, body, field) -> Path:
-    """Binary PLY of the body coloured by pressure (with a ``pressure`` vertex property in Pa)."""
+    """Binary PLY of the body coloured by pressure (with a ``pressure`` vertex property in Pa).
+
+    The colours are the build's ``body.ply`` ones (:func:`seatkit.export.meshes.pressure_colors`:
+    magma reversed, 0 Pa light, the peak dark).
+    """
+    from seatkit.export.meshes import pressure_colors
     from seatkit.io import atomic_write
 
     path = Path(path)
@@ -210,23 +204,12 @@ def write_ply(path, body, field) -> Path:
     return path
 
 
-def write_pressure_png(path, body, field, *, views=("front", "back", "bottom"), title: str | None = None) -> Path:
-    """Pressure map of the body (front and back, and from below), in Pa.
+def write_pressure_png(path, body, field, *, title: str | None = None) -> Path:
+    """Pressure map of the body: the build's ``pressure.png`` (front, back, from below).
 
-    The colour scale runs from 0 to the 99th percentile of the loaded
-    vertices so that a few peak vertices do not wash out the picture.
+    The report's colour scale (light at 0 Pa, dark at the peak) and layout,
+    the bar from 0 to the peak (:func:`seatkit.export.report.write_importance_png`).
     """
-    from seatkit.body.render import render_body
+    from seatkit.export.report import write_importance_png
 
-    loaded = field.pressure[field.pressure > 0]
-    vmax = float(np.percentile(loaded, 99)) if loaded.size else 1.0
-    return render_body(
-        body,
-        path,
-        scalars=field.pressure,
-        views=views,
-        cmap="inferno",
-        clim=(0.0, vmax),
-        scalar_label="pressure (Pa)",
-        title=title,
-    )
+    return write_importance_png(path, body, field.pressure, title=title)
