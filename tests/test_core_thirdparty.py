@@ -96,8 +96,18 @@ def test_python_step_example_is_installed_and_builds(installed_level, tmp_path):
 
     plugins = run_seatkit(installed_level, "plugins")
     assert plugins.returncode == 0, plugins.stderr
-    line = next(l for l in plugins.stdout.splitlines() if l.strip().startswith("level"))
-    assert "seatkit-level" in line and "template step: level-rows" in line and "template: level-stool" in line
+    # the table wraps to the terminal: a row's components may continue on lines whose first cell is blank
+    lines = plugins.stdout.splitlines()
+    start = next(i for i, l in enumerate(lines) if l.strip().startswith("level"))
+    row = [lines[start]]
+    for l in lines[start + 1:]:
+        if "│" not in l or l.split("│")[0].strip():
+            break
+        row.append(l)
+    cells = [[c.strip() for c in l.split("│")] for l in row]
+    components = " ".join(c[-1] for c in cells if c[-1])
+    assert cells[0][1] == "seatkit-level"
+    assert "template step: level-rows" in components and "template: level-stool" in components
     recipe = tmp_path / "recipe.yaml"
     recipe.write_text(
         "template: level-stool\nrefiners: []\nexporters: [obj]\nevaluate: {enabled: false}\n"
