@@ -299,10 +299,17 @@ _json = st.recursive(
 )
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(body=_json)
+_pose_body = st.fixed_dictionaries(
+    {"angles": st.lists(st.lists(st.floats() | st.integers() | st.text(max_size=2), max_size=4), max_size=22)},
+    optional={"translation": st.lists(st.floats(), max_size=4) | _json, "description": _json},
+)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(body=_json | _pose_body)
 def test_fuzz_pose_requests(client, body):
-    r = client.post("/api/pose", json=body) if body is not None else client.post("/api/pose")
+    # json.dumps writes NaN and Infinity as JavaScript does; the server must refuse them too
+    r = client.post("/api/pose", content=json.dumps(body), headers={"Content-Type": "application/json"})
     assert r.status_code in (200, 422), r.text
 
 
@@ -365,3 +372,33 @@ def test_concurrent_http_requests(client, designer):
         if a.status_code == 200:
             assert designer.get(a.json()["id"]).recipe["seed"] == rec["seed"]
     assert client.get("/api/status").json()["stage"] == "idle"
+
+
+def test_previews_show_what_the_running_design_made(designer, client):
+    """While a design runs, its preview holds the posed body and then the template's cage, exactly as the build made them."""
+    import time
+
+    recipe = designer.prepare({"bodies": [{"pose": "reclined-sitting"}], "seed": 31})
+    seq = designer.new_request()
+    out, seen = {}, {}
+    t = threading.Thread(target=lambda: out.setdefault("d", designer.design(recipe, seq, "req-31")))
+    t.start()
+    while t.is_alive():
+        p = designer.preview("req-31")
+        if p is not None and p["stage"] not in seen:
+            seen[p["stage"]] = p
+        time.sleep(0.005)
+    t.join()
+    d = out["d"]
+    assert "template" in seen
+    cage = _decode(seen["template"]["cage"]["positions"], "<f4").reshape(-1, 3)
+    np.testing.assert_allclose(cage, d.result.initial_mesh.vertices, atol=1e-6)
+    assert seen["template"]["surface"] is not None
+    body = _decode(seen["template"]["bodies"][0]["positions"], "<f4").reshape(-1, 3)
+    np.testing.assert_allclose(body, d.result.bodies[0].vertices, atol=1e-6)
+    assert seen["template"]["bodies"][0]["pressure_kind"] == "importance"
+    assert designer.preview("someone-else") is None
+    assert client.get("/api/preview", params={"request": "someone-else"}).status_code == 404
+    # a baseline fitted later does not touch the preview of the design
+    designer.baseline(d)
+    assert designer.preview("req-31")["stage"] == seen[max(seen, key=lambda k: list(seen).index(k))]["stage"]

@@ -10,7 +10,8 @@ The API (docs/serve.md describes every route)::
     POST /api/design/ID/baseline      the flat-patch baseline of a design -> the report
     POST /api/design/ID/files         write the design's files -> the report with file URLs
     GET  /api/design/ID/view          the meshes the page draws
-    GET  /api/status                  the running stage, the caches
+    GET  /api/status                  the running stage, its request id and preview, the caches
+    GET  /api/preview?request=ID      what the running design has made so far (posed bodies, the template's cage)
     GET  /files/ID/NAME               a file the server wrote for design ID (else 404)
 
 Errors are JSON ``{"error": message, "kind": ...}``: a bad recipe, pose or
@@ -136,7 +137,8 @@ def create_app(designer: Designer) -> Starlette:
         data = await _json(request)
         seq = designer.new_request()
         recipe = await run_in_threadpool(designer.prepare, data)
-        d = await run_in_threadpool(designer.design, recipe, seq)
+        request_id = request.headers.get("x-request-id") or request.query_params.get("request")
+        d = await run_in_threadpool(designer.design, recipe, seq, request_id)
         if _flag(request, "baseline", True):
             await run_in_threadpool(designer.baseline, d, seq)
         if _flag(request, "files", True):
@@ -166,6 +168,12 @@ def create_app(designer: Designer) -> Starlette:
     async def view(request: Request):
         return JSONResponse(designer.view(_design_of(request)))
 
+    async def preview(request: Request):
+        answer = await run_in_threadpool(designer.preview, request.query_params.get("request", ""))
+        if answer is None:
+            raise HTTPException(404, "no preview of that request (not running, or nothing made yet)")
+        return JSONResponse(answer)
+
     async def status(request: Request):
         return JSONResponse({**designer.status, "caches": designer.cache_report()})
 
@@ -189,6 +197,7 @@ def create_app(designer: Designer) -> Starlette:
         Route("/api/design/{ident:str}/files", guarded(files), methods=["POST"]),
         Route("/api/design/{ident:str}/view", guarded(view)),
         Route("/api/status", status),
+        Route("/api/preview", guarded(preview)),
         Route("/files/{ident:str}/{name:str}", serve_file),
         Mount("/static", StaticFiles(directory=STATIC), name="static"),
     ]

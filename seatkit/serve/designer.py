@@ -122,16 +122,67 @@ class _CachingBodyModel:
         return self._model.pose(rig, pose, ground=ground)
 
 
-class _CachingRegistry:
-    """The plugin registry, with each body model wrapped by :class:`_CachingBodyModel`."""
+class _ObservedTemplate:
+    """A template that hands its inputs (the posed bodies, their pressure) and its cage to the designer's previews."""
 
-    def __init__(self, registry):
+    def __init__(self, template, observe):
+        self._template = template
+        self._observe = observe
+        self.name = template.name
+        self.description = template.description
+
+    def __getattr__(self, name):  # spec, params_schema, ...
+        return getattr(self._template, name)
+
+    def fit(self, bodies, pressures, *, params=None, seed=0):
+        self._observe("posed", bodies=bodies, pressures=pressures)
+        mesh = self._template.fit(bodies, pressures, params=params, seed=seed)
+        self._observe("template", mesh=mesh)
+        return mesh
+
+
+class _ObservedRefiner:
+    """A refiner that hands each refined cage to the designer's previews."""
+
+    def __init__(self, refiner, observe):
+        self._refiner = refiner
+        self._observe = observe
+        self.name = refiner.name
+        self.description = refiner.description
+
+    def __getattr__(self, name):
+        return getattr(self._refiner, name)
+
+    def refine(self, mesh, bodies, pressures, *, params=None):
+        out = self._refiner.refine(mesh, bodies, pressures, params=params)
+        self._observe(f"refine:{self.name}", mesh=out)
+        return out
+
+
+class _CachingRegistry:
+    """The plugin registry as the server uses it.
+
+    Each body model is wrapped by :class:`_CachingBodyModel` (rigs kept);
+    templates and refiners by :class:`_ObservedTemplate` and
+    :class:`_ObservedRefiner`, which report to ``observe`` what they made
+    (it ignores them outside a design, e.g. for the baseline). Everything
+    else is the registry's own.
+    """
+
+    def __init__(self, registry, observe=None):
         self._registry = registry
         self._bodies = {name: _CachingBodyModel(c) for name, c, _ in registry.items("body_model")}
+        observe = observe or (lambda stage, **parts: None)
+        self._wrapped = {
+            **{("template", n): _ObservedTemplate(c, observe) for n, c, _ in registry.items("template")},
+            **{("refiner", n): _ObservedRefiner(c, observe) for n, c, _ in registry.items("refiner")},
+        }
 
     def get(self, kind: str, name: str):
         if kind == "body_model" and name in self._bodies:
             return self._bodies[name]
+        if (kind, name) in self._wrapped:
+            return self._wrapped[(kind, name)]
         return self._registry.get(kind, name)
 
     def __getattr__(self, name):  # names, items, plugin_of
@@ -201,13 +252,15 @@ class Designer:
         for d in (self.uploads, self.designs_dir, self.recipes_dir):
             d.mkdir(parents=True, exist_ok=True)
         self.pm = pm if pm is not None else get_plugin_manager()
-        self.registry = _CachingRegistry(self.pm.registry)
+        self.registry = _CachingRegistry(self.pm.registry, observe=self._observe)
         self._plugins = _Plugins(self.registry)
         self._run = threading.Lock()  # one design (or baseline, or export) at a time
         self._state = threading.Lock()
         self._latest = 0
         self._designs: OrderedDict[str, Design] = OrderedDict()
         self.status: dict = {"seq": 0, "stage": "idle", "started": None}
+        self._observing: tuple[int, str] | None = None  # (seq, request id) of the running design
+        self._preview: dict = {}
         self.hits = 0  # designs answered from memory
 
     # ---------------------------------------------------------------- options
@@ -310,14 +363,18 @@ class Designer:
         """Write a pose YAML (every joint) into the upload folder; its name is its content's hash."""
         from seatkit.skeleton import N_SEGMENTS, SEGMENTS
 
-        a = np.asarray(angles, dtype=float)
-        t = np.asarray(translation, dtype=float)
-        if a.shape != (N_SEGMENTS, 3) or not np.isfinite(a).all():
-            msg = f"angles: expected {N_SEGMENTS} rows of 3 finite angles in degrees (x, y, z per segment), got shape {a.shape}"
-            raise RecipeError(msg)
-        if t.shape != (3,) or not np.isfinite(t).all():
-            msg = "translation: expected [x, y, z] in metres"
-            raise RecipeError(msg)
+        def numbers(value, shape, what):
+            ok = isinstance(value, (list, tuple)) and all(
+                isinstance(row, (list, tuple)) and len(row) == shape[-1] and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in row)
+                for row in (value if len(shape) == 2 else [value])
+            )
+            array = np.asarray(value, dtype=float) if ok else None
+            if array is None or array.shape != shape or not np.isfinite(array).all():
+                raise RecipeError(what)
+            return array
+
+        a = numbers(angles, (N_SEGMENTS, 3), f"angles: expected {N_SEGMENTS} rows of 3 finite angles in degrees (x, y, z per segment, {', '.join(SEGMENTS)})")
+        t = numbers(translation, (3,), "translation: expected [x, y, z] in metres (finite numbers)")
         doc = {
             "description": description or "made with seatkit serve",
             "root": {"rotation": dict(zip("xyz", map(float, a[0]))), "translation": [float(v) for v in t]},
@@ -387,14 +444,55 @@ class Designer:
         with self._state:
             if seq < self._latest:
                 raise Superseded(f"superseded by a newer request (stopped before {stage})")
-            self.status = {"seq": seq, "stage": stage, "started": self.status.get("started") if self.status.get("seq") == seq else time.time()}
+            same = self.status.get("seq") == seq
+            self.status = {
+                "seq": seq,
+                "request": self._observing[1] if self._observing and self._observing[0] == seq else None,
+                "stage": stage,
+                "started": self.status.get("started") if same else time.time(),
+                "preview": self._preview.get("stage") if self._preview.get("seq") == seq else None,
+            }
+
+    def _observe(self, stage: str, **parts) -> None:
+        """Keep what a stage of the running design made, for :meth:`preview`."""
+        with self._state:
+            if self._observing is None:
+                return
+            seq, request = self._observing
+            if self._preview.get("seq") != seq:
+                self._preview = {"seq": seq, "request": request}
+            self._preview.update(parts, stage=stage)
+            self.status["preview"] = stage
+
+    def preview(self, request: str) -> dict | None:
+        """What the running (or last) design of ``request`` has made so far, as :meth:`view` draws it; None if nothing yet.
+
+        After the template: the posed bodies (coloured by their importance,
+        the pressure supported everywhere) and the cage's limit surface at
+        the recipe's level; after the refiners, the refined cage's. Before
+        the template: the bodies alone.
+        """
+        from seatkit.subdivision import limit_surface
+
+        with self._state:
+            p = dict(self._preview)
+        if not request or p.get("request") != request or "bodies" not in p:
+            return None
+        bodies = [self._body_view(b, f.pressure, "importance") for b, f in zip(p["bodies"], p["pressures"])]
+        out = {"seq": p["seq"], "stage": p["stage"], "bodies": bodies, "surface": None, "cage": None}
+        mesh = p.get("mesh")
+        if mesh is not None:
+            level = p.get("level", 3)
+            out["surface"] = self._surface_view(limit_surface(mesh, level=level))
+            out["cage"] = self._cage_view(mesh)
+        return out
 
     def _idle(self, seq: int) -> None:
         with self._state:
             if self.status.get("seq") == seq:
                 self.status = {"seq": seq, "stage": "idle", "started": None}
 
-    def design(self, recipe: dict, seq: int) -> Design:
+    def design(self, recipe: dict, seq: int, request: str | None = None) -> Design:
         """Compute a design (or return it from memory): the view's part only.
 
         Raises
@@ -416,6 +514,9 @@ class Designer:
                 self._designs.move_to_end(ident)
             return hit
         with self._run:
+            with self._state:
+                self._observing = (seq, request or f"seq-{seq}")
+                self._preview = {"seq": seq, "request": self._observing[1], "level": recipe["surface_level"]}
             self._check(seq, "start")
             try:
                 start = time.perf_counter()
@@ -431,6 +532,8 @@ class Designer:
                 result.recipe = recipe
                 seconds = {"design": designed - start, "evaluate": time.perf_counter() - designed}
             finally:
+                with self._state:
+                    self._observing = None
                 self._idle(seq)
         design = Design(ident, seq, recipe, result, seconds)
         with self._state:
@@ -568,31 +671,41 @@ class Designer:
             }
         )
 
+    @staticmethod
+    def _body_view(body, pressure, kind: str) -> dict:
+        return {
+            "name": body.name,
+            "positions": _b64(body.vertices, "<f4"),
+            "faces": _b64(_triangles(body.faces), "<u4"),
+            "pressure": _b64(pressure, "<f4"),
+            "pressure_kind": kind,
+            "max_pressure_pa": float(np.max(pressure)),
+        }
+
+    @staticmethod
+    def _surface_view(s) -> dict:
+        return {"positions": _b64(s.vertices, "<f4"), "normals": _b64(s.normals, "<f4"), "faces": _b64(_triangles(s.faces), "<u4")}
+
+    @staticmethod
+    def _cage_view(cage) -> dict:
+        edges = {tuple(sorted((int(f[i]), int(f[(i + 1) % len(f)])))) for f in cage.faces for i in range(len(f))}
+        return {"positions": _b64(cage.vertices, "<f4"), "edges": _b64(np.array(sorted(edges)), "<u4")}
+
     def view(self, design: Design) -> dict:
         """The meshes the page draws: bodies (with contact pressure), the limit surface and the cage (float32/uint32, base64)."""
         r = design.result
         contact = r.extra.get("contact_pressures") or [None] * len(r.bodies)
-        bodies = []
-        for body, importance, field_ in zip(r.bodies, r.pressures, contact):
-            pressure = field_.pressure if field_ is not None else importance.pressure
-            bodies.append(
-                {
-                    "name": body.name,
-                    "positions": _b64(body.vertices, "<f4"),
-                    "faces": _b64(_triangles(body.faces), "<u4"),
-                    "pressure": _b64(pressure, "<f4"),
-                    "pressure_kind": "contact" if field_ is not None else "importance",
-                    "max_pressure_pa": float(np.max(pressure)),
-                }
-            )
-        s, cage = r.surface, r.control_mesh
-        edges = {tuple(sorted((int(f[i]), int(f[(i + 1) % len(f)])))) for f in cage.faces for i in range(len(f))}
+        bodies = [
+            self._body_view(body, f.pressure, "contact") if f is not None else self._body_view(body, imp.pressure, "importance")
+            for body, imp, f in zip(r.bodies, r.pressures, contact)
+        ]
         return {
             "id": design.id,
             "seq": design.seq,
+            "stage": "done",
             "bodies": bodies,
-            "surface": {"positions": _b64(s.vertices, "<f4"), "normals": _b64(s.normals, "<f4"), "faces": _b64(_triangles(s.faces), "<u4")},
-            "cage": {"positions": _b64(cage.vertices, "<f4"), "edges": _b64(np.array(sorted(edges)), "<u4")},
+            "surface": self._surface_view(r.surface),
+            "cage": self._cage_view(r.control_mesh),
         }
 
     def cache_report(self) -> dict:

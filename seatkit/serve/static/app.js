@@ -78,10 +78,13 @@ function ramp(t) {
 }
 
 function showView(v) {
+  // a preview of the posed body alone keeps the previous chair until the new one is fitted
   for (const child of [...designGroup.children]) {
-    child.geometry.dispose();
-    child.material.dispose();
-    designGroup.remove(child);
+    if (child.name === "body" || v.surface) {
+      child.geometry.dispose();
+      child.material.dispose();
+      designGroup.remove(child);
+    }
   }
   const pmax = Math.max(1e-9, ...v.bodies.map((b) => b.max_pressure_pa));
   for (const b of v.bodies) {
@@ -97,31 +100,58 @@ function showView(v) {
     g.setAttribute("color", new THREE.BufferAttribute(colors, 3));
     g.setIndex(new THREE.BufferAttribute(decode(b.faces, Uint32Array), 1));
     g.computeVertexNormals();
-    designGroup.add(new THREE.Mesh(g, new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.8 })));
+    const mesh = new THREE.Mesh(g, new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.8 }));
+    mesh.name = "body";
+    designGroup.add(mesh);
   }
-  const s = new THREE.BufferGeometry();
-  s.setAttribute("position", new THREE.BufferAttribute(decode(v.surface.positions, Float32Array), 3));
-  s.setAttribute("normal", new THREE.BufferAttribute(decode(v.surface.normals, Float32Array), 3));
-  s.setIndex(new THREE.BufferAttribute(decode(v.surface.faces, Uint32Array), 1));
-  designGroup.add(new THREE.Mesh(s, new THREE.MeshStandardMaterial({ color: 0x6f9fc8, roughness: 0.55, metalness: 0.0, side: THREE.DoubleSide, transparent: true, opacity: 0.82 })));
-  const c = new THREE.BufferGeometry();
-  c.setAttribute("position", new THREE.BufferAttribute(decode(v.cage.positions, Float32Array), 3));
-  c.setIndex(new THREE.BufferAttribute(decode(v.cage.edges, Uint32Array), 1));
-  designGroup.add(new THREE.LineSegments(c, new THREE.LineBasicMaterial({ color: 0x1d3b57 })));
+  if (v.surface) addChair(v);
   $("legend-max").textContent = (pmax / 1000).toFixed(1);
   $("legend-title").textContent = v.bodies[0].pressure_kind === "contact"
     ? "contact pressure on the designed surface, kPa" : "pressure supported everywhere (importance), kPa";
-  if (!state.fitted) {
+  if (!state.fitted && v.surface) {
     const box = new THREE.Box3().setFromObject(designGroup);
     const centre = box.getCenter(new THREE.Vector3());
     const size = box.getSize(new THREE.Vector3()).length();
     controls.target.copy(centre);
-    camera.position.copy(centre).add(new THREE.Vector3(0.85, 0.45, 1.0).normalize().multiplyScalar(size * 1.55));
+    // from the body's left, a little in front and above: the seat, the backrest and the
+    // pressure on the thighs and the back show at once
+    camera.position.copy(centre).add(new THREE.Vector3(1.0, 0.35, 0.55).normalize().multiplyScalar(size * 1.5));
     controls.update();
     state.fitted = true;
   }
   render();
 }
+
+function addChair(v) {
+  const s = new THREE.BufferGeometry();
+  s.setAttribute("position", new THREE.BufferAttribute(decode(v.surface.positions, Float32Array), 3));
+  s.setAttribute("normal", new THREE.BufferAttribute(decode(v.surface.normals, Float32Array), 3));
+  s.setIndex(new THREE.BufferAttribute(decode(v.surface.faces, Uint32Array), 1));
+  const chair = new THREE.Mesh(s, new THREE.MeshStandardMaterial({ color: 0x6f9fc8, roughness: 0.55, metalness: 0.0, side: THREE.DoubleSide, transparent: true }));
+  chair.name = "chair";
+  designGroup.add(chair);
+  const c = new THREE.BufferGeometry();
+  c.setAttribute("position", new THREE.BufferAttribute(decode(v.cage.positions, Float32Array), 3));
+  c.setIndex(new THREE.BufferAttribute(decode(v.cage.edges, Uint32Array), 1));
+  const cage = new THREE.LineSegments(c, new THREE.LineBasicMaterial({ color: 0x1d3b57 }));
+  cage.name = "cage";
+  designGroup.add(cage);
+  applyViewOptions();
+}
+
+function applyViewOptions() {
+  const opacity = Number(document.querySelector("input[name=chair]:checked").value);
+  const chair = designGroup.getObjectByName("chair");
+  if (chair) {
+    chair.visible = opacity > 0;
+    chair.material.opacity = opacity;
+    chair.material.depthWrite = opacity >= 1; // see-through: the body behind it stays visible
+  }
+  const cage = designGroup.getObjectByName("cage");
+  if (cage) cage.visible = $("show-cage").checked;
+  render();
+}
+for (const input of document.querySelectorAll("#view-options input")) input.addEventListener("change", applyViewOptions);
 
 // ------------------------------------------------------------------ progress
 const STAGES = ["check", "bodies", "pressure", "template", "refine:optimize", "refine:catmull-clark-fit", "surface", "evaluate"];
@@ -131,19 +161,38 @@ function setProgress(text, fraction, cls = "") {
   $("progress-text").textContent = text;
   $("progress-bar").style.width = `${Math.round(100 * fraction)}%`;
 }
-function startPolling(label) {
+// While a design runs, the page polls the status; when the design has made something new
+// (the posed body, the template's cage, a refined cage) it draws that preview, labelled, until
+// the finished design replaces it. Only the newest request's previews are drawn, and never
+// after its finished design.
+const PREVIEW_LABEL = { posed: "new pose (pressure supported everywhere)", template: "template cage; refining", "refine:optimize": "optimised cage; fitting the surface", "refine:catmull-clark-fit": "fitted surface; evaluating" };
+function startPolling(label, request, seq) {
   stopPolling();
   const t0 = performance.now();
+  let drawn = null, fetching = false;
   setProgress(`${label}: sending`, 0.02, "running");
-  polling = setInterval(async () => {
+  const timer = setInterval(async () => {
     const r = await api("/api/status");
-    if (!polling || !r.ok) return;
+    if (polling !== timer || !r.ok) return;
     const stage = r.data.stage;
     if (stage === "idle") return;
     const i = STAGES.indexOf(stage);
     const secs = ((performance.now() - t0) / 1000).toFixed(1);
     setProgress(`${label}: ${stage} (${secs} s)`, i < 0 ? 0.5 : (i + 1) / (STAGES.length + 1), "running");
-  }, 120);
+    const preview = r.data.preview;
+    if (r.data.request === request && preview && preview !== drawn && !fetching) {
+      fetching = true;
+      const p = await api(`/api/preview?request=${encodeURIComponent(request)}`);
+      fetching = false;
+      if (polling !== timer || seq !== state.clientSeq || state.shownSeq === seq || !p.ok) return;
+      drawn = p.data.stage;
+      showView(p.data);
+      state.previewsShown = (state.previewsShown || 0) + 1;
+      state.lastPreview = { seq, stage: p.data.stage, seconds: (performance.now() - t0) / 1000 };
+      setProgress(`${PREVIEW_LABEL[p.data.stage] || p.data.stage} (${state.lastPreview.seconds.toFixed(1)} s)`, (i + 1) / (STAGES.length + 1), "running");
+    }
+  }, 100);
+  polling = timer;
 }
 function stopPolling() { if (polling) clearInterval(polling); polling = null; }
 
@@ -312,7 +361,7 @@ function showReport(report) {
   const rows = [
     ["template", report.template],
     ["cage", `${report.control_mesh.vertices} vertices, ${report.control_mesh.faces} faces`],
-    ["special cases", (report.special_cases || []).join(", ") || "none"],
+    ["special cases", (report.special_cases || []).filter((c) => c.taken).map((c) => c.case).join(", ") || "none taken"],
     ["supported", (m.supported_segments || []).join(", ")],
     ["design", t.design != null ? `${t.design.toFixed(2)} s` : "from memory"],
     ["evaluation", t.evaluate != null ? `${t.evaluate.toFixed(2)} s` : "-"],
@@ -347,7 +396,8 @@ async function requestDesign() {
   const seq = ++state.clientSeq;
   clearTimeout(baselineTimer);
   const started = performance.now();
-  startPolling("designing");
+  const request = `${Date.now().toString(36)}-${seq}`;
+  startPolling("designing", request, seq);
   let pose = state.upload || $("pose-select").value;
   const { angles, changed } = currentAngles();
   const body = bodyEntry();
@@ -363,7 +413,7 @@ async function requestDesign() {
   const recipe = { template: $("template-select").value, bodies: [entry] };
   const tp = changedParams($("template-params"));
   if (Object.keys(tp).length) recipe.template_params = tp;
-  const r = await postJSON("/api/design?files=0&baseline=0&view=1", recipe);
+  const r = await api("/api/design?files=0&baseline=0&view=1", { method: "POST", headers: { "Content-Type": "application/json", "X-Request-Id": request }, body: JSON.stringify(recipe) });
   if (seq !== state.clientSeq) return; // a newer request was made: never show a stale design
   stopPolling();
   if (r.status === 409) return;
