@@ -156,6 +156,7 @@ def test_page_designs_and_redesigns_offline(server, tmp_path):
         assert after["colours"] > 50 and after["differ"] > 0.05, after
         # the baseline follows once the sliders rest: Table 1 gets its second column
         page.wait_for_function("() => window.seatkit.design.metrics.baseline !== undefined", timeout=180_000)
+        page.locator('#view-options button:text-is("back-left")').click()  # the pressure on the back and seat
         page.wait_for_timeout(300)
         shot = os.environ.get("SEATKIT_SERVE_SCREENSHOT")
         page.screenshot(path=shot or str(tmp_path / "serve.png"))

@@ -65,7 +65,7 @@ function decode(b64, Type) {
 
 // Pressure colours: grey where there is no contact, then yellow -> orange -> red -> purple up to the
 // largest value shown (the scale never clips what it shows).
-const RAMP = [[0.0, [0.988, 0.914, 0.416]], [0.35, [0.973, 0.604, 0.212]], [0.7, [0.851, 0.255, 0.169]], [1.0, [0.478, 0.039, 0.235]]];
+const RAMP = [[0.0, [1.0, 0.82, 0.15]], [0.35, [0.97, 0.5, 0.1]], [0.7, [0.84, 0.16, 0.12]], [1.0, [0.45, 0.02, 0.25]]];
 function ramp(t) {
   for (let i = 1; i < RAMP.length; i++) {
     if (t <= RAMP[i][0]) {
@@ -93,7 +93,7 @@ function showView(v) {
     const p = decode(b.pressure, Float32Array);
     const colors = new Float32Array(pos.length);
     for (let i = 0; i < p.length; i++) {
-      const c = p[i] > 0.5 ? ramp(Math.min(1, p[i] / pmax)) : [0.85, 0.85, 0.85];
+      const c = p[i] > 0.5 ? ramp(Math.min(1, p[i] / pmax)) : [0.78, 0.79, 0.8];
       colors.set(c, 3 * i);
     }
     g.setAttribute("position", new THREE.BufferAttribute(pos, 3));
@@ -112,15 +112,22 @@ function showView(v) {
     const box = new THREE.Box3().setFromObject(designGroup);
     const centre = box.getCenter(new THREE.Vector3());
     const size = box.getSize(new THREE.Vector3()).length();
-    controls.target.copy(centre);
-    // from the body's left, a little in front and above: the seat, the backrest and the
-    // pressure on the thighs and the back show at once
-    camera.position.copy(centre).add(new THREE.Vector3(1.0, 0.35, 0.55).normalize().multiplyScalar(size * 1.5));
-    controls.update();
+    state.frame = { centre, size };
+    lookFrom([1.0, 0.35, 0.55]); // from the body's left, a little in front and above
     state.fitted = true;
   }
   render();
 }
+
+function lookFrom(direction) {
+  if (!state.frame) return;
+  const { centre, size } = state.frame;
+  controls.target.copy(centre);
+  camera.position.copy(centre).add(new THREE.Vector3(...direction).normalize().multiplyScalar(size * 1.5));
+  controls.update();
+  render();
+}
+for (const b of document.querySelectorAll("#view-options button")) b.addEventListener("click", () => lookFrom(b.dataset.view.split(",").map(Number)));
 
 function addChair(v) {
   const s = new THREE.BufferGeometry();
