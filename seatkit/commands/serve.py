@@ -64,6 +64,9 @@ def register(app: typer.Typer) -> None:
                     webbrowser.open(url)
 
             threading.Thread(target=_open, daemon=True).start()
-        server.run()
+        try:
+            server.run()
+        except SystemExit:  # uvicorn leaves with sys.exit when it cannot bind
+            server.started = False
         if not server.started:
             raise SeatkitError(f"could not listen on {host}:{port} (is the port in use? try --port)")
