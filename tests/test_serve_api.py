@@ -402,3 +402,16 @@ def test_previews_show_what_the_running_design_made(designer, client):
     # a baseline fitted later does not touch the preview of the design
     designer.baseline(d)
     assert designer.preview("req-31")["stage"] == seen[max(seen, key=lambda k: list(seen).index(k))]["stage"]
+
+
+def test_a_baseline_asked_for_after_a_newer_request_is_skipped(client, designer):
+    a = client.post(FAST, json={"bodies": [{"pose": "reclined-sitting"}], "seed": 41}).json()
+    r = client.post(f"/api/design/{a['id']}/baseline", params={"seq": a["request_seq"]})
+    assert r.status_code == 200 and r.json()["metrics"]["baseline"]
+    b = client.post(FAST, json={"bodies": [{"pose": "reclined-sitting"}], "seed": 42}).json()
+    newer = client.post(FAST, json={"bodies": [{"pose": "reclined-sitting"}], "seed": 41}).json()  # from memory
+    assert newer["id"] == a["id"] and newer["request_seq"] > b["request_seq"]
+    r = client.post(f"/api/design/{b['id']}/baseline", params={"seq": b["request_seq"]})
+    assert r.status_code == 409 and r.json()["kind"] == "superseded"
+    assert designer.get(b["id"]).baseline is None
+    assert client.get("/api/status").json()["stage"] == "idle"

@@ -144,6 +144,7 @@ def create_app(designer: Designer) -> Starlette:
         if _flag(request, "files", True):
             await run_in_threadpool(designer.files, d)
         answer = designer.report(d)
+        answer["request_seq"] = seq  # this request's number (a design from memory keeps the seq it was made under)
         if _flag(request, "view", False):
             answer["view"] = designer.view(d)
         return JSONResponse(answer)

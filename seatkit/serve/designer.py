@@ -277,7 +277,16 @@ class Designer:
             bodies.append({"name": name, "description": model.description, "plugin": plugin, "params": _body_params(model, DEFAULT_BODY_MASS)})
         templates = []
         for name, template, plugin in self.registry.items("template"):
-            templates.append({"name": name, "description": template.description, "plugin": plugin, "params": _template_params(template)})
+            people = getattr(getattr(template, "spec", None), "people", None) or (1, 1)
+            templates.append(
+                {
+                    "name": name,
+                    "description": template.description,
+                    "plugin": plugin,
+                    "params": _template_params(template),
+                    "people": [int(people[0]), int(people[1])],
+                }
+            )
         return {
             "poses": [{"name": p.name, "description": p.description, "supported": p.supported} for p in list_poses()],
             "default_pose": DEFAULT_POSE,
@@ -440,10 +449,13 @@ class Designer:
             self._latest += 1
             return self._latest
 
-    def _check(self, seq: int, stage: str) -> None:
+    def _check(self, seq: int, stage: str, *, report: bool = True) -> None:
+        """Stop (:class:`Superseded`) unless ``seq`` is the newest request; else show ``stage`` in the status."""
         with self._state:
             if seq < self._latest:
                 raise Superseded(f"superseded by a newer request (stopped before {stage})")
+            if not report:
+                return
             same = self.status.get("seq") == seq
             self.status = {
                 "seq": seq,
@@ -508,7 +520,7 @@ class Designer:
         with self._state:
             hit = self._designs.get(ident)
         if hit is not None:
-            self._check(seq, "done")
+            self._check(seq, "done", report=False)
             self.hits += 1
             with self._state:
                 self._designs.move_to_end(ident)

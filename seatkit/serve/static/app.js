@@ -417,7 +417,8 @@ async function requestDesign() {
   const entry = { model: body.model, pose };
   if (Object.keys(body.params).length) entry.params = body.params;
   if (pose.endsWith(".bvh")) entry.frame = Number($("bvh-frame").value || 0);
-  const recipe = { template: $("template-select").value, bodies: [entry] };
+  const people = Math.max(1, Number($("people").value) || 1);
+  const recipe = { template: $("template-select").value, bodies: Array.from({ length: people }, () => ({ ...entry })) };
   const tp = changedParams($("template-params"));
   if (Object.keys(tp).length) recipe.template_params = tp;
   const r = await api("/api/design?files=0&baseline=0&view=1", { method: "POST", headers: { "Content-Type": "application/json", "X-Request-Id": request }, body: JSON.stringify(recipe) });
@@ -435,13 +436,15 @@ async function requestDesign() {
   const secs = (performance.now() - started) / 1000;
   state.lastRoundTrip = secs;
   setProgress(`design shown in ${secs.toFixed(2)} s`, 1, "idle");
-  baselineTimer = setTimeout(() => requestBaseline(seq, r.data.id), 700);
+  const serverSeq = r.data.request_seq;
+  baselineTimer = setTimeout(() => requestBaseline(seq, r.data.id, serverSeq), 700);
 }
 
-async function requestBaseline(seq, id) {
+async function requestBaseline(seq, id, serverSeq) {
   if (seq !== state.clientSeq) return;
   setProgress("fitting the flat-patch baseline", 0.5, "running");
-  const r = await api(`/api/design/${id}/baseline?seq=${seq}`, { method: "POST" });
+  // the server skips it if a newer design request has arrived meanwhile (409)
+  const r = await api(`/api/design/${id}/baseline?seq=${serverSeq}`, { method: "POST" });
   if (seq !== state.clientSeq) return;
   if (!r.ok) { if (r.status !== 409) setProgress(`baseline: ${r.data.error}`, 1, "error"); return; }
   state.design = r.data;
@@ -481,12 +484,20 @@ async function main() {
   for (const t of r.data.templates) option($("template-select"), t.name, t.name);
   $("template-select").value = r.data.default_template;
   const bodyParams = () => paramInputs($("body-params"), r.data.bodies.find((b) => b.name === $("body-select").value).params, "body");
-  const templateParams = () => paramInputs($("template-params"), r.data.templates.find((t) => t.name === $("template-select").value).params, "template");
+  const templateParams = () => {
+    const t = r.data.templates.find((x) => x.name === $("template-select").value);
+    paramInputs($("template-params"), t.params, "template");
+    const [lo, hi] = t.people || [1, 1];
+    $("people-row").hidden = hi <= 1;
+    $("people").min = lo; $("people").max = hi;
+    $("people").value = Math.min(hi, Math.max(lo, Number($("people").value) || 1));
+  };
   bodyParams(); templateParams();
   buildSliders();
   $("pose-select").addEventListener("change", async () => { state.upload = null; $("pose-upload").value = ""; $("frame-row").hidden = true; if (await loadPose()) requestDesign(); });
   $("body-select").addEventListener("change", async () => { bodyParams(); if (!state.upload || !state.upload.endsWith(".bvh") || await loadPose()) requestDesign(); });
   $("template-select").addEventListener("change", () => { templateParams(); requestDesign(); });
+  $("people").addEventListener("change", () => requestDesign());
   $("bvh-frame").addEventListener("change", async () => { if (await loadPose()) requestDesign(); });
   $("pose-upload").addEventListener("change", onUpload);
   $("reset-joints").addEventListener("click", () => { setSliders(); requestDesign(); });
