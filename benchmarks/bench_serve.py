@@ -7,7 +7,8 @@ POST /api/pose with the new angles and POST /api/design?files=0&baseline=0&view=
 with the recipe, and times the two requests together (what the page waits for
 before it draws the new design, the meshes included). Meanwhile it polls
 GET /api/status every 50 ms as the page does (every 100 ms) and fetches each
-preview when it appears (the posed body; the template's cage), timing
+preview when it appears (the posed body; the template's cage; the refined
+surface, before the evaluation), timing
 when the page could draw it. Prints the medians, the stages of the design
 (from the report) and what the server reports as cached.
 
@@ -102,9 +103,10 @@ def main() -> None:
                 while worker.is_alive():
                     st = client.get("/api/status").json()
                     stage = st.get("preview")
-                    if st.get("request") == request and stage in ("posed", "template") and stage not in seen:
-                        if client.get("/api/preview", params={"request": request}).status_code == 200:
-                            seen[stage] = time.perf_counter() - t
+                    if st.get("request") == request and stage in ("posed", "template", "refine:catmull-clark-fit") and stage not in seen:
+                        p = client.get("/api/preview", params={"request": request})
+                        if p.status_code == 200:
+                            seen[p.json()["stage"]] = time.perf_counter() - t
                     time.sleep(0.05)
                 worker.join()
                 r = answer["r"]
@@ -127,6 +129,11 @@ def main() -> None:
                     builds.append(time.perf_counter() - t)
                     if done.returncode != 0:
                         print(f"  seatkit build failed: {done.stderr.strip()}")
+                line = f"  move {i}: round trip {trips[-1]:.2f} s"
+                line += "".join(f", {k} preview {v:.2f} s" for k, v in seen.items())
+                if args.compare and builds:
+                    line += f", seatkit build {builds[-1]:.2f} s"
+                print(line, flush=True)
             status = client.get("/api/status").json()
         finally:
             proc.terminate()
@@ -134,7 +141,12 @@ def main() -> None:
     print(f"designs answered from memory: {status['caches']['design_hits']} (0 expected: every move is a new pose)")
     print(f"slider move -> new design shown (POST /api/pose + POST /api/design, meshes included): {len(trips)} moves")
     print(f"  round trip: median {statistics.median(trips):.2f} s, min {min(trips):.2f} s, max {max(trips):.2f} s")
-    labels = {"posed": "preview: the body in its new pose", "template": "preview: the template's cage and surface"}
+    labels = {
+        "posed": "preview: the body in its new pose",
+        "template": "preview: the template's cage and surface",
+        "refine:optimize": "preview: the optimised cage",
+        "refine:catmull-clark-fit": "preview: the refined surface (before the evaluation)",
+    }
     for stage, values in previews.items():
         print(f"  {labels[stage]}: median {statistics.median(values):.2f} s ({len(values)} of {len(trips)} moves)")
     if builds:

@@ -2,7 +2,7 @@
 
 Playwright's Python package drives ``/usr/bin/chromium`` (it never downloads
 a browser here: ``executable_path`` is given). The app runs on uvicorn on a
-free localhost port. The network is blocked three ways: a dead proxy, a
+free localhost port. An unsupported pose must show its refusal. The network is blocked three ways: a dead proxy, a
 resolver that maps every host but the loopback to nothing, and a route
 that aborts, and records, every request not to the app; the test fails on
 any. The page must load, show a design, show a new one after a slider
@@ -160,10 +160,20 @@ def test_page_designs_and_redesigns_offline(server, tmp_path):
         page.wait_for_timeout(300)
         shot = os.environ.get("SEATKIT_SERVE_SCREENSHOT")
         page.screenshot(path=shot or str(tmp_path / "serve.png"))
+
+        # an unsupported pose: the refusal and its reason on the page, no chair left under it
+        clean = list(console_errors)
+        page.select_option("#pose-select", "feet-tucked")
+        page.wait_for_selector("#refusal:not([hidden])", timeout=180_000)
+        refusal = page.locator("#refusal-text").inner_text()
+        assert "cannot support" in refusal and "LeftLeg" in refusal
+        assert page.evaluate("() => window.seatkit.design.id") == second["id"]  # the last design stays the state
         context.close()
     assert not foreign, f"requests left localhost: {foreign}"
     assert not page_errors, page_errors
-    assert not console_errors, console_errors
+    assert not clean, clean
+    # chromium logs the refusal's HTTP 422 as a failed resource load; nothing else may appear
+    assert all("status of 422" in m for m in console_errors[len(clean):]), console_errors
     # the server designed the slider's pose: the knee angle the page asked for
     design = designer.get(second["id"])
     from seatkit.body.poses import load_pose_file

@@ -332,6 +332,18 @@ async function loadPose() {
 }
 
 // ------------------------------------------------------------------ designs
+function clearChair() {
+  // the chair on screen belongs to another pose: do not leave it under this one
+  for (const child of [...designGroup.children]) {
+    if (child.name !== "body") {
+      child.geometry.dispose();
+      child.material.dispose();
+      designGroup.remove(child);
+    }
+  }
+  render();
+}
+
 function showError(message, unsupported = false) {
   $("refusal").hidden = false;
   $("refusal").querySelector("h2").textContent = unsupported ? "This pose cannot be supported" : "This input cannot be used";
@@ -425,7 +437,11 @@ async function requestDesign() {
   if (seq !== state.clientSeq) return; // a newer request was made: never show a stale design
   stopPolling();
   if (r.status === 409) return;
-  if (!r.ok) { showError(r.data.error, r.data.kind === "unsupported"); return; }
+  if (!r.ok) {
+    if (r.data.kind === "unsupported") clearChair();
+    showError(r.data.error, r.data.kind === "unsupported");
+    return;
+  }
   $("refusal").hidden = true;
   state.design = r.data;
   state.shownSeq = seq;
