@@ -415,3 +415,18 @@ def test_a_baseline_asked_for_after_a_newer_request_is_skipped(client, designer)
     assert r.status_code == 409 and r.json()["kind"] == "superseded"
     assert designer.get(b["id"]).baseline is None
     assert client.get("/api/status").json()["stage"] == "idle"
+
+
+def test_a_bench_for_two_people(client, designer):
+    """The page's people count: a multi-person template gets one body entry per person, placed side by side."""
+    o = client.get("/api/options").json()
+    bench = next(t for t in o["templates"] if t["name"] == "bench")
+    assert bench["people"][0] >= 2 or bench["people"][1] >= 2
+    chair = next(t for t in o["templates"] if t["name"] == "chair")
+    assert chair["people"] == [1, 1]
+    r = client.post(FAST, json={"template": "bench", "bodies": [{"pose": "upright-sitting"}, {"pose": "upright-sitting"}]})
+    assert r.status_code == 200, r.text
+    d = r.json()
+    assert len(d["view"]["bodies"]) == 2 and len(d["metrics"]["ours"]) == 2
+    xs = [_decode(b["positions"], "<f4").reshape(-1, 3)[:, 0] for b in d["view"]["bodies"]]
+    assert xs[0].max() < xs[1].min() or xs[1].max() < xs[0].min()  # side by side, apart
