@@ -646,3 +646,18 @@ def _write(result: BuildResult, exports: _Exports, timer: _Timer, *, overwrite: 
         raise
     result.files = {k: str(v) for k, v in files.items()}
     result.extra["output"] = str(target)
+
+
+def write_result(result: BuildResult, registry, *, overwrite: bool = False, progress: Progress | None = None) -> None:
+    """Write a result computed with ``build(write=False)``, as ``build(write=True)`` would have.
+
+    Runs the recipe's exporters in this process into a staging folder, writes
+    ``report.json`` and moves the folder to ``recipe["output"]``; fills
+    ``result.files`` and ``result.extra["output"]``. For callers that show a
+    design first and write its files later (``seatkit serve``).
+    """
+    timer = _Timer(progress or _noop)
+    timer.timings = dict(result.timings)
+    exporters = [registry.get("exporter", name) for name in result.recipe["exporters"]]
+    with _Exports(exporters, processes=False) as exports:
+        _write(result, exports, timer, overwrite=overwrite)

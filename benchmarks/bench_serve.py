@@ -1,0 +1,163 @@
+"""A slider move in `seatkit serve`: the round trip of a new design on a warm server, and its previews.
+
+Starts `seatkit serve --no-browser` on a free port in a fresh process, warms it
+with one design of the default recipe, then moves joints as the page does
+(each move a new pose, so nothing comes from the design memory): for each,
+POST /api/pose with the new angles and POST /api/design?files=0&baseline=0&view=1
+with the recipe, and times the two requests together (what the page waits for
+before it draws the new design, the meshes included). Meanwhile it polls
+GET /api/status every 50 ms as the page does (every 100 ms) and fetches each
+preview when it appears (the posed body; the template's cage; the refined
+surface, before the evaluation), timing
+when the page could draw it. Prints the medians, the stages of the design
+(from the report) and what the server reports as cached.
+
+With --compare, a `seatkit build` of the same pose (what a designer ran before
+the web app: a fresh process, every stage, the files) is timed after each move,
+alternating, so both see the same machine load.
+
+    python benchmarks/bench_serve.py [--moves 12] [--compare]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import socket
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import httpx
+
+#: Joint moves, as the page's sliders make them: (segment index, axis, degrees added).
+MOVES = [
+    (5, 0, -10.0), (5, 0, 10.0),  # left knee
+    (2, 0, -10.0), (2, 0, 10.0),  # right knee
+    (1, 0, 8.0), (4, 0, 8.0),  # hips
+    (1, 0, -8.0), (4, 0, -8.0),
+    (0, 0, -8.0), (0, 0, 8.0),  # trunk recline (root)
+    (14, 0, -15.0), (14, 0, 15.0),  # right shoulder
+]
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--moves", type=int, default=12)
+    ap.add_argument("--compare", action="store_true", help="alternate with a seatkit build of the same pose")
+    args = ap.parse_args()
+    seatkit = shutil.which("seatkit") or sys.exit("seatkit is not installed (pip install '.[serve]')")
+    port = _free_port()
+    with tempfile.TemporaryDirectory() as tmp:
+        proc = subprocess.Popen(
+            [seatkit, "serve", "--no-browser", "--port", str(port), "--folder", str(Path(tmp) / "serve")],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            client = httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=120)
+            deadline = time.monotonic() + 60
+            while True:
+                try:
+                    client.get("/api/status")
+                    break
+                except httpx.TransportError:
+                    if proc.poll() is not None or time.monotonic() > deadline:
+                        sys.exit(f"seatkit serve did not start: {proc.stderr.read() if proc.stderr else ''}")
+                    time.sleep(0.1)
+            t0 = time.perf_counter()
+            first = client.post("/api/design?files=0&baseline=0&view=1", json={})
+            first.raise_for_status()
+            print(f"first design (cold server: imports, rig, operators): {time.perf_counter() - t0:.2f} s")
+            pose = client.get("/api/pose", params={"pose": "upright-sitting"}).json()
+            trips, stages, builds, previews = [], [], [], {}
+            for i in range(args.moves):
+                seg, axis, delta = MOVES[i % len(MOVES)]
+                angles = [row[:] for row in pose["angles"]]
+                angles[seg][axis] += delta * (1 + 0.15 * (i // len(MOVES)))  # never a pose seen before
+                t = time.perf_counter()
+                name = client.post("/api/pose", json={"angles": angles, "translation": pose["translation"]}).json()["pose"]
+                request = f"bench-{i}"
+                answer = {}
+
+                def post(name=name, request=request, answer=answer):
+                    answer["r"] = client.post(
+                        "/api/design?files=0&baseline=0&view=1", json={"bodies": [{"pose": name}]}, headers={"X-Request-Id": request}
+                    )
+
+                worker = threading.Thread(target=post)
+                worker.start()
+                seen: dict = {}
+                while worker.is_alive():
+                    st = client.get("/api/status").json()
+                    stage = st.get("preview")
+                    if st.get("request") == request and stage in ("posed", "template", "refine:catmull-clark-fit") and stage not in seen:
+                        p = client.get("/api/preview", params={"request": request})
+                        if p.status_code == 200:
+                            seen[p.json()["stage"]] = time.perf_counter() - t
+                    time.sleep(0.05)
+                worker.join()
+                r = answer["r"]
+                trips.append(time.perf_counter() - t)
+                for stage, seconds in seen.items():
+                    previews.setdefault(stage, []).append(seconds)
+                if r.status_code != 200:
+                    print(f"  move {i}: {r.status_code} {r.json().get('error')}")
+                    continue
+                d = r.json()
+                stages.append({**d["timings_s"], "evaluate (total)": d["seconds"]["evaluate"], "view payload MB": len(r.content) / 1e6})
+                if args.compare:
+                    path = Path(tmp) / "serve" / "uploads" / name
+                    t = time.perf_counter()
+                    done = subprocess.run(
+                        [seatkit, "build", "--pose", str(path), "--out", str(Path(tmp) / f"cli{i}"), "--quiet"],
+                        capture_output=True,
+                        text=True,
+                    )
+                    builds.append(time.perf_counter() - t)
+                    if done.returncode != 0:
+                        print(f"  seatkit build failed: {done.stderr.strip()}")
+                line = f"  move {i}: round trip {trips[-1]:.2f} s"
+                line += "".join(f", {k} preview {v:.2f} s" for k, v in seen.items())
+                if args.compare and builds:
+                    line += f", seatkit build {builds[-1]:.2f} s"
+                print(line, flush=True)
+            status = client.get("/api/status").json()
+        finally:
+            proc.terminate()
+            proc.wait(timeout=30)
+    print(f"designs answered from memory: {status['caches']['design_hits']} (0 expected: every move is a new pose)")
+    print(f"slider move -> new design shown (POST /api/pose + POST /api/design, meshes included): {len(trips)} moves")
+    print(f"  round trip: median {statistics.median(trips):.2f} s, min {min(trips):.2f} s, max {max(trips):.2f} s")
+    labels = {
+        "posed": "preview: the body in its new pose",
+        "template": "preview: the template's cage and surface",
+        "refine:optimize": "preview: the optimised cage",
+        "refine:catmull-clark-fit": "preview: the refined surface (before the evaluation)",
+    }
+    for stage, values in previews.items():
+        print(f"  {labels[stage]}: median {statistics.median(values):.2f} s ({len(values)} of {len(trips)} moves)")
+    if builds:
+        print(f"  seatkit build of the same pose (fresh process, all stages, files), alternating: median {statistics.median(builds):.2f} s")
+    if stages:
+        for k in stages[0]:
+            values = [s[k] for s in stages if k in s]
+            print(f"  {k:<26} {statistics.median(values):.3f}")
+    print("cached on the warm server:", json.dumps(status["caches"]))
+    print("deferred until asked: the flat-patch baseline (POST /api/design/ID/baseline), the files (POST /api/design/ID/files)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,524 @@
+// seatkit serve: the page. Talks to the JSON API of seatkit/serve/app.py.
+import * as THREE from "three";
+import { OrbitControls } from "/static/vendor/OrbitControls.js";
+
+const $ = (id) => document.getElementById(id);
+const state = {
+  options: null,
+  pose: null,          // {pose, angles (21x3 deg), translation, supported, description}
+  upload: null,        // name of the uploaded file in the server's upload folder
+  sliders: {},         // key -> slider spec
+  clientSeq: 0,        // newest request made by this page
+  shownSeq: 0,         // request whose design is on screen
+  design: null,        // report of the design on screen
+  designsShown: 0,
+  fitted: false,
+};
+window.seatkit = state; // read by the browser test
+
+// ------------------------------------------------------------------ API
+async function api(path, options = {}) {
+  const response = await fetch(path, options);
+  let data = null;
+  try { data = await response.json(); } catch (e) { data = { error: `HTTP ${response.status}` }; }
+  return { ok: response.ok, status: response.status, data };
+}
+const postJSON = (path, body) => api(path, { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) });
+
+// ------------------------------------------------------------------ 3D view
+const view = $("view");
+const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+renderer.setPixelRatio(window.devicePixelRatio || 1);
+view.appendChild(renderer.domElement);
+const scene = new THREE.Scene();
+scene.background = new THREE.Color(0xf4f3f0);
+const camera = new THREE.PerspectiveCamera(35, 1, 0.01, 50);
+camera.position.set(1.9, 1.3, 2.1); // front-left: the body faces +Z, +X is its left
+const controls = new OrbitControls(camera, renderer.domElement);
+controls.target.set(0, 0.6, 0);
+controls.addEventListener("change", render);
+scene.add(new THREE.HemisphereLight(0xffffff, 0x8a8070, 1.6));
+const sun = new THREE.DirectionalLight(0xffffff, 1.6);
+sun.position.set(2, 4, 3);
+scene.add(sun);
+const grid = new THREE.GridHelper(3, 30, 0xb9b4aa, 0xd9d5cc);
+scene.add(grid);
+const designGroup = new THREE.Group();
+scene.add(designGroup);
+
+function resize() {
+  const w = view.clientWidth, h = view.clientHeight;
+  renderer.setSize(w, h, false);
+  renderer.domElement.style.width = w + "px";
+  renderer.domElement.style.height = h + "px";
+  camera.aspect = w / Math.max(h, 1);
+  camera.updateProjectionMatrix();
+  render();
+}
+function render() { renderer.render(scene, camera); }
+window.addEventListener("resize", resize);
+
+function decode(b64, Type) {
+  const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+  return new Type(bytes.buffer);
+}
+
+// Pressure colours: grey where there is no contact, then yellow -> orange -> red -> purple up to the
+// largest value shown (the scale never clips what it shows).
+const RAMP = [[0.0, [1.0, 0.82, 0.15]], [0.35, [0.97, 0.5, 0.1]], [0.7, [0.84, 0.16, 0.12]], [1.0, [0.45, 0.02, 0.25]]];
+function ramp(t) {
+  for (let i = 1; i < RAMP.length; i++) {
+    if (t <= RAMP[i][0]) {
+      const [t0, c0] = RAMP[i - 1], [t1, c1] = RAMP[i];
+      const u = (t - t0) / (t1 - t0);
+      return c0.map((v, k) => v + u * (c1[k] - v));
+    }
+  }
+  return RAMP[RAMP.length - 1][1];
+}
+
+function showView(v) {
+  // a preview of the posed body alone keeps the previous chair until the new one is fitted
+  for (const child of [...designGroup.children]) {
+    if (child.name === "body" || v.surface) {
+      child.geometry.dispose();
+      child.material.dispose();
+      designGroup.remove(child);
+    }
+  }
+  const pmax = Math.max(1e-9, ...v.bodies.map((b) => b.max_pressure_pa));
+  for (const b of v.bodies) {
+    const g = new THREE.BufferGeometry();
+    const pos = decode(b.positions, Float32Array);
+    const p = decode(b.pressure, Float32Array);
+    const colors = new Float32Array(pos.length);
+    for (let i = 0; i < p.length; i++) {
+      const c = p[i] > 0.5 ? ramp(Math.min(1, p[i] / pmax)) : [0.78, 0.79, 0.8];
+      colors.set(c, 3 * i);
+    }
+    g.setAttribute("position", new THREE.BufferAttribute(pos, 3));
+    g.setAttribute("color", new THREE.BufferAttribute(colors, 3));
+    g.setIndex(new THREE.BufferAttribute(decode(b.faces, Uint32Array), 1));
+    g.computeVertexNormals();
+    const mesh = new THREE.Mesh(g, new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.8 }));
+    mesh.name = "body";
+    designGroup.add(mesh);
+  }
+  if (v.surface) addChair(v);
+  $("legend-max").textContent = (pmax / 1000).toFixed(1);
+  $("legend-title").textContent = v.bodies[0].pressure_kind === "contact"
+    ? "contact pressure on the designed surface, kPa" : "pressure supported everywhere (importance), kPa";
+  if (!state.fitted && v.surface) {
+    const box = new THREE.Box3().setFromObject(designGroup);
+    const centre = box.getCenter(new THREE.Vector3());
+    const size = box.getSize(new THREE.Vector3()).length();
+    state.frame = { centre, size };
+    lookFrom([1.0, 0.35, 0.55]); // from the body's left, a little in front and above
+    state.fitted = true;
+  }
+  render();
+}
+
+function lookFrom(direction) {
+  if (!state.frame) return;
+  const { centre, size } = state.frame;
+  controls.target.copy(centre);
+  camera.position.copy(centre).add(new THREE.Vector3(...direction).normalize().multiplyScalar(size * 1.5));
+  controls.update();
+  render();
+}
+for (const b of document.querySelectorAll("#view-options button")) b.addEventListener("click", () => lookFrom(b.dataset.view.split(",").map(Number)));
+
+function addChair(v) {
+  const s = new THREE.BufferGeometry();
+  s.setAttribute("position", new THREE.BufferAttribute(decode(v.surface.positions, Float32Array), 3));
+  s.setAttribute("normal", new THREE.BufferAttribute(decode(v.surface.normals, Float32Array), 3));
+  s.setIndex(new THREE.BufferAttribute(decode(v.surface.faces, Uint32Array), 1));
+  const chair = new THREE.Mesh(s, new THREE.MeshStandardMaterial({ color: 0x6f9fc8, roughness: 0.55, metalness: 0.0, side: THREE.DoubleSide, transparent: true }));
+  chair.name = "chair";
+  designGroup.add(chair);
+  const c = new THREE.BufferGeometry();
+  c.setAttribute("position", new THREE.BufferAttribute(decode(v.cage.positions, Float32Array), 3));
+  c.setIndex(new THREE.BufferAttribute(decode(v.cage.edges, Uint32Array), 1));
+  const cage = new THREE.LineSegments(c, new THREE.LineBasicMaterial({ color: 0x1d3b57 }));
+  cage.name = "cage";
+  designGroup.add(cage);
+  applyViewOptions();
+}
+
+function applyViewOptions() {
+  const opacity = Number(document.querySelector("input[name=chair]:checked").value);
+  const chair = designGroup.getObjectByName("chair");
+  if (chair) {
+    chair.visible = opacity > 0;
+    chair.material.opacity = opacity;
+    chair.material.depthWrite = opacity >= 1; // see-through: the body behind it stays visible
+  }
+  const cage = designGroup.getObjectByName("cage");
+  if (cage) cage.visible = $("show-cage").checked;
+  render();
+}
+for (const input of document.querySelectorAll("#view-options input")) input.addEventListener("change", applyViewOptions);
+
+// ------------------------------------------------------------------ progress
+const STAGES = ["check", "bodies", "pressure", "template", "refine:optimize", "refine:catmull-clark-fit", "surface", "evaluate"];
+let polling = null;
+function setProgress(text, fraction, cls = "") {
+  $("progress").className = cls;
+  $("progress-text").textContent = text;
+  $("progress-bar").style.width = `${Math.round(100 * fraction)}%`;
+}
+// While a design runs, the page polls the status; when the design has made something new
+// (the posed body, the template's cage, a refined cage) it draws that preview, labelled, until
+// the finished design replaces it. Only the newest request's previews are drawn, and never
+// after its finished design.
+const PREVIEW_LABEL = { posed: "new pose (pressure supported everywhere)", template: "template cage; refining", "refine:optimize": "optimised cage; fitting the surface", "refine:catmull-clark-fit": "fitted surface; evaluating" };
+function startPolling(label, request, seq) {
+  stopPolling();
+  const t0 = performance.now();
+  let drawn = null, fetching = false;
+  setProgress(`${label}: sending`, 0.02, "running");
+  const timer = setInterval(async () => {
+    const r = await api("/api/status");
+    if (polling !== timer || !r.ok) return;
+    const stage = r.data.stage;
+    if (stage === "idle") return;
+    const i = STAGES.indexOf(stage);
+    const secs = ((performance.now() - t0) / 1000).toFixed(1);
+    setProgress(`${label}: ${stage} (${secs} s)`, i < 0 ? 0.5 : (i + 1) / (STAGES.length + 1), "running");
+    const preview = r.data.preview;
+    if (r.data.request === request && preview && preview !== drawn && !fetching) {
+      fetching = true;
+      const p = await api(`/api/preview?request=${encodeURIComponent(request)}`);
+      fetching = false;
+      if (polling !== timer || seq !== state.clientSeq || state.shownSeq === seq || !p.ok) return;
+      drawn = p.data.stage;
+      showView(p.data);
+      state.previewsShown = (state.previewsShown || 0) + 1;
+      state.lastPreview = { seq, stage: p.data.stage, seconds: (performance.now() - t0) / 1000 };
+      setProgress(`${PREVIEW_LABEL[p.data.stage] || p.data.stage} (${state.lastPreview.seconds.toFixed(1)} s)`, (i + 1) / (STAGES.length + 1), "running");
+    }
+  }, 100);
+  polling = timer;
+}
+function stopPolling() { if (polling) clearInterval(polling); polling = null; }
+
+// ------------------------------------------------------------------ controls
+function option(select, value, text) {
+  const o = document.createElement("option");
+  o.value = value; o.textContent = text;
+  select.appendChild(o);
+}
+
+function paramInputs(container, params, prefix) {
+  container.innerHTML = "";
+  for (const p of params) {
+    const row = document.createElement("label");
+    row.className = "param";
+    const name = document.createElement("span");
+    name.textContent = p.unit ? `${p.label} (${p.unit})` : p.label;
+    name.title = p.description || "";
+    let input;
+    if (p.enum) {
+      input = document.createElement("select");
+      for (const e of p.enum) option(input, e, e);
+      if (p.default != null) input.value = p.default;
+    } else {
+      input = document.createElement("input");
+      input.type = "number";
+      input.step = "any";
+      if (p.minimum != null) input.min = p.minimum;
+      if (p.maximum != null) input.max = p.maximum;
+      if (p.default != null) input.value = p.default;
+    }
+    input.dataset.key = p.key;
+    input.dataset.default = p.default == null ? "" : String(p.default);
+    input.id = `${prefix}-${p.key}`;
+    input.addEventListener("change", () => requestDesign());
+    row.append(name, input);
+    container.appendChild(row);
+  }
+}
+
+function changedParams(container) {
+  const out = {};
+  for (const input of container.querySelectorAll("input, select")) {
+    if (input.value === "" || input.value === input.dataset.default) continue;
+    out[input.dataset.key] = input.type === "number" ? Number(input.value) : input.value;
+  }
+  return out;
+}
+
+const RANGES = { "trunk-recline": [-30, 80], hip: [-30, 150], knee: [0, 160], shoulder: [-60, 180], elbow: [0, 150] };
+function sliderValue(spec, angles) { return spec.sign * angles[state.pose.segments.indexOf(spec.segment)][spec.axis]; }
+
+function buildSliders() {
+  const box = $("sliders");
+  box.innerHTML = "";
+  for (const spec of state.options.sliders) {
+    state.sliders[spec.key] = spec;
+    const row = document.createElement("div");
+    row.className = "slider";
+    const name = document.createElement("span");
+    name.className = "name"; name.textContent = spec.label;
+    const input = document.createElement("input");
+    input.type = "range"; input.step = "1"; input.id = `slider-${spec.key}`;
+    input.dataset.key = spec.key;
+    const out = document.createElement("output");
+    out.id = `out-${spec.key}`;
+    input.addEventListener("input", () => onSlider(spec, input));
+    input.addEventListener("change", () => requestDesign());
+    row.append(name, input, out);
+    box.appendChild(row);
+  }
+}
+
+function setSliders() {
+  for (const spec of Object.values(state.sliders)) {
+    const input = $(`slider-${spec.key}`);
+    const v = sliderValue(spec, state.pose.angles);
+    const [lo, hi] = RANGES[spec.key] || RANGES[spec.key.split("-")[0]];
+    input.min = Math.min(lo, Math.floor(v)); input.max = Math.max(hi, Math.ceil(v));
+    input.value = v;
+    input.dataset.last = String(v);
+    $(`out-${spec.key}`).textContent = `${Math.round(v)}°`;
+  }
+}
+
+function onSlider(spec, input) {
+  const v = Number(input.value);
+  if (spec.key === "trunk-recline") {
+    // keep the thighs: the hip flexion takes the recline's change
+    const d = v - Number(input.dataset.last);
+    for (const k of ["hip-right", "hip-left"]) {
+      const h = $(`slider-${k}`);
+      h.value = Number(h.value) - d;
+      h.dataset.last = h.value;
+      $(`out-${k}`).textContent = `${Math.round(Number(h.value))}°`;
+    }
+  }
+  input.dataset.last = String(v);
+  $(`out-${spec.key}`).textContent = `${Math.round(v)}°`;
+}
+
+function currentAngles() {
+  const angles = state.pose.angles.map((row) => row.slice());
+  let changed = false;
+  for (const spec of Object.values(state.sliders)) {
+    const v = Number($(`slider-${spec.key}`).value);
+    const i = state.pose.segments.indexOf(spec.segment);
+    if (Math.abs(v - sliderValue(spec, state.pose.angles)) > 1e-9) {
+      angles[i][spec.axis] = spec.sign * v;
+      changed = true;
+    }
+  }
+  return { angles, changed };
+}
+
+function bodyEntry() {
+  return { model: $("body-select").value, params: changedParams($("body-params")) };
+}
+
+async function loadPose() {
+  const pose = state.upload || $("pose-select").value;
+  const body = bodyEntry();
+  const q = new URLSearchParams({ pose, frame: $("bvh-frame").value || "0", model: body.model, params: JSON.stringify(body.params) });
+  const r = await api(`/api/pose?${q}`);
+  if (!r.ok) { showError(r.data.error); return false; }
+  state.pose = r.data;
+  $("pose-note").textContent = (r.data.description || "") + (r.data.supported === false ? " (listed as not supported by the method)" : "");
+  setSliders();
+  return true;
+}
+
+// ------------------------------------------------------------------ designs
+function clearChair() {
+  // the chair on screen belongs to another pose: do not leave it under this one
+  for (const child of [...designGroup.children]) {
+    if (child.name !== "body") {
+      child.geometry.dispose();
+      child.material.dispose();
+      designGroup.remove(child);
+    }
+  }
+  render();
+}
+
+function showError(message, unsupported = false) {
+  $("refusal").hidden = false;
+  $("refusal").querySelector("h2").textContent = unsupported ? "This pose cannot be supported" : "This input cannot be used";
+  $("refusal-text").textContent = message;
+  setProgress(unsupported ? "refused: see the reason on the right" : "error: see the message on the right", 1, "error");
+}
+
+function fmt(x, scale) { return x == null ? "-" : (x * scale).toFixed(2); }
+
+function showReport(report) {
+  const tbody = $("table1").querySelector("tbody");
+  tbody.innerHTML = "";
+  const m = report.metrics || {};
+  const ours = (m.ours || [])[0] || {};
+  const base = (m.baseline || [])[0] || null;
+  for (const col of report.table_columns) {
+    const tr = document.createElement("tr");
+    const a = ours[col.key], b = base ? base[col.key] : null;
+    const cells = [`${col.label} (${col.unit})`, fmt(a, col.scale), base ? fmt(b, col.scale) : "…"];
+    cells.forEach((text, k) => {
+      const td = document.createElement("td");
+      td.textContent = text;
+      if (k === 1 && base && a != null && b != null && a < b) td.className = "better";
+      tr.appendChild(td);
+    });
+    tbody.appendChild(tr);
+  }
+  $("baseline-head").textContent = m.baseline_template || "flat patch";
+  $("baseline-note").textContent = base ? "Lower is better; bold where our design beats the baseline."
+    : "The baseline is fitted when the sliders rest.";
+  const facts = $("facts");
+  facts.innerHTML = "";
+  const t = report.seconds || {};
+  const rows = [
+    ["template", report.template],
+    ["cage", `${report.control_mesh.vertices} vertices, ${report.control_mesh.faces} faces`],
+    ["special cases", (report.special_cases || []).filter((c) => c.taken).map((c) => c.case).join(", ") || "none taken"],
+    ["supported", (m.supported_segments || []).join(", ")],
+    ["design", t.design != null ? `${t.design.toFixed(2)} s` : "from memory"],
+    ["evaluation", t.evaluate != null ? `${t.evaluate.toFixed(2)} s` : "-"],
+  ];
+  if (t.baseline != null) rows.push(["baseline", `${t.baseline.toFixed(2)} s`]);
+  for (const [k, v] of rows) {
+    const dt = document.createElement("dt"); dt.textContent = k;
+    const dd = document.createElement("dd"); dd.textContent = v;
+    facts.append(dt, dd);
+  }
+  showDownloads(report);
+}
+
+function showDownloads(report) {
+  const ul = $("downloads");
+  ul.innerHTML = "";
+  if (!report.files) return;
+  const labels = { usd: "USD (Catmull-Clark cage, usda)", usdc: "USD (usdc)", body_ply: "body PLY (pressure colours)", surface_ply: "PLY surface", design: "design.npz", cage_obj: "OBJ cage", surface_obj: "OBJ surface", surface_stl: "STL surface", surface_glb: "GLB surface", recipe_zip: "recipe (zip: recipe.yaml + pose)", recipe_yaml: "recipe.yaml", report_html: "report (HTML)" };
+  for (const [role, url] of Object.entries(report.files)) {
+    const li = document.createElement("li");
+    const a = document.createElement("a");
+    a.href = url; a.textContent = labels[role] || url.split("/").pop();
+    a.setAttribute("download", "");
+    li.appendChild(a);
+    ul.appendChild(li);
+  }
+}
+
+let baselineTimer = null;
+async function requestDesign() {
+  if (!state.pose) return;
+  const seq = ++state.clientSeq;
+  clearTimeout(baselineTimer);
+  const started = performance.now();
+  const request = `${Date.now().toString(36)}-${seq}`;
+  startPolling("designing", request, seq);
+  let pose = state.upload || $("pose-select").value;
+  const { angles, changed } = currentAngles();
+  const body = bodyEntry();
+  if (changed) {
+    const r = await postJSON("/api/pose", { angles, translation: state.pose.translation, description: `${pose}, joints moved in seatkit serve` });
+    if (seq !== state.clientSeq) return;
+    if (!r.ok) { stopPolling(); showError(r.data.error); return; }
+    pose = r.data.pose;
+  }
+  const entry = { model: body.model, pose };
+  if (Object.keys(body.params).length) entry.params = body.params;
+  if (pose.endsWith(".bvh")) entry.frame = Number($("bvh-frame").value || 0);
+  const people = Math.max(1, Number($("people").value) || 1);
+  const recipe = { template: $("template-select").value, bodies: Array.from({ length: people }, () => ({ ...entry })) };
+  const tp = changedParams($("template-params"));
+  if (Object.keys(tp).length) recipe.template_params = tp;
+  const r = await api("/api/design?files=0&baseline=0&view=1", { method: "POST", headers: { "Content-Type": "application/json", "X-Request-Id": request }, body: JSON.stringify(recipe) });
+  if (seq !== state.clientSeq) return; // a newer request was made: never show a stale design
+  stopPolling();
+  if (r.status === 409) return;
+  if (!r.ok) {
+    if (r.data.kind === "unsupported") clearChair();
+    showError(r.data.error, r.data.kind === "unsupported");
+    return;
+  }
+  $("refusal").hidden = true;
+  state.design = r.data;
+  state.shownSeq = seq;
+  showView(r.data.view);
+  delete r.data.view;
+  showReport(r.data);
+  state.designsShown += 1;
+  const secs = (performance.now() - started) / 1000;
+  state.lastRoundTrip = secs;
+  setProgress(`design shown in ${secs.toFixed(2)} s`, 1, "idle");
+  const serverSeq = r.data.request_seq;
+  baselineTimer = setTimeout(() => requestBaseline(seq, r.data.id, serverSeq), 700);
+}
+
+async function requestBaseline(seq, id, serverSeq) {
+  if (seq !== state.clientSeq) return;
+  setProgress("fitting the flat-patch baseline", 0.5, "running");
+  // the server skips it if a newer design request has arrived meanwhile (409)
+  const r = await api(`/api/design/${id}/baseline?seq=${serverSeq}`, { method: "POST" });
+  if (seq !== state.clientSeq) return;
+  if (!r.ok) { if (r.status !== 409) setProgress(`baseline: ${r.data.error}`, 1, "error"); return; }
+  state.design = r.data;
+  showReport(r.data);
+  setProgress("design and baseline shown", 1, "idle");
+}
+
+async function makeFiles() {
+  if (!state.design) return;
+  const id = state.design.id;
+  setProgress("writing the files", 0.5, "running");
+  const r = await api(`/api/design/${id}/files`, { method: "POST" });
+  if (!r.ok) { setProgress(`files: ${r.data.error}`, 1, "error"); return; }
+  if (state.design && state.design.id === id) { state.design = r.data; showReport(r.data); }
+  setProgress("files ready: see Files", 1, "idle");
+}
+
+async function onUpload(event) {
+  const file = event.target.files[0];
+  if (!file) return;
+  if (file.size > state.options.max_upload_bytes) { showError(`upload ${file.name}: ${file.size} bytes; the limit is ${state.options.max_upload_bytes} bytes`); return; }
+  const r = await api(`/api/upload?filename=${encodeURIComponent(file.name)}`, { method: "POST", body: file });
+  if (!r.ok) { showError(r.data.error); return; }
+  state.upload = r.data.pose;
+  $("frame-row").hidden = !state.upload.endsWith(".bvh");
+  if (await loadPose()) requestDesign();
+}
+
+async function main() {
+  resize();
+  const r = await api("/api/options");
+  state.options = r.data;
+  for (const p of r.data.poses) option($("pose-select"), p.name, p.supported ? p.name : `${p.name} (not supported)`);
+  $("pose-select").value = r.data.default_pose;
+  for (const b of r.data.bodies) option($("body-select"), b.name, b.name);
+  $("body-select").value = r.data.default_body;
+  for (const t of r.data.templates) option($("template-select"), t.name, t.name);
+  $("template-select").value = r.data.default_template;
+  const bodyParams = () => paramInputs($("body-params"), r.data.bodies.find((b) => b.name === $("body-select").value).params, "body");
+  const templateParams = () => {
+    const t = r.data.templates.find((x) => x.name === $("template-select").value);
+    paramInputs($("template-params"), t.params, "template");
+    const [lo, hi] = t.people || [1, 1];
+    $("people-row").hidden = hi <= 1;
+    $("people").min = lo; $("people").max = hi;
+    $("people").value = Math.min(hi, Math.max(lo, Number($("people").value) || 1));
+  };
+  bodyParams(); templateParams();
+  buildSliders();
+  $("pose-select").addEventListener("change", async () => { state.upload = null; $("pose-upload").value = ""; $("frame-row").hidden = true; if (await loadPose()) requestDesign(); });
+  $("body-select").addEventListener("change", async () => { bodyParams(); if (!state.upload || !state.upload.endsWith(".bvh") || await loadPose()) requestDesign(); });
+  $("template-select").addEventListener("change", () => { templateParams(); requestDesign(); });
+  $("people").addEventListener("change", () => requestDesign());
+  $("bvh-frame").addEventListener("change", async () => { if (await loadPose()) requestDesign(); });
+  $("pose-upload").addEventListener("change", onUpload);
+  $("reset-joints").addEventListener("click", () => { setSliders(); requestDesign(); });
+  $("make-files").addEventListener("click", makeFiles);
+  if (await loadPose()) requestDesign();
+}
+
+main();
