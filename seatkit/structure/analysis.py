@@ -36,7 +36,7 @@ __all__ = [
 ]
 
 #: Tessellation level whose quads become the elements (their nodes are the level + 1 tessellation).
-DEFAULT_LEVEL = 1
+DEFAULT_LEVEL = 2
 #: Quadratic elements through the thickness.
 DEFAULT_LAYERS = 1
 #: Shell surface points this close to the floor (y = 0) or below are held, m.
@@ -164,11 +164,14 @@ def analyse(
     mass = mat.density_kg_m3 * solution.volume
     applied = load.sum(axis=0)
     reaction = solution.reaction.sum(axis=0)
+    touches_floor = held[mesh.elements].any(axis=0)
+    away = sound & ~touches_floor
     e_worst = np.flatnonzero(sound)[int(np.argmax(vm[sound].max(axis=1)))] if sound.any() else -1
     summary = {
         "material": mat.name,
         "thickness_m": t,
         "max_von_mises_pa": max_vm,
+        "max_von_mises_away_from_floor_pa": float(vm[away].max()) if away.any() else float("nan"),
         "strength_pa": mat.strength_pa,
         "safety_factor": mat.strength_pa / max_vm if max_vm > 0 else math.inf,
         "max_deflection_m": float(disp[worst]),
