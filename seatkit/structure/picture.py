@@ -19,7 +19,7 @@ from seatkit.structure.analysis import Analysis
 __all__ = ["face_stress", "write_stress_png"]
 
 #: (azimuth, elevation) in degrees of the three views.
-VIEWS = {"front, from above": (35.0, 30.0), "back, from above": (215.0, 25.0), "right side": (90.0, 8.0)}
+VIEWS = {"front, from above": (35.0, 30.0), "back, from above": (215.0, 25.0), "right side": (90.0, 8.0), "from below (floor removed)": (0.0, -89.0)}
 PANEL = (420, 420)
 COLORMAP = "viridis"
 FOLDED_RGB = (0.62, 0.62, 0.62)
@@ -95,7 +95,8 @@ def write_stress_png(analysis: Analysis, path, *, title: str = "") -> Path:
     rgb = cmap(norm(np.where(bad, 0.0, values)))[:, :3]
     rgb[bad] = FOLDED_RGB
     normals = _normals(vertices, tris)
-    fig, axes = plt.subplots(1, len(VIEWS) + 1, figsize=(13.5, 4.9), gridspec_kw={"width_ratios": [1] * len(VIEWS) + [0.06]})
+    fig, axes = plt.subplots(1, len(VIEWS) + 1, figsize=(17.0, 4.9), gridspec_kw={"width_ratios": [1] * len(VIEWS) + [0.06]})
+    worst = s.get("max_stress_at_m")
     for ax, (name, (az, el)) in zip(axes, VIEWS.items()):
         rot = rs.view_rotation(az, el)
         frame = rs.fit_frame([vertices], rot, *PANEL)
@@ -104,6 +105,13 @@ def write_stress_png(analysis: Analysis, path, *, title: str = "") -> Path:
         lit = 0.7 * rgb + 0.3 * rs.light_vertices(rgb, normals, rot) / (rs.AMBIENT + rs.DIFFUSE)
         image = rs.composite((1.0, 1.0, 1.0), [(ra, ra.shade(lit), 1.0)])
         ax.imshow(image)
+        if worst is not None:  # where the largest stress is (seen through the shell when hidden)
+            xy, depth = frame.project(np.asarray([worst], dtype=np.float64))
+            x, y = xy[0]
+            inside = 0 <= int(y) < frame.height and 0 <= int(x) < frame.width
+            hidden = inside and ra.depth[int(y), int(x)] > depth[0] + 0.02
+            ax.plot([x], [y], marker="o", markersize=14, markerfacecolor="none", markeredgecolor="red", markeredgewidth=1.5, alpha=0.45 if hidden else 1.0)
+            ax.plot([x], [y], marker="+", markersize=8, color="red", alpha=0.5 if hidden else 1.0)
         ax.set_title(name, fontsize=10)
         ax.axis("off")
     bar = fig.colorbar(plt.cm.ScalarMappable(norm=Normalize(0.0, vmax / 1e6 if vmax > 0 else 1.0), cmap=cmap), cax=axes[-1])
@@ -113,6 +121,7 @@ def write_stress_png(analysis: Analysis, path, *, title: str = "") -> Path:
         f"max von Mises {vmax / 1e6:.2f} MPa (strength {s['strength_pa'] / 1e6:.0f} MPa, safety factor "
         f"{s['safety_factor']:.1f}), max deflection {s['max_deflection_m'] * 1000:.2f} mm, mass {s['mass_kg']:.1f} kg"
     )
+    head += "; red ring: where the largest stress is (faint: hidden in that view)"
     if s.get("folded_elements"):
         head += f"\n{s['folded_elements']} folded elements in grey ({s['folded_volume_fraction'] * 100:.1f}% of the volume): the surface curls tighter than the thickness there"
     fig.suptitle(head, fontsize=10)
