@@ -73,6 +73,8 @@ def test_build_with_structure_sizes_and_writes_that_shell(tmp_path):
     assert s["sizing"]["safety_factor"] == 4 and s["safety_factor"] >= 4 and s["max_deflection_m"] <= 0.01
     report = json.loads((out / "report.json").read_text())
     assert report["metrics"]["structure"]["thickness_m"] == s["thickness_m"]
+    assert "Will it hold? petg" in (out / "report.html").read_text()
+    assert (out / "structure.png").is_file()
     import trimesh
 
     shell = trimesh.load(out / "shell.stl", process=False)
