@@ -95,3 +95,11 @@ def test_every_material_has_a_source_and_sane_values():
         assert 1e8 < m.youngs_modulus_pa < 3e11 and 0 < m.poisson_ratio < 0.5
         assert 1e6 < m.strength_pa < 1e9 and 500 < m.density_kg_m3 < 9000
         assert len(m.source) > 20
+
+
+def test_thinner_shells_are_weaker_and_softer(chair):
+    """Safety factor and stiffness fall with the thickness (no distorted element decides the maximum)."""
+    figures = [_run(chair, material="pla", thickness=t, **QUICK).summary for t in (0.0045, 0.006, 0.0075, 0.01)]
+    sf = [f["safety_factor"] for f in figures]
+    defl = [f["max_deflection_m"] for f in figures]
+    assert sf == sorted(sf) and defl == sorted(defl, reverse=True)

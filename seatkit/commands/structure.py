@@ -111,6 +111,9 @@ def register(app: typer.Typer) -> None:
             table.add_row(*row)
         console = Console()
         console.print(table)
-        if s["folded_elements"]:
-            console.print(f"note: {s['folded_elements']} elements fold over ({s['folded_volume_fraction'] * 100:.1f}% of the volume): the surface curls tighter than the shell is thick there (docs/structure.md)")
+        if s["distorted_elements"]:
+            console.print(
+                f"note: {s['distorted_elements']} elements are folded or nearly ({s['distorted_volume_fraction'] * 100:.1f}% of the volume): "
+                "the surface curls tighter than the shell is thick there; their stress is left out (docs/structure.md)"
+            )
         console.print(f"wrote {', '.join(str(p) for p in files.values())}")

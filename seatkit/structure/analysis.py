@@ -41,6 +41,10 @@ DEFAULT_LEVEL = 2
 DEFAULT_LAYERS = 1
 #: Shell surface points this close to the floor (y = 0) or below are held, m.
 FLOOR_TOLERANCE = 0.005
+#: Elements whose Jacobian ratio (smallest over largest determinant of their
+#: mapping at the quadrature points) is below this are "distorted": folded
+#: (ratio <= 0) or nearly so, their stresses meaningless (docs/structure.md).
+MIN_JACOBIAN_RATIO = 0.2
 #: Safety factor and deflection limit (m) :func:`size_thickness` keeps by default.
 DEFAULT_SAFETY_FACTOR = 2.0
 DEFAULT_MAX_DEFLECTION = 0.010
@@ -64,8 +68,11 @@ class Analysis:
     mesh : ShellMesh
     solution : Solution
     folded : (E,) bool
-        Elements whose mapping turns inside out somewhere (the offset sheet
-        folds over itself where the surface curls tighter than the thickness).
+        Distorted elements: their mapping turns inside out somewhere, or
+        nearly (Jacobian ratio below :data:`MIN_JACOBIAN_RATIO`), where the
+        offset sheet folds over itself (the surface curls tighter than the
+        thickness) or the surface's parametrisation is badly uneven. Left out
+        of the stress maximum.
     held : (N,) bool
         Nodes held at the floor.
     """
@@ -155,7 +162,7 @@ def analyse(
     load = people + (model.weight_load() if self_weight else 0.0)
     solution = model.solve(load, np.flatnonzero(held))
     det = model.basis.mapping.detDF(model.basis.X)
-    folded = (det <= 0).any(axis=1)
+    folded = det.min(axis=1) < MIN_JACOBIAN_RATIO * det.max(axis=1)  # folded or nearly folded
     sound = ~folded
     vm = solution.von_mises
     max_vm = float(vm[sound].max()) if sound.any() else float("nan")
@@ -193,8 +200,8 @@ def analyse(
             "dofs": int(model.n_dofs),
             "element": "27-node hexahedron (scikit-fem ElementHex2, MeshHex2)",
         },
-        "folded_elements": int(folded.sum()),
-        "folded_volume_fraction": float(model.dx[folded].sum() / model.dx.sum()),
+        "distorted_elements": int(folded.sum()),
+        "distorted_volume_fraction": float(model.dx[folded].sum() / model.dx.sum()),
         "spread_radius_m": float(spread_radius),
         "seconds": time.perf_counter() - start,
         "material_data": mat.as_dict(),
@@ -267,10 +274,12 @@ def size_thickness(
     def ok(a: Analysis) -> bool:
         return need(a) <= 1.0
 
-    t = check_thickness(start)
+    grid = lambda x: round(math.ceil(round(x / THICKNESS_STEP, 6)) * THICKNESS_STEP, 7)  # noqa: E731
+    t = grid(check_thickness(start))
     a = run(t)
     points = [(t, a)]
-    for _ in range(max_iterations):
+    # 1. predict the boundary from the scaling of the last two analyses
+    for _ in range(max_iterations // 2):
         s = a.summary
         if len(points) >= 2:
             (t0, a0), (t1, a1) = points[-2], points[-1]
@@ -279,32 +288,38 @@ def size_thickness(
         else:
             k_s, k_d = 2.0, 3.0
         target = t * max((safety_factor / s["safety_factor"]) ** (1.0 / k_s), (s["max_deflection_m"] / max_deflection) ** (1.0 / k_d))
-        target = min(max(target, lo), hi)
-        if abs(target - t) <= THICKNESS_STEP / 2:
+        target = grid(min(max(target, lo), hi))
+        if target == t:
             break
         t = target
         a = run(t)
         points.append((t, a))
-        if t >= hi and not ok(a):
-            break
-    # the answer: the smallest thickness on the grid that keeps both limits
-    t_best = math.ceil(round(t / THICKNESS_STEP, 6)) * THICKNESS_STEP
-    a = run(t_best)
-    while not ok(a) and t_best < hi:
-        t_best = min(hi, t_best + THICKNESS_STEP * max(1, round(t_best * (need(a) - 1) / THICKNESS_STEP)))
-        a = run(t_best)
-    if not ok(a):
-        msg = (
-            f"no {mat.name} shell up to {hi * 100:.0f} cm thick keeps a safety factor of {safety_factor:g} and a deflection "
-            f"under {max_deflection * 1000:g} mm (at {hi * 100:.0f} cm: safety factor {a.summary['safety_factor']:.2f}, "
-            f"deflection {a.summary['max_deflection_m'] * 1000:.1f} mm)"
-        )
-        raise StructureError(msg)
-    while t_best - THICKNESS_STEP >= lo:
-        b = run(t_best - THICKNESS_STEP)
-        if not ok(b):
-            break
-        t_best, a = t_best - THICKNESS_STEP, b
+    # 2. bracket the answer on the grid between a thickness that fails and one that holds
+    def bracket():
+        good = [x for x, y in cache.items() if ok(y)]
+        bad = [x for x, y in cache.items() if not ok(y)]
+        return (max(bad) if bad else None), (min(good) if good else None)
+
+    fail, hold = bracket()
+    while hold is None:
+        if max(cache) >= hi:
+            worst = cache[max(cache)].summary
+            msg = (
+                f"no {mat.name} shell up to {hi * 100:.0f} cm thick keeps a safety factor of {safety_factor:g} and a deflection "
+                f"under {max_deflection * 1000:g} mm (at {hi * 100:.0f} cm: safety factor {worst['safety_factor']:.2f}, "
+                f"deflection {worst['max_deflection_m'] * 1000:.1f} mm)"
+            )
+            raise StructureError(msg)
+        run(grid(min(hi, max(cache) * 1.5)))
+        fail, hold = bracket()
+    while fail is None and min(cache) > lo:
+        run(grid(max(lo, min(cache) / 1.5)))
+        fail, hold = bracket()
+    # 3. bisect to one grid step
+    while fail is not None and hold - fail > THICKNESS_STEP * 1.5:
+        run(grid(0.5 * (fail + hold)))
+        fail, hold = bracket()
+    a = cache[hold]
     a.summary["sizing"] = {
         "safety_factor": float(safety_factor),
         "max_deflection_m": float(max_deflection),

@@ -4,7 +4,7 @@ Each element is drawn flat in the colour of its largest stress on the face
 shown (the top face: the body side; the bottom face: the underside), on a
 scale from zero to the largest stress of the analysis, so no value is
 clipped. Elements whose mapping folds (docs/structure.md, "Limits") are grey
-and left out of the scale. Views are rasterised with :mod:`seatkit.export.raster`.
+(folded or nearly) and left out of the scale. Views are rasterised with :mod:`seatkit.export.raster`.
 """
 
 from __future__ import annotations
@@ -122,8 +122,9 @@ def write_stress_png(analysis: Analysis, path, *, title: str = "") -> Path:
         f"{s['safety_factor']:.1f}), max deflection {s['max_deflection_m'] * 1000:.2f} mm, mass {s['mass_kg']:.1f} kg"
     )
     head += "; red ring: where the largest stress is (faint: hidden in that view)"
-    if s.get("folded_elements"):
-        head += f"\n{s['folded_elements']} folded elements in grey ({s['folded_volume_fraction'] * 100:.1f}% of the volume): the surface curls tighter than the thickness there"
+    if s.get("distorted_elements"):
+        head += (f"\n{s['distorted_elements']} distorted elements in grey ({s['distorted_volume_fraction'] * 100:.1f}% of the volume; "
+                 "folded or nearly: the surface curls tighter than the thickness there), left out of the maximum")
     fig.suptitle(head, fontsize=10)
     fig.tight_layout()
     buf = io.BytesIO()
