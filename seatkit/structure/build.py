@@ -148,15 +148,10 @@ def run_structure(result) -> Analysis:
 
 
 def _jsonable(value):
-    import math
+    """JSON-ready figures, as report.json writes them (non-finite numbers as strings)."""
+    from seatkit.pipeline import _jsonable as jsonable
 
-    if isinstance(value, dict):
-        return {k: _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, float) and not math.isfinite(value):
-        return None if math.isnan(value) else ("inf" if value > 0 else "-inf")
-    return value
+    return jsonable(value)
 
 
 def write_structure(analysis: Analysis, directory, *, title: str = "") -> dict[str, Path]:
