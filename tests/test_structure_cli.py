@@ -89,10 +89,42 @@ def test_build_with_structure_sizes_and_writes_that_shell(tmp_path):
     assert np.array_equal(written, np.unique(np.asarray(expected.vertices, dtype=np.float32), axis=0))
 
 
-def test_build_flags_check_the_material_before_any_work(tmp_path):
-    done = runner.invoke(app, ["build", "--template", "chair", "--material", "oak", "--out", str(tmp_path / "o")])
-    assert done.exit_code == 1 and "structure.material: unknown material 'oak'" in done.output
+@pytest.mark.parametrize(
+    ("flags", "message"),
+    [
+        (("--material", "oak"), "structure.material: unknown material 'oak'; expected one of birch-plywood"),
+        (("--thickness", "0"), "structure.thickness: shell thickness must be a positive number of metres"),
+        (("--thickness", "-0.02"), "structure.thickness: shell thickness must be a positive number of metres"),
+        (("--max-deflection", "0"), "structure.max_deflection: expected a positive number of metres"),
+    ],
+)
+def test_build_flags_are_checked_before_any_work(tmp_path, flags, message):
+    done = runner.invoke(app, ["build", "--template", "chair", *flags, "--out", str(tmp_path / "o")])
+    lines = done.output.strip().splitlines()
+    assert done.exit_code == 1 and len(lines) == 1 and message in lines[0], done.output
     assert not (tmp_path / "o").exists()
+
+
+def test_a_design_off_the_floor_is_one_line(chair_dir, tmp_path):
+    """design.npz with the cage lifted 10 cm: the structure command refuses it in one line."""
+    import io
+    import zipfile
+
+    src = zipfile.ZipFile(chair_dir / "design.npz")
+    lifted = tmp_path / "lifted"
+    lifted.mkdir()
+    with zipfile.ZipFile(lifted / "design.npz", "w") as out:
+        for name in src.namelist():
+            data = src.read(name)
+            if name in ("final_vertices.npy", "initial_vertices.npy") or name.startswith("body0_vertices") or name.startswith("body0_joints") or name.startswith("body0_tips") or name.startswith("body0_segment_com"):
+                arr = np.load(io.BytesIO(data))
+                buf = io.BytesIO()
+                np.save(buf, arr + [0.0, 0.1, 0.0])
+                data = buf.getvalue()
+            out.writestr(name, data)
+    done = runner.invoke(app, ["structure", str(lifted), "--level", "1"])
+    lines = done.output.strip().splitlines()
+    assert done.exit_code == 1 and len(lines) == 1 and "does not meet the floor" in lines[0], done.output
 
 
 _values = st.one_of(st.none(), st.booleans(), st.integers(-5, 5), st.floats(allow_nan=True), st.text(max_size=8), st.lists(st.integers(), max_size=2))
