@@ -134,3 +134,11 @@ def test_thin_plate_scales_as_t_cubed_and_t_squared():
     (w1, s1), (w2, s2) = out[0.01], out[0.005]
     assert w2 / w1 == pytest.approx(8.0, rel=0.10)
     assert s2 / s1 == pytest.approx(4.0, rel=0.10)
+
+
+def test_a_shell_held_nowhere_is_one_clear_error():
+    from seatkit.structure import StructureError
+
+    mesh, model = _plate(2, 2, 1.0, 1.0, 0.01)
+    with pytest.raises(StructureError, match="nothing holds it"):
+        model.solve(_pressure(mesh, 100.0), np.zeros(0, np.int64))

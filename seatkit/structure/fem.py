@@ -178,6 +178,7 @@ class Elasticity:
         """Displacements for nodal forces ``load`` (N, 3) with ``held_nodes`` fixed in every direction."""
         import scipy.sparse.linalg as sla
 
+        self._check_held(np.asarray(held_nodes, dtype=np.int64))
         n = self.n_dofs
         f = np.zeros(n)
         f.reshape(-1, 3)[self.dof] = load
@@ -188,7 +189,16 @@ class Elasticity:
         Kff = K[free][:, free].tocsc()
         u = np.zeros(n)
         # symmetric positive definite: a symmetric ordering without pivoting
-        lu = sla.splu(Kff, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        try:
+            lu = sla.splu(Kff, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
+        except (MemoryError, SystemError, RuntimeError) as e:  # SuperLU reports a failed allocation as invalid arguments
+            from seatkit.structure.analysis import StructureError
+
+            if "singular" in str(e).lower():
+                msg = "a part of the shell is not connected to where it is held: nothing holds it (singular stiffness)"
+            else:
+                msg = f"the sparse solver failed on {len(free)} unknowns ({e}); out of memory? try a lower --level"
+            raise StructureError(msg) from None
         u[free] = lu.solve(f[free])
         reaction = K @ u - f
         reaction[~held] = 0.0
@@ -205,6 +215,26 @@ class Elasticity:
         points).
         """
         return self.shear_basis if self.shear_basis is not None else self.basis
+
+    def _check_held(self, held_nodes: np.ndarray) -> None:
+        """Refuse a mesh with a connected piece that the held nodes do not fix (it could move freely)."""
+        from scipy.sparse.csgraph import connected_components
+
+        from seatkit.structure.analysis import StructureError
+
+        el = self.mesh.elements
+        n_nodes = len(self.mesh.nodes)
+        graph = sp.coo_matrix((np.ones(el.size), (np.repeat(el[0][None, :], el.shape[0], axis=0).ravel(), el.ravel())), shape=(n_nodes, n_nodes))
+        count, label = connected_components(graph, directed=False)
+        held = np.zeros(n_nodes, bool)
+        held[held_nodes] = True
+        for c in range(count):
+            points = self.mesh.nodes[held & (label == c)]
+            # three points not on one line fix a body; fewer leave it free to turn or slide
+            if len(points) < 3 or np.linalg.matrix_rank(points - points.mean(axis=0), tol=1e-9) < 2:
+                size = int((label == c).sum())
+                msg = f"a part of the shell ({size} of {n_nodes} nodes) is not connected to where it is held: nothing holds it"
+                raise StructureError(msg)
 
     def von_mises(self, u: np.ndarray) -> np.ndarray:
         """(E, Q) von Mises stress of the displacement ``u`` (3 N_dofs,) at :meth:`stress_basis`'s points."""
