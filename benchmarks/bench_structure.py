@@ -11,7 +11,7 @@ figure.
 ``--convergence`` also analyses the chair at finer meshes (level 2, two
 layers) and prints how the figures move: the table in docs/structure.md.
 
-    python benchmarks/bench_structure.py [--repeat 5] [--material petg --thickness 0.003] [--convergence]
+    python benchmarks/bench_structure.py [--repeat 5] [--material petg --thickness 0.003] [--level 1] [--convergence]
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ def main() -> None:
     ap.add_argument("--material", default="birch-plywood")
     ap.add_argument("--thickness", type=float, default=0.02)
     ap.add_argument("--template", default="chair")
+    ap.add_argument("--level", type=int, default=None, help="mesh level (default: the analysis' default, 2)")
     ap.add_argument("--convergence", action="store_true")
     args = ap.parse_args()
 
@@ -43,6 +44,8 @@ def main() -> None:
     from seatkit.structure import analyse  # scikit-fem is imported here, on first use
 
     def run(**kw):
+        if args.level is not None:
+            kw.setdefault("level", args.level)
         return analyse(result.control_mesh, result.bodies, people, material=args.material, thickness=args.thickness, **kw)
 
     with threadpool_limits(limits=1):
