@@ -103,3 +103,15 @@ def test_thinner_shells_are_weaker_and_softer(chair):
     sf = [f["safety_factor"] for f in figures]
     defl = [f["max_deflection_m"] for f in figures]
     assert sf == sorted(sf) and defl == sorted(defl, reverse=True)
+
+
+def test_the_structure_package_does_not_use_the_plugin_manager():
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; import seatkit.structure, seatkit.structure.build, seatkit.structure.picture; "
+        "print('seatkit.plugins' in sys.modules, 'seatkit.hookspecs' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "False"]  # (pluggy itself comes with `import seatkit`, for its hook markers)
