@@ -116,6 +116,12 @@ def build(
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace an output folder seatkit did not write."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Print nothing but errors."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout (for scripts)."),
+    structure: bool = typer.Option(False, "--structure", help="Analyse the shell's strength (FEM): structure.json/.png, shell.stl."),
+    material: Optional[str] = typer.Option(None, "--material", help="Shell material for --structure (default birch-plywood)."),
+    thickness: Optional[float] = typer.Option(None, "--thickness", help="Shell thickness in m for --structure (default 0.02)."),
+    size_thickness: bool = typer.Option(False, "--size-thickness", help="Find the thinnest shell that keeps --safety-factor and --max-deflection."),
+    safety_factor: Optional[float] = typer.Option(None, "--safety-factor", help="Safety factor --size-thickness keeps (default 2)."),
+    max_deflection: Optional[float] = typer.Option(None, "--max-deflection", help="Deflection limit in m --size-thickness keeps (default 0.01)."),
 ) -> None:
     """Design a support for a body in a pose and write the cage, surface and report.
 
@@ -144,6 +150,11 @@ def build(
     )
     if merged["output"] is None and recipe is not None and not (template or pose or body or mass is not None or frame is not None):
         merged["output"] = str(Path("seatkit-out") / recipe.stem)  # the recipe's design, named after it
+
+    if structure or size_thickness or any(v is not None for v in (material, thickness, safety_factor, max_deflection)):
+        from seatkit.structure.build import enable
+
+        enable(merged, material=material, thickness=thickness, size_thickness=size_thickness or None, safety_factor=safety_factor, max_deflection=max_deflection)
     check_recipe(merged, pm.registry, document=document)
 
     if quiet or as_json:

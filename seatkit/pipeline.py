@@ -506,6 +506,11 @@ def _design(recipe, registry, timer: _Timer, *, write: bool, processes: bool) ->
         )
         if recipe["evaluate"]["enabled"]:
             evaluate_result(result, registry, timer, baseline=baseline)
+        if recipe.get("structure", {}).get("enabled"):
+            with timer.stage("structure"):
+                from seatkit.structure.build import run_structure
+
+                run_structure(result)
     finally:
         if baseline is not None:
             baseline.close()

@@ -114,6 +114,7 @@ RECIPE_SCHEMA: dict = {
         },
         "output": _NAME,
         "seed": {"type": "integer", "minimum": 0},
+        "structure": {"type": "object"},  # checked against seatkit.structure.build.SCHEMA in load_recipe
     },
 }
 
@@ -164,6 +165,12 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
         recipe["refiners"] = [_refiner_entry(r) for r in data["refiners"]]
     if "exporters" in data:
         recipe["exporters"] = list(data["exporters"])
+    if "structure" in data:
+        from seatkit.structure.build import enable, settings
+
+        recipe["structure"] = settings(data["structure"])
+        if recipe["structure"]["enabled"]:
+            enable(recipe)
     if base_dir is not None:
         for body in recipe["bodies"]:
             body["pose"] = _resolve_path_like(body["pose"], base_dir)
@@ -221,6 +228,10 @@ def load_recipe(source: str | Path | Mapping | None = None) -> tuple[dict, Docum
     if not isinstance(doc.data, dict):
         raise doc.error((), f"a recipe must be a mapping of keys (template, bodies, ...), got {type(doc.data).__name__}")
     validate(doc, RECIPE_SCHEMA)
+    if isinstance(doc.data.get("structure"), dict):
+        from seatkit.structure.build import SCHEMA as STRUCTURE_SCHEMA
+
+        validate(doc, {"type": "object", "properties": {"structure": STRUCTURE_SCHEMA}})
     return _normalise(doc.data, base_dir), doc
 
 
@@ -374,6 +385,12 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
             template.check_params(recipe["template_params"])
         except ParamError as e:
             fail(("template_params",) + e.path, e.problem)
+
+    if recipe.get("structure", {}).get("enabled"):
+        from seatkit.structure.build import check as check_structure
+
+        for key, message in check_structure(recipe["structure"]):
+            fail(("structure", key), message)
     lam = recipe["pressure"]["lambda"]
     if not (lam > 0):
         fail(("pressure", "lambda"), f"expected a positive number or inf, got {lam!r}")

@@ -1,4 +1,4 @@
-"""Built-in seatkit plugin: the exporters (usd, usdc, obj, surface, shell, body-ply, design, report-png, report-html)."""
+"""Built-in seatkit plugin: the exporters (usd, usdc, obj, surface, shell, body-ply, design, report-png, report-html, structure)."""
 
 from __future__ import annotations
 
@@ -11,5 +11,6 @@ def seatkit_register_exporters():
     from seatkit.export.exporters import builtin_exporters
     from seatkit.export.report import report_exporters
     from seatkit.state import DesignExporter
+    from seatkit.structure.build import StructureExporter
 
-    return builtin_exporters() + [DesignExporter()] + report_exporters()
+    return builtin_exporters() + [DesignExporter()] + report_exporters() + [StructureExporter()]

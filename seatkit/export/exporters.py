@@ -151,7 +151,9 @@ class ShellExporter:
     def export(self, result, directory: Path) -> dict[str, Path]:
         from seatkit.export.meshes import write_shell
 
-        thickness = float((result.recipe or {}).get("shell_thickness") or self.thickness)
+        # the thickness the structural analysis used or sized, else the recipe's
+        thickness = (result.extra or {}).get("shell_thickness_m") or (result.recipe or {}).get("shell_thickness")
+        thickness = float(thickness or self.thickness)
         return {"shell_stl": write_shell(_surface(result), thickness, Path(directory) / "shell.stl")}
 
 

@@ -874,6 +874,13 @@ def _metrics_html(result) -> str:
             parts.append("</table>")
     else:
         parts.append("<p>No evaluation in this build (built with evaluation switched off): no metrics.</p>")
+    st = metrics.get("structure")
+    if st:  # seatkit build --structure (docs/structure.md); the picture is structure.png
+        parts.append(f"<h2>Will it hold? {html.escape(str(st['material']))}, {st['thickness_m'] * 1000:.1f} mm (structure.png)</h2><table>")
+        rows = [("max von Mises stress", f"{st['max_von_mises_pa'] / 1e6:.3f} MPa"), ("safety factor", f"{st['safety_factor']:.2f}"),
+                ("max deflection", f"{st['max_deflection_m'] * 1000:.3f} mm"), ("mass", f"{st['mass_kg']:.2f} kg"),
+                ("applied load", f"{st['applied_load_n']:.1f} N"), ("floor reaction", f"{st['floor_reaction_n']:.1f} N")]
+        parts += [f"<tr><td>{k}</td><td>{v}</td></tr>" for k, v in rows] + ["</table>"]
     parts.append(timings_html(result.timings or {}))
     return "\n".join(parts)
 

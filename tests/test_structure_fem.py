@@ -1,0 +1,144 @@
+"""The shell FEM against closed forms (docs/structure.md, "Validation").
+
+Each model is meshed at the analysis' default resolution: quadratic
+hexahedra, one through the thickness (:data:`DEFAULT_LAYERS`), and as many
+across a span as the default chair has across its seat (8, see
+docs/structure.md).
+"""
+
+import numpy as np
+import pytest
+import skfem
+from skfem.models.elasticity import lame_parameters, linear_elasticity
+
+from seatkit.structure.analysis import DEFAULT_LAYERS
+from seatkit.structure.fem import Elasticity
+from seatkit.structure.loads import TopQuadrature
+from seatkit.structure.materials import MATERIALS, Material
+from seatkit.structure.mesh import ShellMesh, plate_quads9
+
+#: Elements across a span at the default resolution.
+SPAN_ELEMENTS = 8
+
+STEEL = MATERIALS["steel"]
+NU03 = Material("test", 200e9, 0.3, 250e6, 7850.0, "", "")
+
+
+def _plate(nx, ny, a, b, t, material=NU03, layers=DEFAULT_LAYERS):
+    V, N, q9 = plate_quads9(nx, ny, a, b)
+    mesh = ShellMesh.extrude(V, N, q9, t, layers)
+    return mesh, Elasticity(mesh, material)
+
+
+def _pressure(mesh, q):
+    """Nodal forces of a uniform pressure q (Pa) pushing down on the top face."""
+    quad = TopQuadrature(mesh)
+    force = np.zeros((len(quad.points), 3))
+    force[:, 1] = -q * quad.weights
+    return quad.nodal(force, len(mesh.nodes))
+
+
+def _clamped_plate(t, a=1.0, q=1000.0):
+    mesh, model = _plate(SPAN_ELEMENTS, SPAN_ELEMENTS, a, a, t)
+    x, z = mesh.nodes[:, 0], mesh.nodes[:, 2]
+    edge = np.flatnonzero((x < 1e-9) | (x > a - 1e-9) | (z < 1e-9) | (z > a - 1e-9))
+    sol = model.solve(_pressure(mesh, q), edge)
+    centre = np.flatnonzero(np.linalg.norm(mesh.nodes - [a / 2, -t / 2, a / 2], axis=1) < 1e-9)
+    return mesh, sol, centre
+
+
+def _interior_stress(mesh, sol, a=1.0):
+    """Largest von Mises stress of the elements that do not touch the clamped edge (its corners are singular)."""
+    centre = mesh.nodes[mesh.elements].mean(axis=0)  # (E, 3)
+    h = a / SPAN_ELEMENTS
+    inner = (np.abs(centre[:, [0, 2]] - a / 2) < a / 2 - h).all(axis=1)
+    return sol.von_mises[inner].max()
+
+
+def test_stiffness_matches_scikit_fem_assembly():
+    """The bulk assembly equals skfem.asm(linear_elasticity) entry by entry (a curved, distorted mesh)."""
+    V, N, q9 = plate_quads9(2, 1, 0.3, 0.2)
+    V = V + np.c_[0.02 * np.sin(7 * V[:, 2]), 0.1 * V[:, 0] ** 2, 0.01 * V[:, 0]]  # curved and skewed
+    mesh = ShellMesh.extrude(V, N, q9, 0.03, layers=2)
+    model = Elasticity(mesh, NU03, selective=False)
+    vector = skfem.Basis(mesh.skfem_mesh(), skfem.ElementVector(skfem.ElementHex2()), intorder=4)
+    reference = skfem.asm(linear_elasticity(*lame_parameters(NU03.youngs_modulus_pa, NU03.poisson_ratio)), vector)
+    scalar = model.basis.element_dofs
+    perm = np.empty(model.n_dofs, np.int64)
+    for a in range(scalar.shape[0]):  # ElementVector interleaves the components of each scalar dof
+        for c in range(3):
+            perm[3 * scalar[a] + c] = vector.element_dofs[3 * a + c]
+    diff = abs(reference[perm][:, perm] - model.stiffness).max()
+    assert diff <= 1e-12 * abs(reference).max()
+
+
+@pytest.mark.parametrize("shape", [(1, 1, 1), (3, 2, 1), (2, 2, 2)])
+def test_selective_stiffness_has_only_the_rigid_motions_as_zero_modes(shape):
+    """Reduced shear integration brings no spurious zero-energy (hourglass) mode, even in one element."""
+    nx, ny, layers = shape
+    V, N, q9 = plate_quads9(nx, ny, 0.4, 0.3)
+    V = V + np.c_[0 * V[:, 0], 0.3 * V[:, 0] ** 2 + 0.2 * V[:, 2] ** 2, 0.05 * V[:, 2]]  # doubly curved
+    model = Elasticity(ShellMesh.extrude(V, N, q9, 0.01, layers), NU03)
+    eig = np.linalg.eigvalsh(model.stiffness.toarray())
+    assert (eig < 1e-10 * eig.max()).sum() == 6
+    assert eig.min() > -1e-10 * eig.max()
+
+
+def test_clamped_square_plate_matches_timoshenko():
+    """w_max = 0.00126 q a^4 / D (Timoshenko & Woinowsky-Krieger 1959, section 44; nu = 0.3) within 3%."""
+    a, t, q = 1.0, 0.01, 1000.0
+    mesh, sol, centre = _clamped_plate(t, a, q)
+    D = NU03.youngs_modulus_pa * t**3 / (12 * (1 - NU03.poisson_ratio**2))
+    expected = 0.00126 * q * a**4 / D
+    w = -sol.displacement[centre, 1].item()
+    assert w == pytest.approx(expected, rel=0.03)
+    assert np.abs(sol.displacement[:, 1]).max() == pytest.approx(w, rel=1e-3)  # the centre deflects most
+
+
+def test_cantilever_strip_matches_beam_theory():
+    """Tip deflection P L^3 / (3 E I) within 3%, and the root stress 6 P L / (b t^2) within 10% of it."""
+    L, b, t, P = 1.0, 0.02, 0.01, 10.0
+    mesh, model = _plate(1, SPAN_ELEMENTS, b, L, t)  # x across the width, z along the length
+    z = mesh.nodes[:, 2]
+    root = np.flatnonzero(z < 1e-9)
+    tip = np.flatnonzero(z > L - 1e-9)
+    # a uniform shear traction on the end face: consistent weights [1, 4, 1] / 6 per direction
+    w1 = np.array([1.0, 4.0, 1.0]) / 6.0
+    x_rank = np.rint(mesh.nodes[tip, 0] / (b / 2)).astype(int)
+    y_rank = np.rint((mesh.nodes[tip, 1] + t) / (t / 2)).astype(int)
+    load = np.zeros((len(mesh.nodes), 3))
+    load[tip, 1] = -P * w1[x_rank] * w1[y_rank]
+    assert load[:, 1].sum() == pytest.approx(-P)
+    sol = model.solve(load, root)
+    EI = NU03.youngs_modulus_pa * b * t**3 / 12
+    mid = tip[(x_rank == 1) & (y_rank == 1)]
+    assert -sol.displacement[mid, 1].item() == pytest.approx(P * L**3 / (3 * EI), rel=0.03)
+
+
+def test_floor_reaction_equals_applied_load():
+    mesh, sol, _ = _clamped_plate(0.02)
+    applied = sol.load.sum(axis=0)
+    assert np.abs(sol.reaction.sum(axis=0) + applied).max() <= 1e-6 * np.abs(applied).max()
+
+
+def test_thin_plate_scales_as_t_cubed_and_t_squared():
+    """Halving a thin plate's thickness: deflection x 8 (t^-3), stress x 4 (t^-2), within 10%.
+
+    The stress is the largest away from the clamped edge: at the clamp's
+    corners the 3-D solution is singular and its value depends on the mesh.
+    """
+    out = {}
+    for t in (0.01, 0.005):
+        mesh, sol, centre = _clamped_plate(t)
+        out[t] = (-sol.displacement[centre, 1].item(), _interior_stress(mesh, sol))
+    (w1, s1), (w2, s2) = out[0.01], out[0.005]
+    assert w2 / w1 == pytest.approx(8.0, rel=0.10)
+    assert s2 / s1 == pytest.approx(4.0, rel=0.10)
+
+
+def test_a_shell_held_nowhere_is_one_clear_error():
+    from seatkit.structure import StructureError
+
+    mesh, model = _plate(2, 2, 1.0, 1.0, 0.01)
+    with pytest.raises(StructureError, match="nothing holds it"):
+        model.solve(_pressure(mesh, 100.0), np.zeros(0, np.int64))
