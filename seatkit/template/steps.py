@@ -20,6 +20,7 @@ from seatkit.template.checks import check_supportability
 from seatkit.template.clearance import lift_off_bodies
 from seatkit.template.grid import FitState, GridMesh
 from seatkit.template.planes import fit_support_plane
+from seatkit.template.pose_rule import PoseRuleStep
 from seatkit.template.special_cases import add_armrests, fit_outer_face, merge_crossed_legs
 
 __all__ = ["BUILTIN_STEPS", "builtin_steps"]
@@ -306,6 +307,9 @@ class ArmrestsStep:
     """Armrests: PCA + RANSAC plane and minimal spanning rectangle, two columns per side."""
 
     name = "armrests"
+    #: the armrests are a refinement: when a cage with them is refused, the
+    #: engine tries again without them (docs/templates.md)
+    optional = True
     description = "add an armrest column and a connector column on each side when the arms can rest on one"
     options = {
         "right": "segments of the right arm (default [RightArm, RightForeArm])",
@@ -418,6 +422,7 @@ def builtin_steps() -> list:
         ArmrestsStep(),
         BorderStep(),
         ClearanceStep(),
+        PoseRuleStep(),
     ]
 
 
