@@ -202,13 +202,18 @@ def _sideways(rng) -> np.ndarray:
     return a
 
 
-def _feet_tucked(rng) -> np.ndarray:
-    a = _seated(rng)
+def _fold_legs(rng, a: np.ndarray, hip, abduction, knee, foot) -> None:
+    """Both legs folded: hip flexion, abduction, knee and foot angles drawn from the ranges (deg)."""
     for side in ("Right", "Left"):
         sign = 1 if side == "Right" else -1
-        a[SEGMENT_INDEX[side + "UpLeg"]] = (-_u(rng, 70, 85), 0.0, sign * _u(rng, -5, 0))
-        a[SEGMENT_INDEX[side + "Leg"]] = (_u(rng, 140, 155), 0.0, 0.0)
-        a[SEGMENT_INDEX[side + "Foot"]] = (_u(rng, 45, 65), 0.0, 0.0)
+        a[SEGMENT_INDEX[side + "UpLeg"]] = (-_u(rng, *hip), 0.0, sign * _u(rng, *abduction))
+        a[SEGMENT_INDEX[side + "Leg"]] = (_u(rng, *knee), 0.0, 0.0)
+        a[SEGMENT_INDEX[side + "Foot"]] = (_u(rng, *foot), 0.0, 0.0)
+
+
+def _feet_tucked(rng) -> np.ndarray:
+    a = _seated(rng)
+    _fold_legs(rng, a, (70, 85), (-5, 0), (140, 155), (45, 65))
     return a
 
 
@@ -216,11 +221,7 @@ def _kneeling(rng) -> np.ndarray:
     """Kneeling upright: thighs near vertical, shanks along the floor behind."""
     a = _seated(rng)
     a[0] = (_u(rng, -5, 5), 0.0, 0.0)
-    for side in ("Right", "Left"):
-        sign = 1 if side == "Right" else -1
-        a[SEGMENT_INDEX[side + "UpLeg"]] = (-_u(rng, 0, 20), 0.0, sign * _u(rng, -8, 0))
-        a[SEGMENT_INDEX[side + "Leg"]] = (_u(rng, 85, 100), 0.0, 0.0)
-        a[SEGMENT_INDEX[side + "Foot"]] = (_u(rng, 40, 60), 0.0, 0.0)
+    _fold_legs(rng, a, (0, 20), (-8, 0), (85, 100), (40, 60))
     return a
 
 
