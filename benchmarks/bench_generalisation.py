@@ -26,13 +26,14 @@ Pose-and-body tasks run in ``--workers`` processes (concurrent.futures);
 each build runs in one process (``processes=False``) with BLAS on one
 thread. Run it niced on a shared machine:
 
-    nice -n 10 python benchmarks/bench_generalisation.py --poses 200 --seeds 0 1 2 --table1-every 4 --workers 2 --markdown gen.md
+    nice -n 10 python benchmarks/bench_generalisation.py --poses 200 --seeds 0 1 --table1-every 8 --workers 2 --results gen.jsonl --markdown gen.md
 """
 
 from __future__ import annotations
 
 import argparse
 import collections
+import json
 import os
 import platform
 import re
@@ -119,31 +120,36 @@ def run_task(task):
     verdict = assess_pose(body, template_rule(template))
     out = {"pose": drawn.name, "family": family, "body": body_name, "rule_ok": verdict.supportable, "rule_reasons": verdict.reasons, "fits": []}
     pressure = solve_pressure(body)
-    for seed in seeds:
-        t0 = time.perf_counter()
-        try:
-            mesh = template.fit([body], [pressure], seed=seed)
-            out["fits"].append({"seed": seed, "ok": True, "seconds": time.perf_counter() - t0, "attempt": mesh.meta["fit_attempts"]["attempt"]})
-        except UnsupportedPoseError as e:
-            out["fits"].append({"seed": seed, "ok": False, "seconds": time.perf_counter() - t0, "reason": str(e), "rule": bool(getattr(e, "seed_independent", False))})
-    if table1 and out["fits"][0]["ok"]:
-        path = _STATE["folder"] / f"{drawn.name}.yaml"
+    fit_seeds = list(seeds)
+    if table1 and verdict.supportable:
+        # the full build's own template fit (seed ``seeds[0]``) counts as that seed's fit
+        path = _STATE["folder"] / f"{drawn.name}-{body_name}.yaml"
         path.write_text(pose_yaml(drawn))
         recipe = {"template": "chair", "seed": seeds[0], "bodies": [{"model": body_name, "pose": str(path)}]}
         t0 = time.perf_counter()
         try:
             r = build(recipe, pm=_STATE["pm"], write=False, processes=False)
             ours, base = r.metrics["ours"][0], r.metrics["baseline"][0]
+            out["fits"].append({"seed": seeds[0], "ok": True, "seconds": r.timings["template"], "attempt": r.initial_mesh.meta["fit_attempts"]["attempt"]})
             out["build"] = {
                 "ok": True,
                 "seconds": time.perf_counter() - t0,
-                "template_s": r.timings.get("template"),
                 "ours": {k: ours[k] for k in (*WIN_KEYS, "max_penetration_m")},
                 "flat": {k: base.get(k, float("inf")) for k in WIN_KEYS},
             }
+            fit_seeds = fit_seeds[1:]
+        except UnsupportedPoseError:
+            pass  # fitted again below, to record the refusal like any other
         except SeatkitError as e:
             out["build"] = {"ok": False, "seconds": time.perf_counter() - t0, "reason": f"{type(e).__name__}: {e}"}
         path.unlink()
+    for seed in fit_seeds:
+        t0 = time.perf_counter()
+        try:
+            mesh = template.fit([body], [pressure], seed=seed)
+            out["fits"].append({"seed": seed, "ok": True, "seconds": time.perf_counter() - t0, "attempt": mesh.meta["fit_attempts"]["attempt"]})
+        except UnsupportedPoseError as e:
+            out["fits"].append({"seed": seed, "ok": False, "seconds": time.perf_counter() - t0, "reason": str(e), "rule": bool(getattr(e, "seed_independent", False))})
     if not all(f["ok"] for f in out["fits"]) and verdict.supportable:
         out["yaml"] = pose_yaml(drawn)
     return out
@@ -162,6 +168,8 @@ def tasks(args):
 
 
 def summarise(results, args, wall) -> str:
+    import numpy as np
+
     lines = []
     supp = [r for r in results if r["rule_ok"]]
     refused = [r for r in results if not r["rule_ok"]]
@@ -170,7 +178,7 @@ def summarise(results, args, wall) -> str:
     ok_all = sum(all(f["ok"] for f in r["fits"]) for r in supp)
     n_poses = len({r["pose"] for r in results})
     lines.append(f"{n_poses} poses ({args.poses} plausible + {args.unsupported} of the unsupported families, draw seed {args.draw_seed}) "
-                 f"x {len(args.bodies)} bodies ({', '.join(args.bodies)}) x seeds {' '.join(map(str, args.seeds))}; {wall / 60:.1f} min on {os.cpu_count()} cores, {args.workers} workers")
+                 f"x {len(args.bodies)} bodies ({', '.join(args.bodies)}) x seeds {' '.join(map(str, args.seeds))}; {wall / 60:.1f} min (this invocation) on {os.cpu_count()} cores, {args.workers} workers")
     lines.append("")
     lines.append("| | count |")
     lines.append("|---|---|")
@@ -240,7 +248,7 @@ def summarise(results, args, wall) -> str:
     lines.append("")
     lines.append("Time (loaded shared machine, BLAS on one thread, several workers at once):")
     if fit_s:
-        lines.append(f"- template fit: median {statistics.median(fit_s):.2f} s, 90th percentile {sorted(fit_s)[int(0.9 * (len(fit_s) - 1))]:.2f} s, max {max(fit_s):.2f} s; "
+        lines.append(f"- template fit: median {statistics.median(fit_s):.2f} s, 90th percentile {float(np.percentile(fit_s, 90)):.2f} s, max {max(fit_s):.2f} s; "
                      f"{retried} of {len(fit_s)} successful fits needed a fallback start")
     if rule_s:
         lines.append(f"- refusal by the pose rule: median {1000 * statistics.median(rule_s):.0f} ms")
@@ -279,6 +287,7 @@ def main() -> None:
     ap.add_argument("--table1-every", type=int, default=1, help="full build (Table 1) for every K-th pose-and-body case only")
     ap.add_argument("--markdown", type=Path, help="write the summary (Markdown) here")
     ap.add_argument("--failures", type=Path, help="folder for the pose YAML of every failing supportable pose")
+    ap.add_argument("--results", type=Path, help="append every result to this JSON-lines file and skip the cases it already holds (resume)")
     ap.add_argument("--library-seeds", type=int, default=10, help="also fit every supported library pose on every body with seeds 0..N-1 (0: skip)")
     ap.add_argument("--images", type=Path, help="only draw DIR/generated-<family>.png (the first draw of each family) and stop")
     args = ap.parse_args()
@@ -286,28 +295,47 @@ def main() -> None:
         draw_images(args)
         return
     print(f"python {platform.python_version()}, {os.cpu_count()} cores, {platform.machine()}", flush=True)
-    todo = tasks(args)
-    results = []
+    from seatkit.body import list_poses
+
+    todo = [("case", t) for t in tasks(args)]
+    if args.library_seeds:
+        todo += [("library", (i.name, b, args.library_seeds)) for i in list_poses() if i.supported for b in args.bodies]
+    done = {}
+    if args.results and args.results.exists():
+        for line in args.results.read_text().splitlines():
+            if line.strip():
+                rec = json.loads(line)
+                done[(rec["kind"], rec["key"])] = rec["result"]
+    key = {"case": lambda t: f"{t[0]}:{t[1]}:{t[2]}:{t[3]}:{','.join(map(str, t[4]))}:{t[5]}", "library": lambda t: f"{t[0]}:{t[1]}:{t[2]}"}
+    results = [done[("case", key["case"](t))] for kind, t in todo if kind == "case" and ("case", key["case"](t)) in done]
+    library = [done[("library", key["library"](t))] for kind, t in todo if kind == "library" and ("library", key["library"](t)) in done]
+    todo = [(kind, t) for kind, t in todo if (kind, key[kind](t)) not in done]
+    if done:
+        print(f"resuming: {len(results) + len(library)} results read from {args.results}, {len(todo)} to go", flush=True)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as folder, ProcessPoolExecutor(args.workers, initializer=_init, initargs=(args.bodies, folder)) as pool:
-        from seatkit.body import list_poses
-
-        lib = [(i.name, b, args.library_seeds) for i in list_poses() if i.supported for b in args.bodies] if args.library_seeds else []
-        lib_futures = [pool.submit(run_library, t) for t in lib]
-        futures = [pool.submit(run_task, t) for t in todo]
+        futures = {pool.submit(run_task if kind == "case" else run_library, t): (kind, t) for kind, t in todo}
         for n, fut in enumerate(as_completed(futures), 1):
+            kind, t = futures[fut]
             r = fut.result()
-            results.append(r)
-            status = "refused (rule)" if not r["rule_ok"] else ("ok" if all(f["ok"] for f in r["fits"]) else "FAILED")
+            if args.results:
+                with args.results.open("a") as fh:
+                    fh.write(json.dumps({"kind": kind, "key": key[kind](t), "result": r}) + "\n")
+            if kind == "library":
+                library.append(r)
+                status = f"library, {r['ok']} of {t[2]} seeds built"
+            else:
+                results.append(r)
+                status = "refused (rule)" if not r["rule_ok"] else ("ok" if all(f["ok"] for f in r["fits"]) else "FAILED")
+                if args.failures and "yaml" in r:
+                    args.failures.mkdir(parents=True, exist_ok=True)
+                    (args.failures / f"{r['pose']}-{r['body']}.yaml").write_text(r["yaml"])
             print(f"[{n}/{len(todo)} {(time.perf_counter() - t0) / 60:.1f} min] {r['pose']} on {r['body']}: {status}", flush=True)
-            if args.failures and "yaml" in r:
-                args.failures.mkdir(parents=True, exist_ok=True)
-                (args.failures / f"{r['pose']}-{r['body']}.yaml").write_text(r["yaml"])
-        library = sorted((f.result() for f in lib_futures), key=lambda r: (r["pose"], r["body"]))
+    library.sort(key=lambda r: (r["pose"], r["body"]))
     results.sort(key=lambda r: (r["pose"], r["body"]))
     text = summarise(results, args, time.perf_counter() - t0)
     if library:
-        rows = ["", f"Library poses marked supported, template fit with seeds 0-{args.library_seeds - 1}:", "", "| pose | body | built | needed a fallback start |", "|---|---|---|---|"]
+        rows = ["", "", f"Library poses marked supported, template fit with seeds 0-{args.library_seeds - 1}:", "", "| pose | body | built | needed a fallback start |", "|---|---|---|---|"]
         for r in library:
             rows.append(f"| {r['pose']} | {r['body']} | {r['ok']} of {args.library_seeds} | {r['fallback']} |")
             rows += [f"| | | {x[:120]} | |" for x in r["refusals"]]

@@ -156,11 +156,15 @@ def test_a_refused_start_falls_back_to_the_same_streams_for_every_seed(upright):
         meshes[seed] = mesh.vertices
     # the fallback does not depend on the seed: both seeds get the same valid cage
     np.testing.assert_array_equal(meshes[0], meshes[1])
-    # without a refusal, the seed's own stream is used and seeds differ
-    a = load_template(text=STOOL, steps={"flaky": Flaky(0)}).fit([b], [p], seed=0)
-    c = load_template(text=STOOL, steps={"flaky": Flaky(0)}).fit([b], [p], seed=1)
-    assert a.meta["fit_attempts"] == {"attempt": 1, "of": 6, "stream": "seed", "optional_steps_dropped": False}
-    assert not np.array_equal(a.vertices, c.vertices)
+    # without a refusal, a seed whose own stream gives a valid cage keeps it: seeds choose among valid designs
+    own = []
+    for seed in (1, 2, 3, 4):
+        m = load_template(text=STOOL, steps={"flaky": Flaky(0)}).fit([b], [p], seed=seed)
+        assert m.meta["fit_attempts"]["of"] == 6 and not m.meta["fit_attempts"]["optional_steps_dropped"]
+        if m.meta["fit_attempts"]["stream"] == "seed":
+            assert m.meta["fit_attempts"]["attempt"] == 1
+            own.append(m.vertices)
+    assert len(own) >= 2 and not np.array_equal(own[0], own[1])
 
 
 def test_optional_steps_are_dropped_last_and_rule_refusals_are_final(upright):
