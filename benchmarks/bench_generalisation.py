@@ -275,6 +275,16 @@ def draw_images(args) -> None:
         print(path)
 
 
+def _library_rows(library, args) -> str:
+    if not library:
+        return ""
+    rows = ["", "", f"Library poses marked supported, template fit with seeds 0-{args.library_seeds - 1}:", "", "| pose | body | built | needed a fallback start |", "|---|---|---|---|"]
+    for r in library:
+        rows.append(f"| {r['pose']} | {r['body']} | {r['ok']} of {args.library_seeds} | {r['fallback']} |")
+        rows += [f"| | | {x[:120]} | |" for x in r["refusals"]]
+    return "\n".join(rows)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--poses", type=int, default=200, help="plausible poses drawn (families in turn)")
@@ -288,6 +298,7 @@ def main() -> None:
     ap.add_argument("--markdown", type=Path, help="write the summary (Markdown) here")
     ap.add_argument("--failures", type=Path, help="folder for the pose YAML of every failing supportable pose")
     ap.add_argument("--results", type=Path, help="append every result to this JSON-lines file and skip the cases it already holds (resume)")
+    ap.add_argument("--summarise-only", action="store_true", help="run nothing: print the summary of what --results holds (marked partial when cases are missing)")
     ap.add_argument("--library-seeds", type=int, default=10, help="also fit every supported library pose on every body with seeds 0..N-1 (0: skip)")
     ap.add_argument("--images", type=Path, help="only draw DIR/generated-<family>.png (the first draw of each family) and stop")
     args = ap.parse_args()
@@ -310,6 +321,17 @@ def main() -> None:
     results = [done[("case", key["case"](t))] for kind, t in todo if kind == "case" and ("case", key["case"](t)) in done]
     library = [done[("library", key["library"](t))] for kind, t in todo if kind == "library" and ("library", key["library"](t)) in done]
     todo = [(kind, t) for kind, t in todo if (kind, key[kind](t)) not in done]
+    if args.summarise_only:
+        missing = sum(kind == "case" for kind, _ in todo)
+        missing_lib = sum(kind == "library" for kind, _ in todo)
+        text = summarise(results, args, 0.0)
+        if missing or missing_lib:
+            text = f"PARTIAL: {missing} pose-and-body cases and {missing_lib} library poses not run yet\n\n" + text
+        text += _library_rows(sorted(library, key=lambda r: (r["pose"], r["body"])), args)
+        print(text)
+        if args.markdown:
+            args.markdown.write_text(text + "\n")
+        return
     if done:
         print(f"resuming: {len(results) + len(library)} results read from {args.results}, {len(todo)} to go", flush=True)
     t0 = time.perf_counter()
@@ -334,15 +356,8 @@ def main() -> None:
     library.sort(key=lambda r: (r["pose"], r["body"]))
     results.sort(key=lambda r: (r["pose"], r["body"]))
     text = summarise(results, args, time.perf_counter() - t0)
-    if library:
-        rows = ["", "", f"Library poses marked supported, template fit with seeds 0-{args.library_seeds - 1}:", "", "| pose | body | built | needed a fallback start |", "|---|---|---|---|"]
-        for r in library:
-            rows.append(f"| {r['pose']} | {r['body']} | {r['ok']} of {args.library_seeds} | {r['fallback']} |")
-            rows += [f"| | | {x[:120]} | |" for x in r["refusals"]]
-        text += "\n".join(rows)
-        bad_library = [r for r in library if r["refusals"]]
-    else:
-        bad_library = []
+    text += _library_rows(library, args)
+    bad_library = [r for r in library if r["refusals"]]
     print()
     print(text)
     if args.markdown:
