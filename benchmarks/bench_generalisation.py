@@ -59,6 +59,7 @@ def _init(bodies, folder):
 
     _STATE["limits"] = threadpool_limits(limits=1)
     _STATE["rigs"] = {b: load_rig(b) for b in bodies}
+    _STATE["rigs"].setdefault("default-male", load_rig("default-male"))
     _STATE["template"] = load_template(template_path("chair.yaml"))
     _STATE["pm"] = get_plugin_manager()
     _STATE["folder"] = Path(folder)
@@ -299,7 +300,8 @@ def main() -> None:
     ap.add_argument("--failures", type=Path, help="folder for the pose YAML of every failing supportable pose")
     ap.add_argument("--results", type=Path, help="append every result to this JSON-lines file and skip the cases it already holds (resume)")
     ap.add_argument("--summarise-only", action="store_true", help="run nothing: print the summary of what --results holds (marked partial when cases are missing)")
-    ap.add_argument("--library-seeds", type=int, default=10, help="also fit every supported library pose on every body with seeds 0..N-1 (0: skip)")
+    ap.add_argument("--library-seeds", type=int, default=10, help="also fit every supported library pose with seeds 0..N-1 (0: skip)")
+    ap.add_argument("--library-bodies", nargs="+", help="bodies for the library poses (default: the first of --bodies, the build's default)")
     ap.add_argument("--images", type=Path, help="only draw DIR/generated-<family>.png (the first draw of each family) and stop")
     args = ap.parse_args()
     if args.images:
@@ -310,7 +312,7 @@ def main() -> None:
 
     todo = [("case", t) for t in tasks(args)]
     if args.library_seeds:
-        todo += [("library", (i.name, b, args.library_seeds)) for i in list_poses() if i.supported for b in args.bodies]
+        todo += [("library", (i.name, b, args.library_seeds)) for i in list_poses() if i.supported for b in (args.library_bodies or args.bodies[:1])]
     done = {}
     if args.results and args.results.exists():
         for line in args.results.read_text().splitlines():
