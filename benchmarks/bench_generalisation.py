@@ -274,6 +274,37 @@ def draw_images(args) -> None:
         path = args.images / f"generated-{family}.png"
         render_body(pose_rig(rig, drawn.pose), path, views=("front", "side"), title=f"{args.bodies[0]}: {drawn.name}", show_skeleton=True)
         print(path)
+    if args.cages:
+        _draw_cages(args, rig)
+
+
+def _draw_cages(args, rig) -> None:
+    """The chair (seed 0) on the first draw of each supported family that the rule accepts: args.cages/chair-<family>.png."""
+    import numpy as np
+    from threadpoolctl import threadpool_limits
+
+    from seatkit.body import pose_rig
+    from seatkit.body.generator import FAMILIES, draw_pose
+    from seatkit.pressure.qp import solve_pressure
+    from seatkit.resources import template_path
+    from seatkit.template import load_template
+    from seatkit.template.pose_rule import assess_pose, template_rule
+    from seatkit.template.render import render_cage
+
+    chair = load_template(template_path("chair.yaml"))
+    args.cages.mkdir(parents=True, exist_ok=True)
+    with threadpool_limits(limits=1):
+        for family in FAMILIES:
+            # the first draw of the family that the rule accepts, as the benchmark draws it (index i of family[i % 4])
+            for i in range(FAMILIES.index(family), 4 * args.poses, len(FAMILIES)):
+                drawn = draw_pose(np.random.default_rng([args.draw_seed, i]), family, f"{family}-{i:03d}")
+                body = pose_rig(rig, drawn.pose)
+                if assess_pose(body, template_rule(chair)).supportable:
+                    break
+            mesh = chair.fit([body], [solve_pressure(body)], seed=0)
+            path = args.cages / f"chair-{family}.png"
+            render_cage(mesh, [body], path, title=f"chair on {drawn.name} ({args.bodies[0]}, seed 0)", dpi=70)
+            print(path, mesh.meta["fit_attempts"])
 
 
 def _library_rows(library, args) -> str:
@@ -303,6 +334,7 @@ def main() -> None:
     ap.add_argument("--library-seeds", type=int, default=10, help="also fit every supported library pose with seeds 0..N-1 (0: skip)")
     ap.add_argument("--library-bodies", nargs="+", help="bodies for the library poses (default: the first of --bodies, the build's default)")
     ap.add_argument("--images", type=Path, help="only draw DIR/generated-<family>.png (the first draw of each family) and stop")
+    ap.add_argument("--cages", type=Path, help="with --images: also draw the chair on a supportable draw of each family, DIR/chair-<family>.png")
     args = ap.parse_args()
     if args.images:
         draw_images(args)
