@@ -152,7 +152,7 @@ def _one_line(fn, text):
 def test_mistyped_option_is_one_located_line():
     text = CHAIR.replace("    width: 0.05                 # m", "    width: five")
     msg = _one_line(load_template_text, text)
-    assert msg.startswith(f"my-chair.yaml:{_line_of(text, 'width: five')}: steps[10].width: expected a number from 0 to 1 (m), got 'five'")
+    assert msg.startswith(f"my-chair.yaml:{_line_of(text, 'width: five')}: steps[11].width: expected a number from 0 to 1 (m), got 'five'")
 
 
 def load_template_text(text):
@@ -163,11 +163,11 @@ def test_steps_in_the_wrong_order_are_one_located_line():
     # outer-columns before corners (the KeyError (1, 1) of old)
     text = CHAIR.replace("  - step: corners\n", "").replace("  - step: supportability\n", "  - step: corners\n  - step: supportability\n")
     msg = _one_line(_bind, text)
-    assert msg.startswith(f"my-chair.yaml:{_line_of(text, '- step: outer-columns')}: steps[5].step: step 'outer-columns' needs step 'corners' before it")
+    assert msg.startswith(f"my-chair.yaml:{_line_of(text, '- step: outer-columns')}: steps[6].step: step 'outer-columns' needs step 'corners' before it")
     # a per-person step after the grid was joined
     text = CHAIR.replace("  - step: join\n", "").replace("  - step: armrests\n", "  - step: join\n  - step: corners\n  - step: armrests\n")
     msg = _one_line(_bind, text)
-    assert "steps[9].step: step 'corners' fits each person's faces, but step 'join' before it already joined them" in msg
+    assert "steps[10].step: step 'corners' fits each person's faces, but step 'join' before it already joined them" in msg
 
 
 def test_a_role_in_a_column_that_cannot_hold_it_is_one_located_line():
@@ -183,14 +183,14 @@ def test_a_role_in_a_column_that_cannot_hold_it_is_one_located_line():
 def test_an_unknown_step_is_caught_at_load_with_did_you_mean():
     text = CHAIR.replace("  - step: border\n", "  - step: bordr\n")
     msg = _one_line(_bind, text)
-    assert msg.startswith(f"my-chair.yaml:{_line_of(text, '- step: bordr')}: steps[10].step: unknown step 'bordr'")
+    assert msg.startswith(f"my-chair.yaml:{_line_of(text, '- step: bordr')}: steps[11].step: unknown step 'bordr'")
     assert "did you mean 'border'?" in msg
 
 
 def test_an_unknown_option_of_a_builtin_step_says_did_you_mean():
     text = CHAIR.replace("    min_width: 0.06", "    min_widht: 0.06")
     msg = _one_line(load_template_text, text)
-    assert f"my-chair.yaml:{_line_of(text, 'min_widht')}: steps[6].min_widht: step 'outer-columns' has no option 'min_widht'" in msg
+    assert f"my-chair.yaml:{_line_of(text, 'min_widht')}: steps[7].min_widht: step 'outer-columns' has no option 'min_widht'" in msg
     assert "did you mean 'min_width'?" in msg
 
 
@@ -206,7 +206,7 @@ def test_a_missing_required_option_is_refused():
             raise AssertionError("not run")
 
     text = CHAIR.replace("  - step: corners\n", "  - step: corners\n  - step: needy\n")
-    with pytest.raises(RecipeError, match=r"steps\[6\]: step 'needy' needs option 'n' \(a whole number >= 1"):
+    with pytest.raises(RecipeError, match=r"steps\[7\]: step 'needy' needs option 'n' \(a whole number >= 1"):
         load_template(text=text, source="my-chair.yaml").bind({**BUILTIN_STEPS, "needy": Needy()})
 
 
@@ -239,9 +239,9 @@ def test_recipe_step_option_errors_name_file_line_and_key(tmp_path):
         template: chair
         template_params:
           steps:
-            10: {width: 2}
+            11: {width: 2}
         """)
-    with pytest.raises(RecipeError, match=r"recipe.yaml:4: template_params.steps.10.width: expected a number from 0 to 1 \(m\), got 2"):
+    with pytest.raises(RecipeError, match=r"recipe.yaml:4: template_params.steps.11.width: expected a number from 0 to 1 \(m\), got 2"):
         _check(path)
     path = _recipe_file(tmp_path, """\
         template: chair
@@ -249,7 +249,7 @@ def test_recipe_step_option_errors_name_file_line_and_key(tmp_path):
           steps:
             no-such-step: {width: 0.1}
         """)
-    with pytest.raises(RecipeError, match=r"recipe.yaml:4: template_params.steps.no-such-step: template 'chair' has no step 'no-such-step'; its steps are 0: fit-planes"):
+    with pytest.raises(RecipeError, match=r"recipe.yaml:4: template_params.steps.no-such-step: template 'chair' has no step 'no-such-step'; its steps are 0: pose-rule, 1: fit-planes"):
         _check(path)
 
 
@@ -372,7 +372,7 @@ def test_disabling_a_plugin_removes_every_component_steps_included():
         reg.get("template", "bench")
     msg = str(e.value)
     assert "template 'bench' cannot be used: " in msg and "bench.yaml:" in msg
-    assert "steps[0].step: unknown step 'fit-planes'" in msg and "(disabled plugins: chair)" in msg
+    assert "steps[0].step: unknown step 'pose-rule'" in msg and "(disabled plugins: chair)" in msg
     assert "flat-patch" in reg.names("template")  # the refiners plugin is untouched
     pm2 = get_plugin_manager(disabled=["bodies"], autoload=False)
     assert pm2.registry.names("body_model") == ["anny"] and pm2.registry.pose_dirs == []

@@ -170,6 +170,11 @@ class StructureExporter:
 
     name = "structure"
     description = "structure.json/.png: stress, safety factor and deflection of the shell under its people (FEM)"
+    #: Runs in the build's process: the analysis it may run needs the result's evaluation, not a pickled copy.
+    prepare_ahead = False
+
+    def prepare(self) -> None:
+        """Nothing to prepare: scikit-fem is imported when an analysis runs."""
 
     def export(self, result, directory: Path) -> dict[str, Path]:
         analysis = (result.extra or {}).get("structure")

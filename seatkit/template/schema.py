@@ -48,6 +48,7 @@ PARAMETERS: dict[str, tuple[float, str, str]] = {
     "max_neighbour_cut": (0.02, "1", "fraction of adjacent-segment vertices a plane may cut under its patch"),
     "important_threshold": (0.05, "1", "importance (fraction of the peak) above which a vertex is important"),
     "end_margin": (0.03, "m", "how far the first and last rows reach beyond their segment"),
+    "fit_attempts": (6, "count", "RANSAC starts tried (the seed's, then fixed fallbacks) before the optional steps are dropped"),
 }
 
 _NAME = {"type": "string", "pattern": "^[A-Za-z][A-Za-z0-9_.-]*$"}
@@ -303,6 +304,7 @@ def resolve_parameters(spec: TemplateSpec, overrides: Mapping[str, Any] | None) 
             raise ParamError((key,), f"expected a whole number >= 1, got {value!r}")
         values[key] = value
     values["ransac_iterations"] = int(values["ransac_iterations"])
+    values["fit_attempts"] = int(values["fit_attempts"])
     for key in list(values):
         if key.endswith("_deg"):
             values[key[: -len("_deg")]] = math.radians(values[key])

@@ -23,6 +23,7 @@ from seatkit.template.clearance import lift_off_bodies
 from seatkit.template.grid import FitState, GridMesh
 from seatkit.template.options import Option
 from seatkit.template.planes import fit_support_plane
+from seatkit.template.pose_rule import PoseRuleStep
 from seatkit.template.special_cases import add_armrests, fit_outer_face, merge_crossed_legs
 
 __all__ = ["BUILTIN_STEPS", "builtin_steps"]
@@ -328,6 +329,9 @@ class ArmrestsStep:
     """Armrests: PCA + RANSAC plane and minimal spanning rectangle, two columns per side."""
 
     name = "armrests"
+    #: the armrests are a refinement: when a cage with them is refused, the
+    #: engine tries again without them (docs/templates.md)
+    optional = True
     description = "add an armrest column and a connector column on each side when the arms can rest on one"
     stage = "grid"
     requires = ("corners",)
@@ -457,6 +461,7 @@ def builtin_steps() -> list:
         ArmrestsStep(),
         BorderStep(),
         ClearanceStep(),
+        PoseRuleStep(),
     ]
 
 

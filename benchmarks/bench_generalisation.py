@@ -1,0 +1,404 @@
+"""Generalisation of the chair template: random seated, reclined, crossed-leg and leaning-forward poses.
+
+Draws ``--poses`` plausible poses (seatkit.body.generator; the joint ranges
+and their sources are in docs/poses.md) plus ``--unsupported`` poses of the
+families the chair cannot hold (sitting sideways, feet tucked, kneeling),
+poses them on every ``--bodies`` body, and for each pose and body:
+
+- fits the chair template with every ``--seeds`` seed (only the template
+  fit depends on the seed: posing, pressure, refiners and the evaluation do
+  not), recording success or the refusal and its reason;
+- checks that a refusal is the pose rule's (the ``pose-rule`` step, decided
+  from the skeleton before fitting): any other refusal, of a pose the rule
+  calls supportable, is a failure;
+- with ``--table1`` (default on), runs one full default build (seed of the
+  first ``--seeds``, both refiners, the evaluation against the flat patch)
+  and records the paper's Table 1 figures, the surface's deepest
+  penetration into the body, and the build's time.
+
+Prints the success rate on the supportable poses, refusals by reason, the
+Table 1 comparison (wins of ours over the flat patch on average distance,
+average and maximum pressure, and the means), and the time per template fit
+and per build. ``--markdown FILE`` writes the same as a Markdown section
+(docs/evaluation.md holds the last run's).
+
+Pose-and-body tasks run in ``--workers`` processes (concurrent.futures);
+each build runs in one process (``processes=False``) with BLAS on one
+thread. Run it niced on a shared machine:
+
+    nice -n 10 python benchmarks/bench_generalisation.py --poses 200 --seeds 0 1 --table1-every 8 --workers 2 --results gen.jsonl --markdown gen.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import os
+import platform
+import re
+import statistics
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+
+WIN_KEYS = ("avg_distance_m", "avg_pressure_pa", "max_pressure_pa")
+
+_STATE: dict = {}
+
+
+def _init(bodies, folder):
+    from threadpoolctl import threadpool_limits
+
+    from seatkit.body import load_rig
+    from seatkit.plugins import get_plugin_manager
+    from seatkit.resources import template_path
+    from seatkit.template import load_template
+
+    _STATE["limits"] = threadpool_limits(limits=1)
+    _STATE["rigs"] = {b: load_rig(b) for b in bodies}
+    _STATE["rigs"].setdefault("default-male", load_rig("default-male"))
+    _STATE["template"] = load_template(template_path("chair.yaml"))
+    _STATE["pm"] = get_plugin_manager()
+    _STATE["folder"] = Path(folder)
+
+
+def reason_kind(message: str) -> str:
+    """A short category of a refusal message (the pose rule's, or the fit's)."""
+    for pattern, kind in (
+        (r"lies on its side", "lying on the side"),
+        (r"sitting sideways", "sitting sideways"),
+        (r"kneeling", "kneeling"),
+        (r"feet under the body", "feet under the body"),
+        (r"hangs beside the seat", "hand beside the seat"),
+        (r"below the hip joints", "hand below the seat"),
+        (r"crosses the body", "cage crosses the body"),
+        (r"intersects itself", "cage intersects itself"),
+        (r"cannot support .*important vertices", "occluded support"),
+    ):
+        if re.search(pattern, message):
+            return kind
+    return "other: " + message[:60]
+
+
+def run_library(task):
+    """Fit one library pose on one body with seeds 0..n-1 (template only)."""
+    from seatkit.body import load_pose, pose_rig
+    from seatkit.errors import UnsupportedPoseError
+    from seatkit.pressure.qp import solve_pressure
+
+    name, body_name, n = task
+    body = pose_rig(_STATE["rigs"][body_name], load_pose(name))
+    pressure = solve_pressure(body)
+    out = {"pose": name, "body": body_name, "ok": 0, "fallback": 0, "refusals": []}
+    for seed in range(n):
+        try:
+            mesh = _STATE["template"].fit([body], [pressure], seed=seed)
+            out["ok"] += 1
+            out["fallback"] += mesh.meta["fit_attempts"]["attempt"] > 1
+        except UnsupportedPoseError as e:
+            out["refusals"].append(f"seed {seed}: {e}")
+    return out
+
+
+def run_task(task):
+    """Fit every seed (and one full build) for one pose on one body."""
+    from seatkit.body import pose_rig
+    from seatkit.body.generator import draw_pose, pose_yaml
+    from seatkit.errors import SeatkitError, UnsupportedPoseError
+    from seatkit.pipeline import build
+    from seatkit.pressure.qp import solve_pressure
+    from seatkit.template.pose_rule import assess_pose, template_rule
+
+    import numpy as np
+
+    index, family, draw_seed, body_name, seeds, table1 = task
+    drawn = draw_pose(np.random.default_rng([draw_seed, index]), family, f"{family}-{index:03d}")
+    template = _STATE["template"]
+    body = pose_rig(_STATE["rigs"][body_name], drawn.pose)
+    verdict = assess_pose(body, template_rule(template))
+    out = {"pose": drawn.name, "family": family, "body": body_name, "rule_ok": verdict.supportable, "rule_reasons": verdict.reasons, "fits": []}
+    pressure = solve_pressure(body)
+    fit_seeds = list(seeds)
+    if table1 and verdict.supportable:
+        # the full build's own template fit (seed ``seeds[0]``) counts as that seed's fit
+        path = _STATE["folder"] / f"{drawn.name}-{body_name}.yaml"
+        path.write_text(pose_yaml(drawn))
+        recipe = {"template": "chair", "seed": seeds[0], "bodies": [{"model": body_name, "pose": str(path)}]}
+        t0 = time.perf_counter()
+        try:
+            r = build(recipe, pm=_STATE["pm"], write=False, processes=False)
+            ours, base = r.metrics["ours"][0], r.metrics["baseline"][0]
+            out["fits"].append({"seed": seeds[0], "ok": True, "seconds": r.timings["template"], "attempt": r.initial_mesh.meta["fit_attempts"]["attempt"]})
+            out["build"] = {
+                "ok": True,
+                "seconds": time.perf_counter() - t0,
+                "ours": {k: ours[k] for k in (*WIN_KEYS, "max_penetration_m")},
+                "flat": {k: base.get(k, float("inf")) for k in WIN_KEYS},
+            }
+            fit_seeds = fit_seeds[1:]
+        except UnsupportedPoseError:
+            pass  # fitted again below, to record the refusal like any other
+        except SeatkitError as e:
+            out["build"] = {"ok": False, "seconds": time.perf_counter() - t0, "reason": f"{type(e).__name__}: {e}"}
+        path.unlink()
+    for seed in fit_seeds:
+        t0 = time.perf_counter()
+        try:
+            mesh = template.fit([body], [pressure], seed=seed)
+            out["fits"].append({"seed": seed, "ok": True, "seconds": time.perf_counter() - t0, "attempt": mesh.meta["fit_attempts"]["attempt"]})
+        except UnsupportedPoseError as e:
+            out["fits"].append({"seed": seed, "ok": False, "seconds": time.perf_counter() - t0, "reason": str(e), "rule": bool(getattr(e, "seed_independent", False))})
+    if not all(f["ok"] for f in out["fits"]) and verdict.supportable:
+        out["yaml"] = pose_yaml(drawn)
+    return out
+
+
+def tasks(args):
+    from seatkit.body.generator import FAMILIES, UNSUPPORTED_FAMILIES
+
+    out = []
+    for i in range(args.poses):
+        out.append((i, FAMILIES[i % len(FAMILIES)]))
+    for j in range(args.unsupported):
+        out.append((args.poses + j, UNSUPPORTED_FAMILIES[j % len(UNSUPPORTED_FAMILIES)]))
+    cases = [(i, fam, body) for i, fam in out for body in args.bodies]
+    return [(i, fam, args.draw_seed, body, tuple(args.seeds), args.table1 and n % args.table1_every == 0) for n, (i, fam, body) in enumerate(cases)]
+
+
+def summarise(results, args, wall) -> str:
+    import numpy as np
+
+    lines = []
+    supp = [r for r in results if r["rule_ok"]]
+    refused = [r for r in results if not r["rule_ok"]]
+    fits = [f for r in supp for f in r["fits"]]
+    ok_fits = sum(f["ok"] for f in fits)
+    ok_all = sum(all(f["ok"] for f in r["fits"]) for r in supp)
+    n_poses = len({r["pose"] for r in results})
+    lines.append(f"{n_poses} poses ({args.poses} plausible + {args.unsupported} of the unsupported families, draw seed {args.draw_seed}) "
+                 f"x {len(args.bodies)} bodies ({', '.join(args.bodies)}) x seeds {' '.join(map(str, args.seeds))}; {wall / 60:.1f} min (this invocation) on {os.cpu_count()} cores, {args.workers} workers")
+    lines.append("")
+    lines.append("| | count |")
+    lines.append("|---|---|")
+    lines.append(f"| pose-and-body cases | {len(results)} |")
+    lines.append(f"| supportable by the pose rule | {len(supp)} |")
+    lines.append(f"| of those, built for every seed | {ok_all} ({100 * ok_all / max(1, len(supp)):.1f}%) |")
+    lines.append(f"| template fits of supportable cases that succeeded | {ok_fits} of {len(fits)} ({100 * ok_fits / max(1, len(fits)):.1f}%) |")
+    lines.append(f"| refused by the pose rule (every seed, with its reason) | {len(refused)} |")
+    rule_refusals_only = all(not f["ok"] and f.get("rule") for r in refused for f in r["fits"])
+    lines.append(f"| every refusal of those is the pose rule's | {'yes' if rule_refusals_only else 'NO'} |")
+    lines.append("")
+    by_family = collections.defaultdict(lambda: [0, 0])
+    for r in results:
+        by_family[r["family"]][0] += 1
+        by_family[r["family"]][1] += r["rule_ok"]
+    lines.append("| family | cases | supportable | refused |")
+    lines.append("|---|---|---|---|")
+    for fam, (n, s) in by_family.items():
+        lines.append(f"| {fam} | {n} | {s} | {n - s} |")
+    lines.append("")
+    reasons = collections.Counter()
+    for r in refused:
+        for kind in sorted({reason_kind(x) for x in r["rule_reasons"]}):
+            reasons[kind] += 1
+    lines.append("| refusal reason (pose rule) | cases |")
+    lines.append("|---|---|")
+    for kind, n in reasons.most_common():
+        lines.append(f"| {kind} | {n} |")
+    failures = [(r, f) for r in supp for f in r["fits"] if not f["ok"]]
+    if failures:
+        lines.append("")
+        lines.append("Failures (supportable by the rule, refused by the fit):")
+        kinds = collections.Counter(reason_kind(f["reason"]) for _, f in failures)
+        for kind, n in kinds.most_common():
+            lines.append(f"- {kind}: {n} fits")
+        for r, f in failures[:10]:
+            lines.append(f"  - {r['pose']} on {r['body']}, seed {f['seed']}: {f['reason'][:160]}")
+    builds = [r["build"] for r in supp if "build" in r]
+    good = [b for b in builds if b["ok"]]
+    if builds:
+        lines.append("")
+        every = f"every {args.table1_every}th pose-and-body case" if args.table1_every > 1 else "every pose and body"
+        lines.append(f"Table 1 on one full default build (seed {args.seeds[0]}) of {every} the rule calls supportable ({len(good)} of {len(builds)} builds finished):")
+        lines.append("")
+        lines.append("| measure | ours: mean | flat patch: mean | ours better in |")
+        lines.append("|---|---|---|---|")
+        label = {"avg_distance_m": ("average distance", "cm", 100), "avg_pressure_pa": ("average pressure", "Pa", 1), "max_pressure_pa": ("maximum pressure", "Pa", 1)}
+        for k in WIN_KEYS:
+            name, unit, scale = label[k]
+            wins = sum(b["ours"][k] < b["flat"][k] for b in good)
+            finite = [b["flat"][k] for b in good if b["flat"][k] != float("inf")]
+            lines.append(
+                f"| {name} | {scale * statistics.fmean(b['ours'][k] for b in good):.2f} {unit} | "
+                f"{scale * statistics.fmean(finite) if finite else float('nan'):.2f} {unit} | {wins} of {len(good)} ({100 * wins / max(1, len(good)):.1f}%) |"
+            )
+        all3 = sum(all(b["ours"][k] < b["flat"][k] for k in WIN_KEYS) for b in good)
+        lines.append(f"| all three | | | {all3} of {len(good)} ({100 * all3 / max(1, len(good)):.1f}%) |")
+        pen = [b["ours"]["max_penetration_m"] for b in good]
+        lines.append("")
+        lines.append(f"Deepest penetration of our surface into the body: median {1000 * statistics.median(pen):.1f} mm, max {1000 * max(pen):.1f} mm (limit 5 mm).")
+        for b in builds:
+            if not b["ok"]:
+                lines.append(f"- build failed: {b['reason'][:160]}")
+    fit_s = [f["seconds"] for r in supp for f in r["fits"] if f["ok"]]
+    rule_s = [f["seconds"] for r in refused for f in r["fits"]]
+    retried = sum(f.get("attempt", 1) > 1 for r in supp for f in r["fits"] if f["ok"])
+    lines.append("")
+    lines.append("Time (loaded shared machine, BLAS on one thread, several workers at once):")
+    if fit_s:
+        lines.append(f"- template fit: median {statistics.median(fit_s):.2f} s, 90th percentile {float(np.percentile(fit_s, 90)):.2f} s, max {max(fit_s):.2f} s; "
+                     f"{retried} of {len(fit_s)} successful fits needed a fallback start")
+    if rule_s:
+        lines.append(f"- refusal by the pose rule: median {1000 * statistics.median(rule_s):.0f} ms")
+    if good:
+        bs = [b["seconds"] for b in good]
+        lines.append(f"- full build (one process, no export): median {statistics.median(bs):.2f} s, max {max(bs):.2f} s")
+    return "\n".join(lines)
+
+
+def draw_images(args) -> None:
+    """The first draw of every family on the first body, front and side (docs/poses.md)."""
+    import numpy as np
+
+    from seatkit.body import load_rig, pose_rig
+    from seatkit.body.generator import FAMILIES, UNSUPPORTED_FAMILIES, draw_pose
+    from seatkit.body.render import render_body
+
+    rig = load_rig(args.bodies[0])
+    args.images.mkdir(parents=True, exist_ok=True)
+    for family in FAMILIES + UNSUPPORTED_FAMILIES:
+        drawn = draw_pose(np.random.default_rng([args.draw_seed, 0]), family, f"{family} (first draw)")
+        path = args.images / f"generated-{family}.png"
+        render_body(pose_rig(rig, drawn.pose), path, views=("front", "side"), title=f"{args.bodies[0]}: {drawn.name}", show_skeleton=True)
+        print(path)
+    if args.cages:
+        _draw_cages(args, rig)
+
+
+def _draw_cages(args, rig) -> None:
+    """The chair (seed 0) on the first draw of each supported family that the rule accepts: args.cages/chair-<family>.png."""
+    import numpy as np
+    from threadpoolctl import threadpool_limits
+
+    from seatkit.body import pose_rig
+    from seatkit.body.generator import FAMILIES, draw_pose
+    from seatkit.pressure.qp import solve_pressure
+    from seatkit.resources import template_path
+    from seatkit.template import load_template
+    from seatkit.template.pose_rule import assess_pose, template_rule
+    from seatkit.template.render import render_cage
+
+    chair = load_template(template_path("chair.yaml"))
+    args.cages.mkdir(parents=True, exist_ok=True)
+    with threadpool_limits(limits=1):
+        for family in FAMILIES:
+            # the first draw of the family that the rule accepts, as the benchmark draws it (index i of family[i % 4])
+            for i in range(FAMILIES.index(family), 4 * args.poses, len(FAMILIES)):
+                drawn = draw_pose(np.random.default_rng([args.draw_seed, i]), family, f"{family}-{i:03d}")
+                body = pose_rig(rig, drawn.pose)
+                if assess_pose(body, template_rule(chair)).supportable:
+                    break
+            mesh = chair.fit([body], [solve_pressure(body)], seed=0)
+            path = args.cages / f"chair-{family}.png"
+            render_cage(mesh, [body], path, title=f"chair on {drawn.name} ({args.bodies[0]}, seed 0)", dpi=70)
+            print(path, mesh.meta["fit_attempts"])
+
+
+def _library_rows(library, args) -> str:
+    if not library:
+        return ""
+    rows = ["", "", f"Library poses marked supported, template fit with seeds 0-{args.library_seeds - 1}:", "", "| pose | body | built | needed a fallback start |", "|---|---|---|---|"]
+    for r in library:
+        rows.append(f"| {r['pose']} | {r['body']} | {r['ok']} of {args.library_seeds} | {r['fallback']} |")
+        rows += [f"| | | {x[:120]} | |" for x in r["refusals"]]
+    return "\n".join(rows)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--poses", type=int, default=200, help="plausible poses drawn (families in turn)")
+    ap.add_argument("--unsupported", type=int, default=12, help="poses drawn from the unsupported families (sideways, feet tucked, kneeling)")
+    ap.add_argument("--bodies", nargs="+", default=["default-male", "default-female"])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
+    ap.add_argument("--draw-seed", type=int, default=2026)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--no-table1", dest="table1", action="store_false", help="template fits only, no full builds")
+    ap.add_argument("--table1-every", type=int, default=1, help="full build (Table 1) for every K-th pose-and-body case only")
+    ap.add_argument("--markdown", type=Path, help="write the summary (Markdown) here")
+    ap.add_argument("--failures", type=Path, help="folder for the pose YAML of every failing supportable pose")
+    ap.add_argument("--results", type=Path, help="append every result to this JSON-lines file and skip the cases it already holds (resume)")
+    ap.add_argument("--summarise-only", action="store_true", help="run nothing: print the summary of what --results holds (marked partial when cases are missing)")
+    ap.add_argument("--library-seeds", type=int, default=10, help="also fit every supported library pose with seeds 0..N-1 (0: skip)")
+    ap.add_argument("--library-bodies", nargs="+", help="bodies for the library poses (default: the first of --bodies, the build's default)")
+    ap.add_argument("--images", type=Path, help="only draw DIR/generated-<family>.png (the first draw of each family) and stop")
+    ap.add_argument("--cages", type=Path, help="with --images: also draw the chair on a supportable draw of each family, DIR/chair-<family>.png")
+    args = ap.parse_args()
+    if args.images:
+        draw_images(args)
+        return
+    print(f"python {platform.python_version()}, {os.cpu_count()} cores, {platform.machine()}", flush=True)
+    from seatkit.body import list_poses
+
+    todo = [("case", t) for t in tasks(args)]
+    if args.library_seeds:
+        todo += [("library", (i.name, b, args.library_seeds)) for i in list_poses() if i.supported for b in (args.library_bodies or args.bodies[:1])]
+    done = {}
+    if args.results and args.results.exists():
+        for line in args.results.read_text().splitlines():
+            if line.strip():
+                rec = json.loads(line)
+                done[(rec["kind"], rec["key"])] = rec["result"]
+    key = {"case": lambda t: f"{t[0]}:{t[1]}:{t[2]}:{t[3]}:{','.join(map(str, t[4]))}:{t[5]}", "library": lambda t: f"{t[0]}:{t[1]}:{t[2]}"}
+    results = [done[("case", key["case"](t))] for kind, t in todo if kind == "case" and ("case", key["case"](t)) in done]
+    library = [done[("library", key["library"](t))] for kind, t in todo if kind == "library" and ("library", key["library"](t)) in done]
+    todo = [(kind, t) for kind, t in todo if (kind, key[kind](t)) not in done]
+    if args.summarise_only:
+        missing = sum(kind == "case" for kind, _ in todo)
+        missing_lib = sum(kind == "library" for kind, _ in todo)
+        text = summarise(results, args, 0.0)
+        if missing or missing_lib:
+            text = f"PARTIAL: {missing} pose-and-body cases and {missing_lib} library poses not run yet\n\n" + text
+        text += _library_rows(sorted(library, key=lambda r: (r["pose"], r["body"])), args)
+        print(text)
+        if args.markdown:
+            args.markdown.write_text(text + "\n")
+        return
+    if done:
+        print(f"resuming: {len(results) + len(library)} results read from {args.results}, {len(todo)} to go", flush=True)
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as folder, ProcessPoolExecutor(args.workers, initializer=_init, initargs=(args.bodies, folder)) as pool:
+        futures = {pool.submit(run_task if kind == "case" else run_library, t): (kind, t) for kind, t in todo}
+        for n, fut in enumerate(as_completed(futures), 1):
+            kind, t = futures[fut]
+            r = fut.result()
+            if args.results:
+                with args.results.open("a") as fh:
+                    fh.write(json.dumps({"kind": kind, "key": key[kind](t), "result": r}) + "\n")
+            if kind == "library":
+                library.append(r)
+                status = f"library, {r['ok']} of {t[2]} seeds built"
+            else:
+                results.append(r)
+                status = "refused (rule)" if not r["rule_ok"] else ("ok" if all(f["ok"] for f in r["fits"]) else "FAILED")
+                if args.failures and "yaml" in r:
+                    args.failures.mkdir(parents=True, exist_ok=True)
+                    (args.failures / f"{r['pose']}-{r['body']}.yaml").write_text(r["yaml"])
+            print(f"[{n}/{len(todo)} {(time.perf_counter() - t0) / 60:.1f} min] {r['pose']} on {r['body']}: {status}", flush=True)
+    library.sort(key=lambda r: (r["pose"], r["body"]))
+    results.sort(key=lambda r: (r["pose"], r["body"]))
+    text = summarise(results, args, time.perf_counter() - t0)
+    text += _library_rows(library, args)
+    bad_library = [r for r in library if r["refusals"]]
+    print()
+    print(text)
+    if args.markdown:
+        args.markdown.write_text(text + "\n")
+    bad = [r for r in results if r["rule_ok"] and not all(f["ok"] for f in r["fits"])]
+    sys.exit(1 if bad or bad_library else 0)
+
+
+if __name__ == "__main__":
+    main()

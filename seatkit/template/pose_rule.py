@@ -1,0 +1,226 @@
+"""Can the 3x7 chair hold this pose? A rule on the posed skeleton, decided before any fitting.
+
+The chair's grid runs from the feet up the legs, under the pelvis and up the
+back, with the legs side by side in front of the trunk (paper Sec. 5). The
+rule measures, on the posed skeleton only (joints and bone tips, no skin, no
+pressure), the four things that grid cannot follow (paper Sec. 6 and
+docs/templates.md, "The pose rule"):
+
+- **lying on the side**: the body's left-right axis (hips and shoulders)
+  tilted more than ``max_roll_deg`` from horizontal: the columns would stack;
+- **sitting sideways**: a thigh turned more than ``max_thigh_turn_deg``
+  from straight ahead towards the line across the shoulders, seen from above: the leg columns would leave
+  the seat sideways and cross the back's columns;
+- **feet under the body**: a shank swung back under its thigh, the foot
+  more than ``max_shank_back_deg`` behind the vertical through the knee
+  (towards the trunk): a seat under the thigh would cut through the calf;
+- **kneeling**: the same, with the knee within ``kneel_height`` of the
+  floor and the thigh more than 45 deg below level: the body rests on the shins, which the chair's leg rows cannot
+  reach from below;
+- **a hand hanging beside or below the seat** (sitting: the trunk within
+  60 deg of vertical, the thighs within 45 deg of level): a wrist less than
+  ``hand_clearance`` above the hip joints and more than
+  ``hand_side_margin`` outside them, or more than ``max_hand_drop`` below
+  them: the seat's side walls and front reach the ground there and would
+  cut the arm.
+
+:func:`assess_pose` returns a :class:`PoseVerdict` with every measure, so
+``seatkit poses --check`` can say why; the ``pose-rule`` template step
+raises :class:`seatkit.errors.UnsupportedPoseError` with the same reasons.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from seatkit.errors import UnsupportedPoseError
+from seatkit.model import Body
+from seatkit.skeleton import SEGMENT_INDEX as S
+from seatkit.template.options import Option
+
+__all__ = ["DEFAULT_RULE", "PoseVerdict", "assess_pose", "PoseRuleStep", "template_rule"]
+
+#: The rule's thresholds (the chair's values, see docs/templates.md).
+DEFAULT_RULE = {
+    "max_roll_deg": 45.0,
+    "max_thigh_turn_deg": 50.0,
+    "max_shank_back_deg": 25.0,
+    "kneel_height": 0.2,
+    "hand_clearance": 0.05,
+    "hand_side_margin": 0.04,
+    "max_hand_drop": 0.08,
+}
+
+_UP = np.array([0.0, 1.0, 0.0])
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    n = float(np.linalg.norm(v))
+    return v / n if n > 1e-12 else v * 0.0
+
+
+@dataclass(frozen=True)
+class PoseVerdict:
+    """What the rule found.
+
+    Attributes
+    ----------
+    supportable : bool
+    reasons : list of str
+        One sentence per violated limit, for a designer.
+    parts : list of str
+        The segments concerned.
+    measures : dict
+        ``roll_deg``, per leg ``thigh_turn_deg``, ``shank_back_deg`` and
+        ``knee_height_m``, and the limits used.
+    """
+
+    supportable: bool
+    reasons: list = field(default_factory=list)
+    parts: list = field(default_factory=list)
+    measures: dict = field(default_factory=dict)
+
+
+def _horizontal(v: np.ndarray) -> np.ndarray:
+    return v - _UP * (v @ _UP)
+
+
+def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdict:
+    """Apply the pose rule to a posed body (grounded: its lowest vertex at y = 0).
+
+    Parameters
+    ----------
+    body : Body
+    rule : mapping, optional
+        Thresholds overriding :data:`DEFAULT_RULE` (degrees, metres).
+    """
+    r = {**DEFAULT_RULE, **dict(rule or {})}
+    j, tips = body.joints, body.tips
+    floor = float(body.vertices[:, 1].min())
+    lat = _unit(_unit(j[S["LeftUpLeg"]] - j[S["RightUpLeg"]]) + _unit(j[S["LeftArm"]] - j[S["RightArm"]]))
+    roll = float(np.degrees(np.arcsin(min(1.0, abs(lat[1])))))
+    trunk = _unit(tips[S["Spine3"]] - j[S["Hips"]])
+    front = _unit(_horizontal(np.cross(lat, trunk)))
+    # the trunk's left-right axis seen from above (the shoulders: the pelvis turns with the legs)
+    shoulders = _unit(_horizontal(j[S["LeftArm"]] - j[S["RightArm"]]))
+    measures: dict = {"roll_deg": roll, "limits": dict(r), "legs": {}}
+    reasons, parts = [], []
+    if roll > r["max_roll_deg"]:
+        reasons.append(
+            f"the body lies on its side (left-right axis tilted {roll:.0f} deg, at most {r['max_roll_deg']:.0f}): "
+            "the chair's columns would stack on top of each other"
+        )
+        parts += ["Hips", "Spine"]
+    for side in ("Right", "Left"):
+        hip, knee, ankle = j[S[side + "UpLeg"]], j[S[side + "Leg"]], j[S[side + "Foot"]]
+        thigh, shank = knee - hip, ankle - knee
+        th = _horizontal(thigh)
+        # the thigh's heading seen from above, against the line across the
+        # shoulders: 0 deg straight ahead (or back, lying), 90 deg along the
+        # shoulders (only meaningful when the thigh is not nearly vertical)
+        if np.linalg.norm(th) > 0.35 * np.linalg.norm(thigh):
+            turn = float(np.degrees(np.arcsin(min(1.0, abs(float(_unit(th) @ shoulders))))))
+        else:
+            turn = 0.0
+        # the shank's swing behind the vertical through the knee, along the thigh's heading
+        heading = _unit(th) if np.linalg.norm(th) > 0.35 * np.linalg.norm(thigh) else front
+        back = float(np.degrees(np.arctan2(-(shank @ heading), max(-(shank @ _UP), 1e-9))))
+        knee_h = float(knee[1] - floor)
+        thigh_down = float(np.degrees(np.arcsin(np.clip(-_unit(thigh) @ _UP, -1.0, 1.0))))
+        leg = {"thigh_turn_deg": turn, "shank_back_deg": back, "knee_height_m": knee_h, "thigh_down_deg": thigh_down}
+        measures["legs"][side] = leg
+        name = side.lower()
+        if roll <= r["max_roll_deg"] and turn > r["max_thigh_turn_deg"]:
+            reasons.append(
+                f"sitting sideways: the {name} thigh is turned {turn:.0f} deg from straight ahead towards the shoulders' line (at most "
+                f"{r['max_thigh_turn_deg']:.0f}): the leg columns would leave the seat beside the backrest"
+            )
+            parts.append(side + "UpLeg")
+        elif back > r["max_shank_back_deg"] and knee_h <= r["kneel_height"] and thigh_down > 45.0:
+            reasons.append(
+                f"kneeling: the {name} knee is {100 * knee_h:.0f} cm above the floor with the shin swung back "
+                f"{back:.0f} deg under the thigh: the chair cannot reach the shins from below"
+            )
+            parts += [side + "Leg", side + "UpLeg"]
+        elif back > r["max_shank_back_deg"]:
+            reasons.append(
+                f"feet under the body: the {name} foot is swung back {back:.0f} deg behind the knee (at most "
+                f"{r['max_shank_back_deg']:.0f}): a seat under the thigh would cut through the calf"
+            )
+            parts += [side + "Leg", side + "UpLeg"]
+    # hands hanging beside or below the seat (sitting only: standing and lying bodies have no seat beside the hands)
+    hips_c = 0.5 * (j[S["LeftUpLeg"]] + j[S["RightUpLeg"]])
+    half = 0.5 * float(np.linalg.norm(j[S["LeftUpLeg"]] - j[S["RightUpLeg"]]))
+    hip_axis = _unit(j[S["LeftUpLeg"]] - j[S["RightUpLeg"]])
+    trunk_tilt = float(np.degrees(np.arccos(np.clip(trunk @ _UP, -1.0, 1.0))))
+    thigh_level = min(
+        abs(float(np.degrees(np.arcsin(np.clip(_unit(j[S[sd + "Leg"]] - j[S[sd + "UpLeg"]]) @ _UP, -1.0, 1.0))))) for sd in ("Right", "Left")
+    )
+    sitting = trunk_tilt < 60.0 and thigh_level < 45.0
+    measures.update({"trunk_tilt_deg": trunk_tilt, "sitting": sitting, "hands": {}})
+    for side in ("Right", "Left"):
+        wrist = j[S[side + "Hand"]]
+        rise, out = float(wrist[1] - hips_c[1]), abs(float((wrist - hips_c) @ hip_axis)) - half
+        measures["hands"][side] = {"above_hips_m": rise, "outside_hips_m": out}
+        if not sitting:
+            continue
+        name = side.lower()
+        if rise < r["hand_clearance"] and out > r["hand_side_margin"]:
+            reasons.append(
+                f"the {name} hand hangs beside the seat ({100 * rise:.0f} cm above the hip joints, {100 * out:.0f} cm outside them): "
+                "the chair's side wall reaches the ground there and would cut the arm; rest it on the thigh or an armrest"
+            )
+            parts += [side + "ForeArm", side + "Hand"]
+        elif rise < -r["max_hand_drop"]:
+            reasons.append(
+                f"the {name} hand hangs {100 * -rise:.0f} cm below the hip joints (at most {100 * r['max_hand_drop']:.0f}): "
+                "the seat's front reaches the ground under it and would cut the arm"
+            )
+            parts += [side + "ForeArm", side + "Hand"]
+    return PoseVerdict(not reasons, reasons, sorted(set(parts)), measures)
+
+
+class PoseRuleStep:
+    """Refuse, before any fitting, the poses the template's grid cannot follow (:func:`assess_pose`)."""
+
+    name = "pose-rule"
+    description = "refuse poses the grid cannot follow (lying on the side, sitting sideways, feet under the body, kneeling), from the skeleton, before fitting"
+    stage = "blocks"
+    requires = ()
+    options = {
+        "max_roll_deg": Option("number", "largest tilt of the body's left-right axis from horizontal", DEFAULT_RULE["max_roll_deg"], "deg", 0.0, 90.0),
+        "max_thigh_turn_deg": Option("number", "largest turn of a thigh from straight ahead towards the line across the shoulders, seen from above", DEFAULT_RULE["max_thigh_turn_deg"], "deg", 0.0, 180.0),
+        "max_shank_back_deg": Option("number", "largest swing of a shank behind the vertical through its knee", DEFAULT_RULE["max_shank_back_deg"], "deg", 0.0, 180.0),
+        "kneel_height": Option("number", "a knee this close to the floor with its shank swung back is kneeling", DEFAULT_RULE["kneel_height"], "m", 0.0, 2.0),
+        "hand_clearance": Option("number", "sitting, a wrist less than this above the hip joints and outside them hangs beside the seat", DEFAULT_RULE["hand_clearance"], "m", 0.0, 1.0),
+        "hand_side_margin": Option("number", "how far outside the hip joints such a wrist must be", DEFAULT_RULE["hand_side_margin"], "m", 0.0, 1.0),
+        "max_hand_drop": Option("number", "sitting, a wrist more than this below the hip joints hangs below the seat", DEFAULT_RULE["max_hand_drop"], "m", 0.0, 2.0),
+    }
+
+    def run(self, state, *, options: Mapping[str, Any]) -> None:
+        from seatkit.template.checks import person_label
+
+        rule = {k: float(v) for k, v in options.items()}
+        verdicts = []
+        for block in state.blocks:
+            v = assess_pose(block.body, rule)
+            verdicts.append({"person": block.person, "supportable": v.supportable, "reasons": v.reasons, **v.measures})
+            state.meta["pose_rule"] = verdicts
+            if not v.supportable:
+                who = person_label(block.person, block.body)
+                msg = f"{who}: the {state.spec.name} template cannot support {', '.join(v.parts)} in this pose: {'; '.join(v.reasons)}"
+                err = UnsupportedPoseError(msg, parts=v.parts, diagnostics={"pose_rule": verdicts})
+                err.seed_independent = True  # no other RANSAC start changes the skeleton
+                raise err
+
+
+def template_rule(template) -> dict | None:
+    """The options of ``template``'s ``pose-rule`` step (``{}`` for the defaults), or None when it has none."""
+    spec = getattr(template, "spec", None)
+    for step in getattr(spec, "steps", ()) or ():
+        if step.get("step") == PoseRuleStep.name:
+            return {k: float(v) for k, v in step.items() if k not in ("step", "label")}
+    return None
