@@ -101,6 +101,7 @@ def build(
         [], "--body", "-b", help="default-male, default-female, a .npz/.glb file, or MODEL:key=value,... (repeatable)."
     ),
     mass: Optional[float] = typer.Option(None, "--mass", help="Body mass in kg (default 75)."),
+    height: Optional[float] = typer.Option(None, "--height", help="Stature in m (parametric bodies: default-*, p5-female ... p95-male)."),
     frame: Optional[int] = typer.Option(None, "--frame", help="Frame of a BVH pose."),
     refiner: List[str] = typer.Option([], "--refiner", help="Refiner to run, in order (repeatable; replaces the recipe's)."),
     no_refiners: bool = typer.Option(False, "--no-refiners", help="Skip every refiner: export the template's cage."),
@@ -130,6 +131,7 @@ def build(
         poses=pose or None,
         bodies=body or None,
         mass=mass,
+        height=height,
         frame=frame,
         refiners=[] if no_refiners else (refiner or None),
         exporters=exporter or None,

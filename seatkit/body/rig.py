@@ -274,7 +274,8 @@ def load_rig(body: str | Path = "default-male", *, mass: float = DEFAULT_BODY_MA
     Parameters
     ----------
     body : str or Path
-        ``default-male``, ``default-female``, a path to a seatkit ``.npz``
+        ``default-male``, ``default-female`` (made by the parametric model at
+        ``mass``, with ``params`` such as ``height``), a path to a seatkit ``.npz``
         rig, or the name of a body model registered by a plugin (e.g.
         ``anny``), built with ``params``.
     mass : float
@@ -294,8 +295,10 @@ def load_rig(body: str | Path = "default-male", *, mass: float = DEFAULT_BODY_MA
         An unknown body name.
     """
     spec = str(body)
-    if spec in DEFAULT_BODIES:
-        return load_rig_file(default_body_path(spec), mass=mass, name=spec)
+    if spec in DEFAULT_BODIES:  # the parametric model at this mass (the shipped mesh is its anchor)
+        from seatkit.body.parametric import make_default_body
+
+        return make_default_body(spec, {"mass": mass, **dict(params or {})})
     path = Path(spec)
     suffix = path.suffix.lower()
     if suffix in (".glb", ".gltf"):

@@ -1,0 +1,139 @@
+"""The parametric body, the percentile manikins and the measuring procedure (numpy only)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from seatkit.body import load_pose, load_rig, pose_rig
+from seatkit.body.measure import enclosed_volume, measure_rig
+from seatkit.body.parametric import body_density, make_parametric_body
+from seatkit.body.presets import PRESETS, make_preset, preset_table
+from seatkit.errors import RecipeError
+from seatkit.plugins import get_plugin_manager
+from seatkit.skeleton import SEGMENT_INDEX
+
+
+@pytest.fixture(scope="module")
+def registry():
+    return get_plugin_manager().registry
+
+
+@pytest.fixture(scope="module")
+def measured():
+    """Every preset, built and measured."""
+    return {name: measure_rig(make_preset(name)) for name in PRESETS}
+
+
+@pytest.mark.parametrize("sex", ["female", "male"])
+@pytest.mark.parametrize("stature", [1.45, 1.60, 1.75, 1.90, 2.05])
+def test_stature_is_within_a_centimetre_of_the_request(sex, stature):
+    rig = make_parametric_body(sex, stature=stature, mass=23.0 * stature**2)
+    m = measure_rig(rig)
+    assert abs(m.stature - stature) < 0.01
+
+
+@pytest.mark.parametrize("name", PRESETS)
+def test_presets_match_the_survey_within_three_per_cent(name, measured):
+    survey = preset_table()["presets"][name]["survey"]
+    m = measured[name]
+    assert abs(m.stature - survey["stature"]) < 0.01
+    for key, figure in (("sitting_height", "sitting_height"), ("hip_breadth_sitting", "hip_breadth"), ("buttock_knee_length", "buttock_knee")):
+        assert abs(getattr(m, key) / survey[figure] - 1.0) < 0.03, (key, getattr(m, key), survey[figure])
+
+
+@pytest.mark.parametrize("name", PRESETS)
+def test_volume_times_density_is_the_mass(name, measured):
+    m = measured[name]
+    assert abs(m.volume * body_density(m.stature, m.mass) / m.mass - 1.0) < 0.05
+
+
+def test_percentiles_are_ordered(measured):
+    for sex in ("female", "male"):
+        for key in ("stature", "mass", "sitting_height", "hip_breadth_sitting", "buttock_knee_length", "volume"):
+            values = [getattr(measured[f"p{p}-{sex}"], key) for p in (5, 50, 95)]
+            assert values[0] < values[1] < values[2], (sex, key, values)
+
+
+@pytest.mark.parametrize("sex", ["female", "male"])
+def test_more_mass_at_the_same_height_gives_larger_girths(sex):
+    ms = [measure_rig(make_parametric_body(sex, stature=1.70, mass=m)) for m in (50.0, 70.0, 90.0, 110.0)]
+    waist = [m.waist_circumference for m in ms]
+    hips = [m.hip_circumference for m in ms]
+    assert np.all(np.diff(waist) > 0.01) and np.all(np.diff(hips) > 0.01), (waist, hips)
+    assert all(abs(m.stature - 1.70) < 0.01 for m in ms)
+    for m in ms:
+        assert abs(m.volume * body_density(m.stature, m.mass) / m.mass - 1.0) < 0.05
+
+
+def test_default_body_at_its_own_mass_is_the_shipped_body():
+    shipped = load_rig("default-male")
+    own_mass = enclosed_volume(shipped.vertices, shipped.faces) * body_density(1.75, 74.5)
+    rig = make_parametric_body("male", stature=1.75, mass=own_mass)
+    assert np.abs(rig.vertices - shipped.vertices).max() < 2e-3
+    assert np.abs(rig.joints - shipped.joints).max() < 2e-3
+
+
+def test_joints_and_centres_of_mass_follow_the_body():
+    small = make_preset("p5-female")
+    tall = make_preset("p95-male")
+    for rig in (small, tall):
+        # the hip joint centre sits inside the pelvis, the knee joint between thigh and shank vertices
+        assert rig.joints[SEGMENT_INDEX["Hips"], 1] < 0.6 * rig.vertices[:, 1].max()
+        knee = rig.joints[SEGMENT_INDEX["RightLeg"]]
+        near = np.linalg.norm(rig.vertices - knee, axis=1) < 0.08
+        dominant = np.argmax(rig.weights[near], axis=1)
+        assert {SEGMENT_INDEX["RightUpLeg"], SEGMENT_INDEX["RightLeg"]} <= set(dominant.tolist())
+    # a taller body has longer bones and its segment masses sum to its mass
+    for seg in ("RightUpLeg", "RightLeg", "Spine2", "RightArm"):
+        i = SEGMENT_INDEX[seg]
+        assert np.linalg.norm(tall.tips[i] - tall.joints[i]) > np.linalg.norm(small.tips[i] - small.joints[i])
+    assert abs(tall.segment_mass.sum() - tall.mass) < 1e-9
+    posed = pose_rig(tall, load_pose("upright-sitting"))
+    com = (posed.segment_mass[:, None] * posed.segment_com).sum(axis=0) / posed.mass
+    lo, hi = posed.vertices.min(axis=0), posed.vertices.max(axis=0)
+    assert np.all(com > lo) and np.all(com < hi)
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ({"height": 1.3}, r"height 1\.3 m is outside the accepted 1\.40-2\.10 m"),
+        ({"height": 2.2}, r"outside the accepted 1\.40-2\.10 m"),
+        ({"mass": 30.0}, r"BMI of 9\.8, outside the accepted 15-45"),
+        ({"mass": 160.0}, r"BMI of 52\.2, outside the accepted 15-45"),
+        ({"sitting_height": 0.5}, r"sitting_height 0\.5 m is 0\.286 of the height; expected 0\.47-0\.58"),
+        ({"shoe_size": 44}, r"unknown parameter\(s\) shoe_size; expected mass, height, sitting_height, buttock_knee, hip_breadth"),
+        ({"height": "tall"}, r"parameter height must be a number"),
+    ],
+)
+def test_bad_parameters_are_one_line(registry, spec, message):
+    with pytest.raises(RecipeError, match=message) as err:
+        registry.get("body_model", "default-male").make_body(params=spec)
+    assert "\n" not in str(err.value)
+
+
+def test_presets_take_only_mass_and_height(registry):
+    with pytest.raises(RecipeError, match=r"'p5-female': unknown parameter\(s\) sitting_height; expected mass, height"):
+        registry.get("body_model", "p5-female").make_body(params={"sitting_height": 0.8})
+    heavier = registry.get("body_model", "p50-male").make_body(params={"mass": 100.0})
+    assert heavier.mass == 100.0 and abs(measure_rig(heavier).stature - 1.755) < 0.01
+
+
+def test_cli_build_height_flag_and_body_measure(tmp_path):
+    from typer.testing import CliRunner
+
+    from seatkit.cli import app
+
+    runner = CliRunner()
+    out = runner.invoke(app, ["body", "--body", "default-female", "--height", "1.55", "--mass", "50", "--measure"])
+    assert out.exit_code == 0, out.output
+    stature = next(line for line in out.output.splitlines() if line.strip().startswith("stature"))
+    assert abs(float(stature.split()[1]) - 1.55) < 0.01
+    assert "volume x density" in out.output
+    bad = runner.invoke(app, ["body", "--body", "p7-male", "--measure"])
+    assert bad.exit_code != 0 and "p5-female" in bad.output and "Traceback" not in bad.output
+    from seatkit.recipe import apply_overrides, default_recipe
+
+    r = apply_overrides(default_recipe(), bodies=["p5-female"], height=1.6)
+    assert r["bodies"][0]["model"] == "p5-female" and r["bodies"][0]["params"]["height"] == 1.6
