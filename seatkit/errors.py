@@ -58,15 +58,17 @@ class SolverError(SeatkitError):
 class MissingExtraError(SeatkitError):
     """An optional dependency is needed: the message names the pip extra."""
 
-    def __init__(self, package: str, extra: str):
+    def __init__(self, package: str, extra: str, first: str | None = None):
+        step = f"{first} first, then " if first else ""
         super().__init__(
             f"this feature needs the optional package '{package}': "
-            f"install it with pip install 'seatkit[{extra}]'"
+            f"install it with {step}pip install 'seatkit[{extra}]'"
         )
         self.package = package
         self.extra = extra
+        self.first = first
 
     def __reduce__(self):
         # rebuilt from its own arguments, so that it survives pickling (a
         # forked worker of seatkit.parallel, a Dask worker)
-        return (type(self), (self.package, self.extra))
+        return (type(self), (self.package, self.extra, self.first))

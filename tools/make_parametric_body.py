@@ -47,7 +47,7 @@ from make_default_bodies import BODIES, OUT_DIR, AnnyBody, build_phenotype  # no
 #: monotonically along it.
 PATH = (
     [(0.0, m) for m in np.linspace(0.0, 0.5, 5, endpoint=False)]
-    + [(w, 0.5) for w in np.linspace(0.0, 1.0, 6)]
+    + [(w, 0.5) for w in np.linspace(0.0, 1.0, 5)]
     + [(1.0, m) for m in np.linspace(0.5, 0.0, 6)[1:]]
 )
 #: SVD energy kept.
@@ -89,6 +89,8 @@ def build_model(body: AnnyBody, name: str) -> tuple[dict, dict]:
         raise SystemExit(f"{name}: the volume index is not increasing with anny's weight: {q}")
     ph = default["meta"]["phenotype"]
     anchor = int(np.argmin([abs(s["weight"] - ph["weight"]) + abs(s["muscle"] - ph["muscle"]) for s in samples]))
+    if (samples[anchor]["weight"], samples[anchor]["muscle"]) != (ph["weight"], ph["muscle"]):
+        raise SystemExit(f"{name}: PATH must pass through the default body's phenotype {ph}")
     X = np.stack([s["vector"] for s in samples])
     D = X - X[anchor]
     u, sv, vt = np.linalg.svd(D, full_matrices=False)

@@ -62,6 +62,8 @@ PHENOTYPE_DEFAULTS: dict[str, float] = {
     "proportions": 0.5,
 }
 _OTHER_PARAMS = ("mass", "stature", "sex")
+#: The install step before the extra: torch's CPU wheel (pip would otherwise pick the CUDA build).
+TORCH_FIRST = "pip install torch==2.13.0 (the CPU wheel)"
 #: anny to seatkit axes: (x, y, z) -> (x, z, -y).
 ANNY_TO_SEATKIT = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 #: Statures the bisection on anny's height parameter can reach are checked against this, m.
@@ -140,7 +142,7 @@ def _load_anny() -> dict:
                 import anny
                 import anny.paths
             except ImportError:
-                raise MissingExtraError("anny", "anny") from None
+                raise MissingExtraError("anny", "anny", first=TORCH_FIRST) from None
             anny.paths.set_anny_cache_path(cache)
             progress = _first_use_progress(cache) if first_use else contextlib.nullcontext()
             with progress:
@@ -398,7 +400,7 @@ class AnnyBodyModel:
     name = "anny"
     description = (
         "Parametric MakeHuman body via anny (gender, age, height, weight, muscle, proportions, stature); "
-        "needs seatkit[anny]"
+        "needs pip install torch==2.13.0 (CPU wheel) first, then seatkit[anny]"
     )
 
     def make_body(self, *, params: Mapping[str, Any]):

@@ -141,7 +141,7 @@ def _shape(model: _Model, q: float) -> np.ndarray:
     return model.anchor + (c @ model.basis).reshape(-1, 3)
 
 
-def _leg_fractions(points: np.ndarray, owner: np.ndarray, joints: np.ndarray, side: str) -> tuple[np.ndarray, np.ndarray]:
+def _leg_fractions(points: np.ndarray, owner: dict, joints: np.ndarray, side: str) -> tuple[np.ndarray, np.ndarray]:
     """Per point: how much of the thigh's and of the shank's stretch it moves down (0..1 each)."""
     hip = joints[SEGMENT_INDEX[f"{side}UpLeg"], 1]
     knee = joints[SEGMENT_INDEX[f"{side}Leg"], 1]
@@ -149,11 +149,11 @@ def _leg_fractions(points: np.ndarray, owner: np.ndarray, joints: np.ndarray, si
     y = points[:, 1]
     thigh = np.clip((hip - y) / (hip - knee), 0.0, 1.0)
     shank = np.clip((knee - y) / (knee - ankle), 0.0, 1.0)
-    up, leg, foot = (owner[:, SEGMENT_INDEX[f"{side}{s}"]] for s in ("UpLeg", "Leg", "Foot"))
+    up, leg, foot = owner[f"{side}UpLeg"], owner[f"{side}Leg"], owner[f"{side}Foot"]
     return up * thigh + (leg + foot), leg * shank + foot
 
 
-def _stretch(shape: np.ndarray, owner: np.ndarray, d_thigh: float, d_shank: float) -> np.ndarray:
+def _stretch(shape: np.ndarray, owner: dict, d_thigh: float, d_shank: float) -> np.ndarray:
     """Lengthen the thighs by ``d_thigh`` and the shanks by ``d_shank`` (normalised units), feet on the floor."""
     joints = shape[-2 * N_SEGMENTS : -N_SEGMENTS]
     down = np.zeros(len(shape))
@@ -165,7 +165,7 @@ def _stretch(shape: np.ndarray, owner: np.ndarray, d_thigh: float, d_shank: floa
     return out
 
 
-def _hip_field(shape: np.ndarray, owner: np.ndarray) -> np.ndarray:
+def _hip_field(shape: np.ndarray, owner: dict) -> np.ndarray:
     """How much of a hip-breadth change each point takes (0..1): the hips and upper thighs.
 
     The skinning weight of the Hips and UpLeg segments, fading to 0 down to
@@ -177,27 +177,44 @@ def _hip_field(shape: np.ndarray, owner: np.ndarray) -> np.ndarray:
     knee = joints[SEGMENT_INDEX["RightLeg"], 1]
     waist = joints[SEGMENT_INDEX["Spine1"], 1]
     y = shape[:, 1]
-    w = owner[:, [SEGMENT_INDEX[n] for n in ("Hips", "RightUpLeg", "LeftUpLeg")]].sum(axis=1)
+    w = owner["hips"]
     fade = np.clip((y - knee) / (hip - knee), 0.0, 1.0) * np.clip((waist - y) / (waist - hip), 0.0, 1.0)
     return w * fade
 
 
 @functools.lru_cache(maxsize=2)
-def _owners(sex: str) -> np.ndarray:
-    """Skinning weights of every vertex, then one-hot rows for the joints and tips (their segments)."""
-    model = load_model(sex)
-    eye = np.eye(N_SEGMENTS)
-    # a joint moves with its parent's distal end: the knee (Leg joint) as the thigh's tip, and so on
+def _owners(sex: str) -> dict:
+    """Per point (vertices, then joints, then tips): the weights the deformations use.
+
+    Vertices carry their skinning weights; a joint and a tip are owned by one
+    segment (a joint moves with its parent's distal end: the knee, the Leg
+    joint, as the thigh's tip). Returns the leg segments' columns and the
+    Hips + UpLeg sum (``hips``), contiguous.
+    """
     from seatkit.skeleton import PARENTS
 
+    model = load_model(sex)
+    eye = np.eye(N_SEGMENTS)
     joint_owner = eye[np.maximum(PARENTS, 0)]
     joint_owner[0] = eye[0]
-    return np.concatenate([model.weights, joint_owner, eye])
+    owner = np.concatenate([model.weights, joint_owner, eye])
+    cols = {
+        f"{side}{seg}": np.ascontiguousarray(owner[:, SEGMENT_INDEX[f"{side}{seg}"]])
+        for side in ("Right", "Left")
+        for seg in ("UpLeg", "Leg", "Foot")
+    }
+    cols["hips"] = owner[:, [SEGMENT_INDEX[n] for n in ("Hips", "RightUpLeg", "LeftUpLeg")]].sum(axis=1)
+    return cols
 
 
 def _volume(vertices: np.ndarray, faces: np.ndarray) -> float:
-    a, b, c = (vertices[faces[:, k]] for k in range(3))
-    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+    """Enclosed volume, m^3 (as :func:`seatkit.body.measure.enclosed_volume`, on coordinate columns: faster)."""
+    x, y, z = (np.ascontiguousarray(vertices[:, k]) for k in range(3))
+    f0, f1, f2 = faces[:, 0], faces[:, 1], faces[:, 2]
+    ax, ay, az = x[f0], y[f0], z[f0]
+    bx, by, bz = x[f1], y[f1], z[f1]
+    cx, cy, cz = x[f2], y[f2], z[f2]
+    return float((ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)).sum() / 6.0)
 
 
 def check_parameters(stature, mass, sitting_height=None, buttock_knee=None, hip_breadth=None, *, who: str) -> None:
