@@ -178,3 +178,42 @@ def test_shipped_model_reproduces_anny_samples(sex, index):
     assert s["q"] == pytest.approx(model.q[index], rel=1e-6)
     shape = _shape(model, s["q"])
     assert np.abs(shape.ravel() - s["vector"]).max() * s["stature"] < 1e-4
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", PRESETS)
+def test_every_library_pose_poses_and_solves_on_every_preset(name):
+    from seatkit.body import list_poses
+    from seatkit.constants import GRAVITY
+    from seatkit.pressure import solve_pressure
+
+    rig = make_preset(name)
+    for info in list_poses():
+        body = pose_rig(rig, load_pose(info.name))
+        assert abs(body.vertices[:, 1].min()) < 1e-12 and np.isfinite(body.vertices).all()
+        field = solve_pressure(body)
+        weight = body.mass * GRAVITY
+        assert abs(field.force[:, 1].sum() - weight) < 1e-6 * weight, info.name
+        assert field.residuals["segment_force"] < 1e-6 and field.residuals["segment_moment"] < 1e-6, info.name
+        assert np.abs(field.force[body.region_labels["face"]]).max() == 0.0, info.name
+
+
+def test_a_larger_body_gets_a_larger_seat():
+    """The chair follows the body: p95-male's seat is higher, deeper and wider than p50-female's."""
+    from seatkit.pipeline import build
+
+    pm = get_plugin_manager()
+    dims = {}
+    for name in ("p50-female", "p95-male"):
+        recipe = {"template": "chair", "bodies": [{"model": name, "pose": "upright-sitting"}]}
+        recipe["evaluate"] = {"enabled": True, "baseline": None}
+        result = build(recipe, pm=pm, write=False)
+        dims[name] = result.metrics["dimensions"][0]
+    small, large = dims["p50-female"], dims["p95-male"]
+    for key in ("seat_height_m", "seat_depth_m"):
+        assert large[key] > small[key] + 0.01, (key, small, large)
+    assert large["seat_width_m"] > small["seat_width_m"], (small, large)
+    # the seat's front edge is near the thighs' underside behind the knees (popliteal height)
+    for name, d in dims.items():
+        popliteal = measure_rig(make_preset(name)).popliteal_height
+        assert abs(d["seat_height_m"] - popliteal) < 0.05, (name, d, popliteal)

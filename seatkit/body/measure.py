@@ -21,6 +21,10 @@ mesh allows:
     ``upright-sitting``: from the rearmost point of the buttocks (Hips and
     UpLeg vertices) to the front of the kneecaps (UpLeg and Leg vertices),
     along the body's forward axis (+z).
+``popliteal_height``
+    ``upright-sitting``: the floor to the underside of the thigh just behind
+    the knee: the lowest UpLeg vertex 3-10 cm behind the knee joint (the
+    higher of the two legs).
 ``waist_circumference``
     ``standing``: the length of a tape around the trunk at the height of the
     ``Spine1`` joint (the lumbar joint between the two abdominal segments, at
@@ -59,6 +63,7 @@ MEASUREMENTS: tuple[str, ...] = (
     "sitting_height",
     "hip_breadth_sitting",
     "buttock_knee_length",
+    "popliteal_height",
     "waist_circumference",
     "hip_circumference",
     "volume",
@@ -83,6 +88,7 @@ class Measurements:
     sitting_height: float
     hip_breadth_sitting: float
     buttock_knee_length: float
+    popliteal_height: float
     waist_circumference: float
     hip_circumference: float
     volume: float
@@ -145,6 +151,11 @@ def measure_bodies(standing: Body, sitting: Body, rest_volume: float) -> Measure
     near_hips = hip_thigh & (sv[:, 2] < sitting.joints[SEGMENT_INDEX["Hips"]][2] + HIP_BREADTH_REACH)
     hip_breadth = float(np.ptp(sv[near_hips, 0]))
     buttock_knee = float(sv[thigh_shank, 2].max() - sv[hip_thigh, 2].min())
+    popliteal = 0.0
+    for side in ("Right", "Left"):
+        knee_z = sitting.joints[SEGMENT_INDEX[f"{side}Leg"]][2]
+        thigh = _dominant(w, (f"{side}UpLeg",)) & (sv[:, 2] > knee_z - 0.10) & (sv[:, 2] < knee_z - 0.03)
+        popliteal = max(popliteal, float(sv[thigh, 1].min()) if thigh.any() else 0.0)
     v = standing.vertices
     waist_y = float(standing.joints[SEGMENT_INDEX["Spine1"]][1])
     waist = _section_girth(v, _sub_faces(standing.faces, trunk), waist_y)
@@ -157,6 +168,7 @@ def measure_bodies(standing: Body, sitting: Body, rest_volume: float) -> Measure
         sitting_height=sitting_height,
         hip_breadth_sitting=hip_breadth,
         buttock_knee_length=buttock_knee,
+        popliteal_height=popliteal,
         waist_circumference=waist,
         hip_circumference=hips,
         volume=rest_volume,

@@ -55,8 +55,10 @@ __all__ = [
     "PARAMETRIC_KEYS",
 ]
 
-#: The default bodies: sex and default stature (m) of each.
-DEFAULT_SIZES = {"default-male": ("male", 1.75), "default-female": ("female", 1.62)}
+#: The default bodies: sex, default stature (m) and default mass (kg) of each. The
+#: masses are about the shipped meshes' own (volume times Contini's density:
+#: 74.6 and 54.8 kg), so that the default bodies keep their shapes.
+DEFAULT_SIZES = {"default-male": ("male", 1.75, 75.0), "default-female": ("female", 1.62, 55.0)}
 #: Keys a parametric body takes (``--body default-female:height=1.55,mass=50``).
 PARAMETRIC_KEYS = ("mass", "height", "sitting_height", "buttock_knee", "hip_breadth")
 
@@ -354,11 +356,10 @@ def make_parametric_body(
 def make_default_body(name: str, params: Mapping[str, Any] | None = None):
     """``default-male`` or ``default-female`` made to ``params`` (the :data:`PARAMETRIC_KEYS`).
 
-    ``mass`` defaults to 75 kg, ``height`` to the body's own stature, the
+    ``mass`` defaults to 75 kg for the male and 55 kg for the female body
+    (about their own), ``height`` to their own stature (1.75 / 1.62 m), the
     proportions to the model's. Unknown keys and non-numbers are one line.
     """
-    from seatkit.constants import DEFAULT_BODY_MASS
-
     params = dict(params or {})
     unknown = sorted(set(params) - set(PARAMETRIC_KEYS))
     if unknown:
@@ -368,6 +369,6 @@ def make_default_body(name: str, params: Mapping[str, Any] | None = None):
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             msg = f"body model {name!r}: parameter {key} must be a number, got {value!r}"
             raise RecipeError(msg)
-    sex, stature = DEFAULT_SIZES[name]
+    sex, stature, mass = DEFAULT_SIZES[name]
     p = {k: float(v) for k, v in params.items()}
-    return make_parametric_body(sex, stature=p.pop("height", stature), mass=p.pop("mass", DEFAULT_BODY_MASS), name=name, **p)
+    return make_parametric_body(sex, stature=p.pop("height", stature), mass=p.pop("mass", mass), name=name, **p)

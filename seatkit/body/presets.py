@@ -46,3 +46,39 @@ def make_preset(name: str, *, mass: float | None = None, height: float | None = 
         meta={"preset": name, "survey": survey},
         **inputs,
     )
+
+
+#: Rows of the survey table: (measurement of seatkit.body.measure, survey key, label).
+TABLE_ROWS = (
+    ("stature", "stature", "stature"),
+    ("mass", "mass", "mass (kg)"),
+    ("sitting_height", "sitting_height", "sitting height"),
+    ("hip_breadth_sitting", "hip_breadth", "hip breadth, sitting"),
+    ("buttock_knee_length", "buttock_knee", "buttock-knee length"),
+    ("popliteal_height", "popliteal_height", "popliteal height (not fitted)"),
+    ("waist_circumference", "waist_circumference", "waist circumference (not fitted)"),
+    ("hip_circumference", "buttock_circumference", "hip / buttock circumference (not fitted)"),
+)
+
+
+def survey_table() -> str:
+    """The requested (survey) vs built (measured) figures of every preset, as a Markdown table."""
+    from seatkit.body.measure import measure_rig
+    from seatkit.body.parametric import body_density
+
+    table = preset_table()["presets"]
+    lines = ["| preset | measurement | survey | built | difference |", "|---|---|---|---|---|"]
+    for name in PRESETS:
+        survey = table[name]["survey"]
+        m = measure_rig(make_preset(name))
+        for key, figure, label in TABLE_ROWS:
+            want, got = survey[figure], getattr(m, key)
+            unit = "" if key == "mass" else " m"
+            lines.append(f"| {name} | {label} | {want:.3f}{unit} | {got:.3f}{unit} | {100 * (got / want - 1):+.1f} % |")
+        mass = m.volume * body_density(m.stature, m.mass)
+        lines.append(f"| {name} | volume x density (kg) | {m.mass:.1f} | {mass:.1f} | {100 * (mass / m.mass - 1):+.1f} % |")
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(survey_table())

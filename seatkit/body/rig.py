@@ -268,7 +268,7 @@ def _load_gltf_rig(path: Path, *, mass: float, params: Mapping[str, Any] | None)
     return load_gltf_rig(path, mass=mass, **dict(params or {}))
 
 
-def load_rig(body: str | Path = "default-male", *, mass: float = DEFAULT_BODY_MASS, params: Mapping[str, Any] | None = None) -> RiggedBody:
+def load_rig(body: str | Path = "default-male", *, mass: float | None = None, params: Mapping[str, Any] | None = None) -> RiggedBody:
     """Load a rigged body by name or path.
 
     Parameters
@@ -278,8 +278,9 @@ def load_rig(body: str | Path = "default-male", *, mass: float = DEFAULT_BODY_MA
         ``mass``, with ``params`` such as ``height``), a path to a seatkit ``.npz``
         rig, or the name of a body model registered by a plugin (e.g.
         ``anny``), built with ``params``.
-    mass : float
-        Total body mass, kg (default 75).
+    mass : float, optional
+        Total body mass, kg. Default: the model's (75 kg for ``default-male``
+        and rig files, 55 kg for ``default-female``, a preset's own).
     params : mapping, optional
         Model parameters for a registered body model.
 
@@ -295,10 +296,12 @@ def load_rig(body: str | Path = "default-male", *, mass: float = DEFAULT_BODY_MA
         An unknown body name.
     """
     spec = str(body)
+    given = {} if mass is None else {"mass": float(mass)}
+    mass = DEFAULT_BODY_MASS if mass is None else mass
     if spec in DEFAULT_BODIES:  # the parametric model at this mass (the shipped mesh is its anchor)
         from seatkit.body.parametric import make_default_body
 
-        return make_default_body(spec, {"mass": mass, **dict(params or {})})
+        return make_default_body(spec, {**given, **dict(params or {})})
     path = Path(spec)
     suffix = path.suffix.lower()
     if suffix in (".glb", ".gltf"):
@@ -313,4 +316,4 @@ def load_rig(body: str | Path = "default-male", *, mass: float = DEFAULT_BODY_MA
         msg = f"unknown body {spec!r}: expected a path to a .npz rig or one of {have}"
         raise RecipeError(msg)
     model = registry.get("body_model", spec)
-    return model.make_body(params={"mass": mass, **dict(params or {})})
+    return model.make_body(params={**given, **dict(params or {})})

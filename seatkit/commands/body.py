@@ -23,7 +23,7 @@ def register(app: typer.Typer) -> None:
             "default-male", "--body", "-b", metavar="NAME|PATH",
             help="default-male, default-female, p5-female ... p95-male, a .npz rig or .glb body, or MODEL:key=value,... (e.g. default-female:height=1.55).",
         ),
-        mass: Optional[float] = typer.Option(None, "--mass", help="Body mass in kg (default 75, a preset's own)."),
+        mass: Optional[float] = typer.Option(None, "--mass", help="Body mass in kg (default the body's: 75 default-male, 55 default-female, a preset's)."),
         height: Optional[float] = typer.Option(None, "--height", help="Stature in m (parametric bodies: default-*, p*-*)."),
         measure: bool = typer.Option(False, "--measure", help="Print the body's survey measurements (docs/bodies.md)."),
         frame: Optional[int] = typer.Option(None, "--frame", help="BVH frame to use (for a .bvh POSE)."),

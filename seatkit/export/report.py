@@ -772,6 +772,9 @@ def _metrics_html(result) -> str:
             parts.append("</table>")
     else:
         parts.append("<p>No evaluation in this build (built with evaluation switched off): no metrics.</p>")
+    for i, dims in enumerate(metrics.get("dimensions") or []):  # seatkit.dimensions
+        cells = "".join(f"<tr><td>{html.escape(k[:-2].replace('_', ' '))}</td><td>{'-' if v is None else f'{v:.3f} m'}</td></tr>" for k, v in dims.items())
+        parts.append(f"<h3>Seat dimensions where it carries person {i + 1}</h3><table>{cells}</table>")
     timings = result.timings or {}
     if timings:
         parts.append("<h2>Time per stage</h2><table><tr><th>stage</th><th>seconds</th></tr>")
