@@ -31,7 +31,7 @@ def main() -> None:
     rows = []
     for body in ("default-male", "default-female"):
         rows.append((f"load_rig_file({body!r}.npz) (the shipped mesh)", *timeit(lambda: load_rig_file(default_body_path(body)), 20)))
-        rows.append((f"load_rig({body!r}) (parametric model, 75 kg)", *timeit(lambda: load_rig(body), 20)))
+        rows.append((f"load_rig({body!r}) (parametric model, default mass)", *timeit(lambda: load_rig(body), 20)))
     make_preset("p5-female")  # the models are read once per process
     make_preset("p5-male")
     for preset in ("p5-female", "p95-male"):

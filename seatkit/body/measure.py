@@ -98,9 +98,18 @@ class Measurements:
 
 
 def enclosed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
-    """Signed volume enclosed by a closed, outward-oriented triangle mesh, m^3."""
-    a, b, c = (vertices[faces[:, k]] for k in range(3))
-    return float(np.einsum("ij,ij->i", a, np.cross(b, c)).sum() / 6.0)
+    """Signed volume enclosed by a closed, outward-oriented triangle mesh, m^3.
+
+    The sum of ``a . (b x c) / 6`` over the triangles, on coordinate columns
+    (a few times faster than on (m, 3) rows: the parametric body calls it in
+    its mass loop).
+    """
+    x, y, z = (np.ascontiguousarray(vertices[:, k]) for k in range(3))
+    f0, f1, f2 = faces[:, 0], faces[:, 1], faces[:, 2]
+    ax, ay, az = x[f0], y[f0], z[f0]
+    bx, by, bz = x[f1], y[f1], z[f1]
+    cx, cy, cz = x[f2], y[f2], z[f2]
+    return float((ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)).sum() / 6.0)
 
 
 def _dominant(weights: np.ndarray, names) -> np.ndarray:

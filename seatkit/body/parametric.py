@@ -7,7 +7,9 @@ sex, the embedded default body plus a low-rank shape space sampled from anny's
 
 1. **Mass.** A body's volume follows from its mass through the whole-body
    density of Contini (1972), ``d = 0.69 + 0.9 h / m^(1/3)`` kg/l (``h`` the
-   stature in m, ``m`` the mass in kg). Shapes normalised by stature are
+   stature in m, ``m`` the mass in kg), times a per-sex factor (1.006 male,
+   1.004 female) that makes the default body at its default mass (75 / 55
+   kg) exactly the shipped mesh. Shapes normalised by stature are
    interpolated piecewise linearly (linearly extrapolated past the ends) in
    the volume index ``q = volume / stature^3`` between anny's samples; ``q``
    is corrected by a few fixed-point steps until the final mesh's enclosed
@@ -38,6 +40,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from seatkit.body.measure import enclosed_volume
 from seatkit.errors import RecipeError
 from seatkit.resources import data_path
 from seatkit.skeleton import N_SEGMENTS, SEGMENT_INDEX
@@ -94,6 +97,7 @@ class _Model:
     weights: np.ndarray
     regions: dict
     ratios: dict  # measured proportions of each sample over its stature: sitting_ratio, ...
+    density_scale: float  # the shipped default body is exactly its default mass (about 1.005, see below)
     meta: dict
 
     def ratio(self, key: str, q: float) -> float:
@@ -115,6 +119,11 @@ def load_model(sex: str) -> _Model:
     default = load_rig_file(default_body_path(meta["default_body"]), name=meta["default_body"])
     stacked = np.concatenate([default.vertices, default.joints, default.tips])
     stature = float(default.vertices[:, 1].max() - default.vertices[:, 1].min())
+    # Contini's density scaled so that the default body at its default mass is the shipped mesh itself
+    # (its volume would be 74.6 / 54.8 kg of Contini's density against the 75 / 55 kg default masses)
+    _, default_stature, default_mass = DEFAULT_SIZES[meta["default_body"]]
+    volume = enclosed_volume(default.vertices, default.faces)
+    density_scale = default_mass / (body_density(default_stature, default_mass) * volume)
     return _Model(
         sex=sex,
         default_body=meta["default_body"],
@@ -126,6 +135,7 @@ def load_model(sex: str) -> _Model:
         weights=default.weights,
         regions=default.region_labels,
         ratios={k: arrays[k].astype(np.float64) for k in ("sitting_ratio", "buttock_knee_ratio", "hip_breadth_ratio")},
+        density_scale=float(density_scale),
         meta=meta,
     )
 
@@ -209,16 +219,6 @@ def _owners(sex: str) -> dict:
     return cols
 
 
-def _volume(vertices: np.ndarray, faces: np.ndarray) -> float:
-    """Enclosed volume, m^3 (as :func:`seatkit.body.measure.enclosed_volume`, on coordinate columns: faster)."""
-    x, y, z = (np.ascontiguousarray(vertices[:, k]) for k in range(3))
-    f0, f1, f2 = faces[:, 0], faces[:, 1], faces[:, 2]
-    ax, ay, az = x[f0], y[f0], z[f0]
-    bx, by, bz = x[f1], y[f1], z[f1]
-    cx, cy, cz = x[f2], y[f2], z[f2]
-    return float((ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)).sum() / 6.0)
-
-
 def check_parameters(stature, mass, sitting_height=None, buttock_knee=None, hip_breadth=None, *, who: str) -> None:
     """One line naming the accepted range for a parameter out of it."""
     lo, hi = STATURE_RANGE
@@ -284,7 +284,7 @@ def make_parametric_body(
     model = load_model(sex)
     owner = _owners(sex)
     n = len(model.weights)
-    density = body_density(stature, mass)
+    density = body_density(stature, mass) * model.density_scale
     target_volume = mass / density
     q = target_volume / stature**3
     for _ in range(_MAX_STEPS):
@@ -308,7 +308,7 @@ def make_parametric_body(
             widen = 0.0
         v = stretched[:n]
         scale = stature / float(v[:, 1].max() - v[:, 1].min())
-        volume = _volume(v, model.faces) * scale**3
+        volume = enclosed_volume(v, model.faces) * scale**3
         if abs(volume / target_volume - 1.0) < _VOLUME_TOL:
             break
         q *= target_volume / volume
