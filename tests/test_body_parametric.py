@@ -5,6 +5,8 @@ from __future__ import annotations
 import importlib.util
 
 import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
 import pytest
 
 from seatkit.body import load_pose, load_rig, pose_rig
@@ -219,3 +221,21 @@ def test_a_larger_body_gets_a_larger_seat():
     for name, d in dims.items():
         popliteal = measure_rig(make_preset(name)).popliteal_height
         assert abs(d["seat_height_m"] - popliteal) < 0.05, (name, d, popliteal)
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    height=st.one_of(st.floats(1.3, 2.2), st.floats(allow_nan=True, allow_infinity=True, width=32)),
+    mass=st.one_of(st.floats(20.0, 200.0), st.floats(allow_nan=True, allow_infinity=True, width=32)),
+    sitting=st.one_of(st.none(), st.floats(0.6, 1.2), st.floats(allow_nan=True, allow_infinity=True, width=32)),
+)
+def test_any_parameters_give_a_body_or_one_line(height, mass, sitting):
+    """Random parameters: a valid, finite body of that stature and mass, or a one-line RecipeError."""
+    params = {"height": height, "mass": mass} | ({} if sitting is None else {"sitting_height": sitting})
+    try:
+        rig = make_parametric_body("female", stature=height, mass=mass, sitting_height=sitting)
+    except RecipeError as e:
+        assert "\n" not in str(e) and ("accepted" in str(e) or "expected" in str(e)), params
+        return
+    assert np.isfinite(rig.vertices).all() and rig.mass == pytest.approx(mass)
+    assert abs(rig.vertices[:, 1].max() - rig.vertices[:, 1].min() - height) < 1e-6
