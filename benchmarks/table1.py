@@ -15,6 +15,7 @@ import argparse
 from pathlib import Path
 
 from seatkit.body import list_poses
+from seatkit.errors import SeatkitError
 from seatkit.evaluate import TABLE_COLUMNS
 from seatkit.pipeline import build
 from seatkit.plugins import get_plugin_manager
@@ -41,7 +42,12 @@ def main() -> None:
     for info in list_poses():
         if not info.supported:
             continue
-        r = build({"template": "chair", "bodies": [{"model": args.body, "pose": info.name}]}, pm=pm, write=False)
+        try:
+            r = build({"template": "chair", "bodies": [{"model": args.body, "pose": info.name}]}, pm=pm, write=False)
+        except SeatkitError as e:  # a body the chair cannot fit in this pose: one row, the others go on
+            lines.append(f"| {info.name} | (no build) | {str(e)[:160]} |" + " |" * (len(TABLE_COLUMNS) + 1))
+            verdicts.append((info.name, {"build": False}))
+            continue
         ours, base = r.metrics["ours"][0], r.metrics["baseline"][0]
         for name, m in (("ours", ours), ("flat patch", base)):
             if not m.get("supported", True):
@@ -57,7 +63,12 @@ def main() -> None:
     print(text)
     print()
     for pose, wins in verdicts:
-        status = "ours better on all three" if all(wins.values()) else "NOT better on: " + ", ".join(k for k, w in wins.items() if not w)
+        if "build" in wins:
+            status = "no build"
+        elif all(wins.values()):
+            status = "ours better on all three"
+        else:
+            status = "NOT better on: " + ", ".join(k for k, w in wins.items() if not w)
         print(f"{pose}: {status}")
     if args.out:
         args.out.write_text(text + "\n")

@@ -31,6 +31,8 @@ from seatkit.io import is_complete, write_text_atomic
 from seatkit.recipe import apply_overrides, default_recipe, load_recipe, looks_like_path
 
 SUMMARY_METRICS = ("avg_distance_m", "avg_moment_nm", "max_moment_nm", "avg_pressure_pa", "max_pressure_pa")
+#: Seat dimensions in summary.csv (seatkit.dimensions; the mean over the people of an item).
+SUMMARY_DIMENSIONS = ("seat_height_m", "seat_depth_m", "seat_width_m", "back_height_m")
 
 
 @dataclass
@@ -211,7 +213,8 @@ def _inputs(item: BatchItem) -> dict:
         "template": r["template"],
         "poses": ";".join(str(b["pose"]) for b in r["bodies"]),
         "bodies": ";".join(b["model"] for b in r["bodies"]),
-        "mass_kg": ";".join(str(b["params"].get("mass", 75.0)) for b in r["bodies"]),
+        "mass_kg": ";".join(str(b["params"].get("mass", "")) for b in r["bodies"]),
+        "height_m": ";".join(str(b["params"].get("height", "")) for b in r["bodies"]),
         "seed": r["seed"],
     }
 
@@ -224,6 +227,10 @@ def _flat_metrics(metrics: dict) -> dict:
     for key in SUMMARY_METRICS:
         vals = [m.get(key) for m in ours if isinstance(m, dict) and m.get(key) is not None]
         out[key] = max(vals) if key.startswith("max") and vals else (sum(vals) / len(vals) if vals else "")
+    dims = [d for d in (metrics or {}).get("dimensions") or [] if isinstance(d, dict)]
+    for key in SUMMARY_DIMENSIONS:
+        vals = [d[key] for d in dims if d.get(key) is not None]
+        out[key] = sum(vals) / len(vals) if vals else ""
     return out
 
 
@@ -323,7 +330,7 @@ def _previous_metrics(folder: Path) -> dict:
 def write_summary(results: Iterable[ItemResult], out: Path) -> None:
     """``summary.csv`` (one row per item) and ``summary.png`` (metrics across items)."""
     results = list(results)
-    cols = ["name", "status", "seconds", "error", "output", "template", "poses", "bodies", "mass_kg", "seed", *SUMMARY_METRICS]
+    cols = ["name", "status", "seconds", "error", "output", "template", "poses", "bodies", "mass_kg", "height_m", "seed", *SUMMARY_METRICS, *SUMMARY_DIMENSIONS]
     import io
 
     buf = io.StringIO()

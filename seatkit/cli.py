@@ -98,9 +98,10 @@ def build(
     recipe: Optional[Path] = typer.Option(None, "--recipe", "-r", help="Recipe YAML; flags given here override it."),
     pose: List[str] = typer.Option([], "--pose", "-p", help="Library pose name, pose YAML or BVH (repeat in seat order)."),
     body: List[str] = typer.Option(
-        [], "--body", "-b", help="default-male, default-female, a .npz/.glb file, or MODEL:key=value,... (repeatable)."
+        [], "--body", "-b", help="default-male, default-female, p5-female ... p95-male, a .npz/.glb file, or MODEL:key=value,... (repeatable)."
     ),
-    mass: Optional[float] = typer.Option(None, "--mass", help="Body mass in kg (default 75)."),
+    mass: Optional[float] = typer.Option(None, "--mass", help="Body mass in kg (default the body's: 75 default-male, 55 default-female, a preset's)."),
+    height: Optional[float] = typer.Option(None, "--height", help="Stature in m (parametric bodies: default-*, p5-female ... p95-male)."),
     frame: Optional[int] = typer.Option(None, "--frame", help="Frame of a BVH pose."),
     refiner: List[str] = typer.Option([], "--refiner", help="Refiner to run, in order (repeatable; replaces the recipe's)."),
     no_refiners: bool = typer.Option(False, "--no-refiners", help="Skip every refiner: export the template's cage."),
@@ -138,6 +139,7 @@ def build(
         poses=pose or None,
         bodies=body or None,
         mass=mass,
+        height=height,
         frame=frame,
         refiners=[] if no_refiners else (refiner or None),
         exporters=exporter or None,

@@ -328,6 +328,7 @@ def evaluate_result(result: BuildResult, registry, timer: "_Timer | None" = None
         it while our refiners ran); computed here when not given and the
         recipe asks for a baseline.
     """
+    from seatkit.dimensions import support_dimensions
     from seatkit.evaluate import design_segments, evaluate_design
     from seatkit.skeleton import SEGMENTS
 
@@ -351,6 +352,7 @@ def evaluate_result(result: BuildResult, registry, timer: "_Timer | None" = None
         "support_distance_m": ev["support_distance"],
         "supported_segments": [SEGMENTS[s] for s in segments],
         "ours": ours,
+        "dimensions": support_dimensions(result.bodies, fields),
     }
     result.extra["contact_pressures"] = fields
     if ev.get("baseline"):

@@ -267,6 +267,7 @@ def apply_overrides(
     bodies: list[str] | None = None,
     mass: float | None = None,
     frame: int | None = None,
+    height: float | None = None,
     refiners: list[str] | None = None,
     exporters: list[str] | None = None,
     solver: str | None = None,
@@ -307,6 +308,8 @@ def apply_overrides(
     for body in r["bodies"]:
         if mass is not None:
             body["params"]["mass"] = float(mass)
+        if height is not None:
+            body["params"]["height"] = float(height)
         if frame is not None:
             body["frame"] = int(frame)
     if refiners is not None:

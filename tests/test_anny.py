@@ -98,9 +98,9 @@ def test_anny_rig_invariants(male):
 @pytest.mark.skipif(not HAVE_ANNY, reason="the anny extra is not installed")
 def test_anny_reproduces_embedded_default_body(male):
     """The default-male phenotype through the plugin gives the shipped default-male body."""
-    from seatkit.body import load_rig
+    from seatkit.body.rig import default_body_path, load_rig_file
 
-    default = load_rig("default-male")
+    default = load_rig_file(default_body_path("default-male"))  # the shipped mesh (load_rig makes the 75 kg body)
     assert male.vertices.shape == default.vertices.shape
     assert np.abs(male.vertices - default.vertices).max() < 1e-5  # float32 storage (7e-8 seen)
     assert np.abs(male.joints - default.joints).max() < 1e-5

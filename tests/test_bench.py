@@ -36,7 +36,7 @@ def test_people_are_seated_in_order_without_overlap(bench):
     xs = [b.vertices[:, 0] for b in bench.bodies]
     for left, right in zip(xs, xs[1:]):
         assert left.max() < right.min()
-    assert bench.bodies[1].mass == pytest.approx(75.0)
+    assert bench.bodies[1].mass == pytest.approx(55.0)  # default-female's default mass (her own shape)
     assert bench.bodies[1].vertices[:, 1].max() < bench.bodies[0].vertices[:, 1].max()  # the female body is smaller
 
 

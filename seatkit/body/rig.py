@@ -268,17 +268,20 @@ def _load_gltf_rig(path: Path, *, mass: float, params: Mapping[str, Any] | None)
     return load_gltf_rig(path, mass=mass, **dict(params or {}))
 
 
-def load_rig(body: str | Path = "default-male", *, mass: float = DEFAULT_BODY_MASS, params: Mapping[str, Any] | None = None) -> RiggedBody:
+def load_rig(body: str | Path = "default-male", *, mass: float | None = None, params: Mapping[str, Any] | None = None) -> RiggedBody:
     """Load a rigged body by name or path.
 
     Parameters
     ----------
     body : str or Path
-        ``default-male``, ``default-female``, a path to a seatkit ``.npz``
-        rig (body models of plugins, e.g. ``anny``, are reached through a
-        registry instead: ``registry.get("body_model", name).make_body``).
-    mass : float
-        Total body mass, kg (default 75).
+        ``default-male``, ``default-female`` (made by the parametric model at
+        ``mass``, with ``params`` such as ``height``), or a path to a seatkit
+        ``.npz``/``.glb``/``.gltf`` rig (body models of plugins, e.g. ``anny``,
+        are reached through a registry instead:
+        ``registry.get("body_model", name).make_body``).
+    mass : float, optional
+        Total body mass, kg. Default: the model's (75 kg for ``default-male``
+        and rig files, 55 kg for ``default-female``, a preset's own).
     params : mapping, optional
         Extra parameters of a glTF rig (``name_map``).
 
@@ -294,8 +297,12 @@ def load_rig(body: str | Path = "default-male", *, mass: float = DEFAULT_BODY_MA
         An unknown body name.
     """
     spec = str(body)
-    if spec in DEFAULT_BODIES:
-        return load_rig_file(default_body_path(spec), mass=mass, name=spec)
+    given = {} if mass is None else {"mass": float(mass)}
+    mass = DEFAULT_BODY_MASS if mass is None else mass
+    if spec in DEFAULT_BODIES:  # the parametric model at this mass (the shipped mesh is its anchor)
+        from seatkit.body.parametric import make_default_body
+
+        return make_default_body(spec, {**given, **dict(params or {})})
     path = Path(spec)
     suffix = path.suffix.lower()
     if suffix in (".glb", ".gltf"):

@@ -17,13 +17,15 @@ def register(app: typer.Typer) -> None:
             "upright-sitting", "--pose", "-p", metavar="POSE",
             help="Library pose name (see 'seatkit poses'), a pose YAML file, or a .bvh file.",
         ),
-        out: Path = typer.Option(..., "--out", "-o", help="Output mesh (.ply, .obj, .stl, .glb: by extension)."),
+        out: Optional[Path] = typer.Option(None, "--out", "-o", help="Output mesh (.ply, .obj, .stl, .glb: by extension)."),
         png: Optional[Path] = typer.Option(None, "--png", help="Also write a preview picture (front and side views)."),
         body_name: str = typer.Option(
             "default-male", "--body", "-b", metavar="NAME|PATH",
-            help="default-male, default-female, a .npz rig or .glb body, or MODEL:key=value,... (e.g. anny:height=0.6).",
+            help="default-male, default-female, p5-female ... p95-male, a .npz rig or .glb body, or MODEL:key=value,... (e.g. default-female:height=1.55).",
         ),
-        mass: float = typer.Option(75.0, "--mass", help="Body mass in kg."),
+        mass: Optional[float] = typer.Option(None, "--mass", help="Body mass in kg (default the body's: 75 default-male, 55 default-female, a preset's)."),
+        height: Optional[float] = typer.Option(None, "--height", help="Stature in m (parametric bodies: default-*, p*-*)."),
+        measure: bool = typer.Option(False, "--measure", help="Print the body's survey measurements (docs/bodies.md)."),
         frame: Optional[int] = typer.Option(None, "--frame", help="BVH frame to use (for a .bvh POSE)."),
         no_ground: bool = typer.Option(False, "--no-ground", help="Keep the pose's height instead of resting the lowest point on y = 0."),
     ) -> None:
@@ -36,14 +38,24 @@ def register(app: typer.Typer) -> None:
         from seatkit.recipe import parse_body_spec
         from seatkit.io import write_bytes_atomic
 
-        suffix = out.suffix.lower().lstrip(".")
-        if suffix not in ("ply", "obj", "stl", "glb", "off"):
+        if out is None and not measure:
+            msg = "seatkit body: give --out FILE (a mesh), --measure, or both"
+            raise InputError(msg)
+        suffix = out.suffix.lower().lstrip(".") if out is not None else ""
+        if out is not None and suffix not in ("ply", "obj", "stl", "glb", "off"):
             msg = f"--out {out}: unknown mesh format {out.suffix!r}; expected .ply, .obj, .stl, .glb or .off"
             raise InputError(msg)
         spec = parse_body_spec(body_name)
         registry = plugin_manager(ctx).registry
         model = registry.get("body_model", spec["model"])
-        rig = model.make_body(params={**spec["params"], "mass": mass})
+        extra = {k: v for k, v in (("mass", mass), ("height", height)) if v is not None}
+        rig = model.make_body(params={**spec["params"], **extra})
+        if measure:
+            from seatkit.body.measure import print_measurements
+
+            print_measurements(rig)
+            if out is None:
+                return
         posed = model.pose(rig, load_pose(pose, frame=frame, rig=rig, dirs=registry.pose_dirs), ground=not no_ground)
         mesh = trimesh.Trimesh(posed.vertices, posed.faces, process=False)
         data = mesh.export(file_type=suffix)

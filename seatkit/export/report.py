@@ -881,6 +881,9 @@ def _metrics_html(result) -> str:
                 ("max deflection", f"{st['max_deflection_m'] * 1000:.3f} mm"), ("mass", f"{st['mass_kg']:.2f} kg"),
                 ("applied load", f"{st['applied_load_n']:.1f} N"), ("floor reaction", f"{st['floor_reaction_n']:.1f} N")]
         parts += [f"<tr><td>{k}</td><td>{v}</td></tr>" for k, v in rows] + ["</table>"]
+    for i, dims in enumerate(metrics.get("dimensions") or []):  # seatkit.dimensions
+        cells = "".join(f"<tr><td>{html.escape(k[:-2].replace('_', ' '))}</td><td>{'-' if v is None else f'{v:.3f} m'}</td></tr>" for k, v in dims.items())
+        parts.append(f"<h3>Seat dimensions where it carries person {i + 1}</h3><table>{cells}</table>")
     parts.append(timings_html(result.timings or {}))
     return "\n".join(parts)
 

