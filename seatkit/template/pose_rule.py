@@ -22,7 +22,10 @@ docs/templates.md, "The pose rule"):
   ``hand_clearance`` above the hip joints and more than
   ``hand_side_margin`` outside them, or more than ``max_hand_drop`` below
   them: the seat's side walls and front reach the ground there and would
-  cut the arm.
+  cut the arm;
+- **standing on its own feet**: both thighs more than 45 deg below level and
+  the centre of mass above the soles' footprint: the body needs no support
+  and leans on nothing the chair could give.
 
 :func:`assess_pose` returns a :class:`PoseVerdict` with every measure, so
 ``seatkit poses --check`` can say why; the ``pose-rule`` template step
@@ -180,6 +183,24 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
                 "the seat's front reaches the ground under it and would cut the arm"
             )
             parts += [side + "ForeArm", side + "Hand"]
+    # standing on its own feet: both thighs pointing down and the centre of
+    # mass above the soles' footprint (along the facing direction), so the
+    # body needs no support (standing-leaning-back has its centre of mass
+    # behind the heels: it leans on the support)
+    com = (body.segment_mass[:, None] * body.segment_com).sum(axis=0) / float(body.segment_mass.sum())
+    feet = np.isin(np.argmax(body.weights, axis=1), [S["LeftFoot"], S["RightFoot"]])
+    sole = body.vertices[feet & (body.vertices[:, 1] < floor + 0.03)] @ front
+    standing = all(leg["thigh_down_deg"] > 45.0 for leg in measures["legs"].values())
+    if standing and len(sole):
+        ahead = float(com @ front - sole.min())
+        measures["com_ahead_of_heels_m"] = ahead
+        if 0.0 <= ahead <= float(sole.max() - sole.min()):
+            reasons.append(
+                f"standing on its own feet: the centre of mass is above the soles ({100 * ahead:.0f} cm ahead of the heels) "
+                "and the thighs point down, so the body leans on nothing a chair could carry; lean it back against the support "
+                "(as standing-leaning-back) or sit"
+            )
+            parts += ["Hips", "Spine"]
     return PoseVerdict(not reasons, reasons, sorted(set(parts)), measures)
 
 
