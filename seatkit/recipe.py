@@ -33,7 +33,7 @@ from typing import Any, Mapping
 
 from seatkit.constants import DEFAULT_BODY_MASS, DEFAULT_LAMBDA, DEFAULT_MU, DEFAULT_SEED, DEFAULT_SUPPORT_DISTANCE
 from seatkit.errors import RecipeError
-from seatkit.yamlio import Document, load_yaml, validate
+from seatkit.yamlio import Document, load_yaml, quote, validate
 
 DEFAULT_REFINERS = ("optimize", "catmull-clark-fit")
 DEFAULT_EXPORTERS = ("usd", "obj", "surface", "body-ply", "design", "report-png", "report-html")
@@ -41,9 +41,35 @@ DEFAULT_SURFACE_LEVEL = 3
 DEFAULT_POSE = "upright-sitting"
 DEFAULT_BODY_MODEL = "default-male"
 
-_NAME = {"type": "string", "minLength": 1}
+_NAME = {"type": "string", "minLength": 1, "maxLength": 4096}
 _PARAMS = {"type": "object"}
-_NUMBER_OR_INF = {"anyOf": [{"type": "number"}, {"type": "string", "enum": ["inf", "infinity"]}]}
+
+#: Physical range of every number of a recipe: (least, greatest, unit, what).
+#: The YAML schema and :func:`check_recipe` (which sees command-line flags
+#: too) both use it. Numbers are finite (``.nan``/``.inf`` are refused, see
+#: :mod:`seatkit.yamlio`) except ``lambda``, whose ``inf`` means a rigid body.
+LIMITS: dict[str, tuple[float, float, str, str]] = {
+    "lambda": (0.0, 1e6, "", "a positive number up to 1e6, or inf"),
+    "mu": (0.0, 10.0, "", "a friction coefficient between 0 and 10"),
+    "support_distance": (0.0, 0.5, "m", "a distance in metres above 0 and at most 0.5"),
+    "gap": (0.0, 10.0, "m", "a gap in metres between 0 and 10"),
+    "offset": (-10.0, 10.0, "m", "coordinates in metres between -10 and 10"),
+    "frame": (0, 10_000_000, "", "a frame number between 0 and 10000000"),
+    "seed": (0, 2**32 - 1, "", "a whole number between 0 and 4294967295"),
+    "surface_level": (1, 4, "", "a subdivision level from 1 to 4"),
+}
+
+
+def _ranged(key: str, kind: str = "number", *, exclusive_min: bool = False) -> dict:
+    lo, hi, _, _ = LIMITS[key]
+    out = {"type": kind, "maximum": hi}
+    out["exclusiveMinimum" if exclusive_min else "minimum"] = lo
+    return out
+
+
+_NUMBER_OR_INF = {
+    "anyOf": [_ranged("lambda", exclusive_min=True), {"const": math.inf}, {"type": "string", "enum": ["inf", "infinity"]}]
+}
 
 RECIPE_SCHEMA: dict = {
     "type": "object",
@@ -61,8 +87,8 @@ RECIPE_SCHEMA: dict = {
                     "model": _NAME,
                     "params": _PARAMS,
                     "pose": _NAME,
-                    "frame": {"type": "integer", "minimum": 0},
-                    "offset": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
+                    "frame": _ranged("frame", "integer"),
+                    "offset": {"type": "array", "items": _ranged("offset"), "minItems": 3, "maxItems": 3},
                     "name": _NAME,
                 },
             },
@@ -70,7 +96,7 @@ RECIPE_SCHEMA: dict = {
         "placement": {
             "type": "object",
             "additionalProperties": False,
-            "properties": {"gap": {"type": "number", "minimum": 0}},
+            "properties": {"gap": _ranged("gap")},
         },
         "pressure": {
             "type": "object",
@@ -78,7 +104,7 @@ RECIPE_SCHEMA: dict = {
             "properties": {
                 "solver": _NAME,
                 "lambda": _NUMBER_OR_INF,
-                "mu": {"type": "number", "minimum": 0},
+                "mu": _ranged("mu"),
                 "exclude": {"type": "array", "items": _NAME},
                 "options": _PARAMS,
             },
@@ -98,18 +124,18 @@ RECIPE_SCHEMA: dict = {
             },
         },
         "exporters": {"type": "array", "items": _NAME},
-        "surface_level": {"type": "integer", "minimum": 1, "maximum": 4},
+        "surface_level": _ranged("surface_level", "integer"),
         "evaluate": {
             "type": "object",
             "additionalProperties": False,
             "properties": {
                 "enabled": {"type": "boolean"},
                 "baseline": {"anyOf": [_NAME, {"type": "null"}]},
-                "support_distance": {"type": "number", "exclusiveMinimum": 0},
+                "support_distance": _ranged("support_distance", exclusive_min=True),
             },
         },
         "output": _NAME,
-        "seed": {"type": "integer", "minimum": 0},
+        "seed": _ranged("seed", "integer"),
     },
 }
 
@@ -353,14 +379,36 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
         need("exporter", name, ("exporters", i))
     if recipe["evaluate"]["enabled"] and recipe["evaluate"]["baseline"]:
         need("template", recipe["evaluate"]["baseline"], ("evaluate", "baseline"))
+    def in_range(path, value, key, *, integer=False, above=False):
+        """``value`` (from the file or a flag) is finite and within LIMITS[key]."""
+        lo, hi, _, what = LIMITS[key]
+        ok = not isinstance(value, bool) and isinstance(value, (int, float))
+        if ok and integer:
+            ok = isinstance(value, int)
+        if ok:
+            v = float(value) if abs(value) < 1e300 else math.inf
+            ok = math.isfinite(v) and (lo < v if above else lo <= v) and v <= hi
+        if not ok:
+            fail(path, f"expected {what}, got {quote(value)}")
+
     lam = recipe["pressure"]["lambda"]
-    if not (lam > 0):
-        fail(("pressure", "lambda"), f"expected a positive number or inf, got {lam!r}")
+    if lam != math.inf:
+        in_range(("pressure", "lambda"), lam, "lambda", above=True)
+    in_range(("pressure", "mu"), recipe["pressure"]["mu"], "mu")
+    in_range(("evaluate", "support_distance"), recipe["evaluate"]["support_distance"], "support_distance", above=True)
+    in_range(("seed",), recipe["seed"], "seed", integer=True)
+    in_range(("surface_level",), recipe["surface_level"], "surface_level", integer=True)
+    if "gap" in recipe["placement"]:
+        in_range(("placement", "gap"), recipe["placement"]["gap"], "gap")
     for i, body in enumerate(recipe["bodies"]):
         need("body_model", body["model"], ("bodies", i, "model"))
+        in_range(("bodies", i, "frame"), body.get("frame", 0), "frame", integer=True)
+        for k, x in enumerate(body.get("offset") or ()):
+            in_range(("bodies", i, "offset", k), x, "offset")
         mass = body["params"].get("mass", DEFAULT_BODY_MASS)
-        if not isinstance(mass, (int, float)) or not (20.0 <= float(mass) <= 300.0):
-            fail(("bodies", i, "params", "mass"), f"expected a body mass in kg between 20 and 300, got {mass!r}")
+        finite = isinstance(mass, (int, float)) and not isinstance(mass, bool) and abs(mass) < 1e300
+        if not finite or not (20.0 <= float(mass) <= 300.0):
+            fail(("bodies", i, "params", "mass"), f"expected a body mass in kg between 20 and 300, got {quote(mass)}")
         path = body["params"].get("path")
         if path is not None and not Path(path).is_file():
             fail(("bodies", i, "params", "path"), f"file not found: {path}")

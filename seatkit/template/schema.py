@@ -16,7 +16,7 @@ from typing import Any, Mapping
 
 from seatkit.errors import RecipeError
 from seatkit.skeleton import SEGMENT_INDEX, SEGMENTS
-from seatkit.yamlio import Document, load_yaml, parse_yaml, validate
+from seatkit.yamlio import Document, load_yaml, parse_yaml, quote, validate
 
 __all__ = [
     "PARAMETERS",
@@ -49,7 +49,39 @@ PARAMETERS: dict[str, tuple[float, str, str]] = {
     "end_margin": (0.03, "m", "how far the first and last rows reach beyond their segment"),
 }
 
-_NAME = {"type": "string", "pattern": "^[A-Za-z][A-Za-z0-9_.-]*$"}
+#: Largest value of a parameter, by unit: a bound that keeps a build finite
+#: in time and memory (``ransac_iterations: 1e12`` would not be) and the
+#: geometry meaningful (a support distance of a kilometre is not).
+PARAMETER_MAXIMA: dict[str, float] = {"count": 20_000, "m": 1.0, "deg": 180.0, "1": 100.0}
+
+#: Most people a template may seat.
+MAX_PEOPLE = 64
+
+
+def _parameter_schema(unit: str) -> dict:
+    kind = "integer" if unit == "count" else "number"
+    return {"type": kind, "minimum": 1 if unit == "count" else 0, "maximum": PARAMETER_MAXIMA[unit]}
+
+
+def parameter_problem(key: str, value: Any) -> str | None:
+    """What is wrong with ``value`` for parameter ``key`` (None if nothing).
+
+    Counts are whole numbers (``2.5`` and ``1.0e+12`` are refused, not
+    truncated), the rest finite numbers from 0 to :data:`PARAMETER_MAXIMA`.
+    """
+    unit = PARAMETERS[key][1]
+    hi = PARAMETER_MAXIMA[unit]
+    if unit == "count":
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= hi:
+            return f"expected a whole number from 1 to {int(hi)} ({unit}), got {quote(value)}"
+        return None
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and abs(value) < 1e300
+    if not ok or not math.isfinite(value) or not 0 <= value <= hi:
+        return f"expected a number from 0 to {hi:g} ({unit}), got {quote(value)}"
+    return None
+
+
+_NAME = {"type": "string", "pattern": "^[A-Za-z][A-Za-z0-9_.-]*$", "maxLength": 100}
 _SEGMENT = {"type": "string", "enum": list(SEGMENTS)}
 
 _FACE = {
@@ -74,12 +106,15 @@ TEMPLATE_SCHEMA: dict = {
         "people": {
             "type": "object",
             "additionalProperties": False,
-            "properties": {"min": {"type": "integer", "minimum": 1}, "max": {"type": "integer", "minimum": 1}},
+            "properties": {
+                "min": {"type": "integer", "minimum": 1, "maximum": MAX_PEOPLE},
+                "max": {"type": "integer", "minimum": 1, "maximum": MAX_PEOPLE},
+            },
         },
         "parameters": {
             "type": "object",
             "additionalProperties": False,
-            "properties": {k: ({"type": "integer", "minimum": 1} if u == "count" else {"type": "number", "minimum": 0}) for k, (_, u, _) in PARAMETERS.items()},
+            "properties": {k: _parameter_schema(u) for k, (_, u, _) in PARAMETERS.items()},
         },
         "columns": {"type": "array", "items": _NAME, "minItems": 1, "uniqueItems": True},
         "rows": {
@@ -270,8 +305,9 @@ def resolve_parameters(spec: TemplateSpec, overrides: Mapping[str, Any] | None) 
         if key not in PARAMETERS:
             msg = f"template_params.{key}: unknown parameter of template {spec.name!r}; expected one of {', '.join(PARAMETERS)}"
             raise RecipeError(msg)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
-            msg = f"template_params.{key}: expected a non-negative number ({PARAMETERS[key][1]}), got {value!r}"
+        problem = parameter_problem(key, value)
+        if problem:
+            msg = f"template_params.{key}: {problem}"
             raise RecipeError(msg)
         values[key] = value
     values["ransac_iterations"] = int(values["ransac_iterations"])
