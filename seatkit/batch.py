@@ -169,11 +169,12 @@ def _is_table(path: Path) -> bool:
 def _is_recipe(path: Path) -> bool:
     if path.suffix.lower() not in (".yaml", ".yml"):
         return False
-    import yaml
+    from seatkit.errors import SeatkitError
+    from seatkit.yamlio import load_yaml
 
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError):
+    try:  # the safe loader: a hostile file in the folder must not hang the batch
+        data = load_yaml(path).data
+    except SeatkitError:
         return False
     return isinstance(data, dict) and ("template" in data or "bodies" in data) and "joints" not in data
 

@@ -356,6 +356,9 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
                 node_doc, node_rec = node_doc[part], node_rec[part]
         except (KeyError, IndexError, TypeError):
             return False
+        if isinstance(node_rec, dict) and "name" in node_rec:  # a refiner: written as a name or {name, params}
+            node_doc = node_doc.get("name") if isinstance(node_doc, dict) else node_doc
+            node_rec = node_rec["name"]
         return node_doc == node_rec or (isinstance(node_doc, str) and looks_like_path(node_doc))
 
     def fail(path, message):
