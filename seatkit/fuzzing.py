@@ -54,7 +54,8 @@ INTERESTING_NUMBERS = (
 INTERESTING_YAML = (
     "'false'", "'no'", "'true'", "yes", "~", "[]", "{}", "[1, 2]", "{x: 1}", "!!binary ????", "2001-02-30",
     "&r [*r]", "&a {x: *a}", "*undefined", "!!python/object:os.system x", "'" + "x" * 5000 + "'",
-    "1" * 5000, "\"\\uD800\"", "? [a]\n", "- - - - -",
+    "1" * 5000, "\"\\uD800\"", "? [a]\n", "- - - - -", "\"a\\0.yaml\"", "'" + "a" * 5000 + ".yaml'", "'../x.glb'",
+    "{path: 3}", "{mass: " + "9" * 400 + "}",
 )
 
 

@@ -41,7 +41,7 @@ DEFAULT_SURFACE_LEVEL = 3
 DEFAULT_POSE = "upright-sitting"
 DEFAULT_BODY_MODEL = "default-male"
 
-_NAME = {"type": "string", "minLength": 1, "maxLength": 4096}
+_NAME = {"type": "string", "minLength": 1, "maxLength": 4096, "pattern": "^[^\\x00]*$"}
 _PARAMS = {"type": "object"}
 
 #: Physical range of every number of a recipe: (least, greatest, unit, what).
@@ -186,11 +186,27 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
     if base_dir is not None:
         for body in recipe["bodies"]:
             body["pose"] = _resolve_path_like(body["pose"], base_dir)
-            if "path" in body["params"]:
-                body["params"]["path"] = str((base_dir / body["params"]["path"]).resolve())
+            if isinstance(body["params"].get("path"), str):
+                body["params"]["path"] = _resolved(base_dir, body["params"]["path"])
         if recipe["output"] is not None:
             recipe["output"] = str((base_dir / recipe["output"]).resolve())
     return recipe
+
+
+def _is_file(path) -> bool:
+    """Whether ``path`` is a file; False (not an exception) for a NUL byte or a name too long."""
+    try:
+        return Path(path).is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def _resolved(base_dir: Path, path: str) -> str:
+    """``base_dir / path`` made absolute; as given if the OS refuses it (check_recipe reports it)."""
+    try:
+        return str((base_dir / path).resolve())
+    except (OSError, ValueError):
+        return path
 
 
 def looks_like_path(spec: str) -> bool:
@@ -200,7 +216,7 @@ def looks_like_path(spec: str) -> bool:
 
 def _resolve_path_like(spec: str, base_dir: Path) -> str:
     if looks_like_path(spec) and not Path(spec).is_absolute():
-        return str((base_dir / spec).resolve())
+        return _resolved(base_dir, spec)
     return spec
 
 
@@ -413,18 +429,18 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
         if not finite or not (20.0 <= float(mass) <= 300.0):
             fail(("bodies", i, "params", "mass"), f"expected a body mass in kg between 20 and 300, got {quote(mass)}")
         path = body["params"].get("path")
-        if path is not None and not Path(path).is_file():
-            fail(("bodies", i, "params", "path"), f"file not found: {path}")
+        if path is not None and not (isinstance(path, str) and _is_file(path)):
+            fail(("bodies", i, "params", "path"), f"file not found: {quote(path)}")
         _check_pose(body["pose"], ("bodies", i, "pose"), fail)
 
 
 def _check_pose(spec: str, path, fail) -> None:
     if looks_like_path(spec):
-        if not Path(spec).is_file():
-            fail(path, f"pose file not found: {spec}")
+        if not _is_file(spec):
+            fail(path, f"pose file not found: {quote(spec)}")
         return
     from seatkit.body import list_poses
 
     names = [p.name for p in list_poses()]
     if spec not in names:
-        fail(path, f"unknown pose {spec!r}; library poses: {', '.join(names)} (or give a .yaml or .bvh path)")
+        fail(path, f"unknown pose {quote(spec)}; library poses: {', '.join(names)} (or give a .yaml or .bvh path)")

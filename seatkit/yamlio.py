@@ -15,12 +15,14 @@ or that would grow past :data:`MAX_NODES` nodes once every alias is expanded
 (an "alias bomb" of a few hundred bytes otherwise takes minutes and
 gigabytes), and aliases that refer to themselves. JSON-schema numbers are
 finite (``.nan``, ``.inf`` and integers beyond 2**63 are refused) and an
-"integer" is an integer, not ``1.0`` nor ``true``; see :data:`VALIDATOR`.
+"integer" is an integer, not ``1.0`` nor ``true`` (see :func:`strict_validator`),
+and ``1e6`` is read as the number it is in YAML 1.2 and JSON.
 """
 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
@@ -36,6 +38,26 @@ KeyPath = tuple  # of str and int
 #: nodes, marks and constructors either way. A syntax error is reported with
 #: the pure-Python parser's message.
 _Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+#: YAML 1.2 (and JSON) floats that YAML 1.1 reads as strings: ``1e6``,
+#: ``2E-3``, ``1.5e3`` (1.1 wants a dot and a signed exponent).
+_FLOAT_12 = re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$")
+
+
+class _SafeLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, reading ``1e6`` as a number."""
+
+
+_SafeLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789"))
+if _Loader is not yaml.SafeLoader:
+
+    class _CSafeLoader(_Loader):
+        """libyaml's safe loader, reading ``1e6`` as a number."""
+
+    _CSafeLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789"))
+    _Loader = _CSafeLoader
+else:
+    _Loader = _SafeLoader
 
 
 def format_path(path: Iterable) -> str:
@@ -224,7 +246,7 @@ def compose_yaml(text: str, *, source: str = "<string>"):
     RecipeError
         Syntax errors (with file and line), too deep, alias bombs.
     """
-    for loader_class in (_Loader, yaml.SafeLoader):
+    for loader_class in (_Loader, _SafeLoader):
         try:
             loader = loader_class(text)
             try:
@@ -237,7 +259,7 @@ def compose_yaml(text: str, *, source: str = "<string>"):
             finally:
                 loader.dispose()
         except yaml.YAMLError as e:
-            if loader_class is not yaml.SafeLoader:
+            if loader_class is not _SafeLoader:
                 # a syntax error: parse again with the pure-Python parser,
                 # whose messages say more ("found character '\t' that cannot
                 # start any token")
@@ -385,9 +407,32 @@ def _describe(error) -> str:
     if v in ("minItems", "maxItems"):
         word = "at least" if v == "minItems" else "at most"
         return f"expected {word} {error.validator_value} items, got {len(inst)}"
+    if v in ("minLength", "maxLength") and isinstance(inst, str):
+        word = "at least" if v == "minLength" else "at most"
+        return f"expected {word} {error.validator_value} characters, got {len(inst)}"
+    if v == "pattern" and isinstance(inst, str) and "\x00" in inst:
+        return f"{quote(inst)} contains a NUL character"
     if v == "pattern":
         return f"{quote(inst)} does not match the expected form {error.validator_value!r}"
     return clip(error.message, 200)
+
+
+def _locate(e) -> tuple:
+    """(key path, error) to report for one jsonschema error."""
+    import jsonschema
+
+    path = tuple(e.absolute_path)
+    # anyOf/oneOf: the most specific sub-error, preferring a branch whose type
+    # matched (``lambda: 1e308`` is "too large", not "inf was expected")
+    if e.context:
+        typed = [c for c in e.context if c.validator not in ("type", "const", "enum")]
+        e = jsonschema.exceptions.best_match(typed or e.context)
+        path = tuple(e.absolute_path)
+    if e.validator == "additionalProperties" and isinstance(e.instance, dict):
+        extra = sorted(set(e.instance) - set(e.schema.get("properties", {})))
+        if extra:
+            path = path + (extra[0],)
+    return path, e
 
 
 def validate(doc: Document, schema: dict) -> None:
@@ -399,25 +444,14 @@ def validate(doc: Document, schema: dict) -> None:
         On one line: the first problem (in file order) as
         ``file:line: key.path: what was expected``, and how many more there are.
     """
-    import jsonschema
-
     validator = strict_validator(schema)
-    errors = sorted(validator.iter_errors(doc.data), key=lambda e: (doc.line(e.absolute_path) or 0, list(map(str, e.absolute_path))))
-    if not errors:
+    located = [_locate(e) for e in validator.iter_errors(doc.data)]
+    if not located:
         return
-    e = errors[0]
-    path = tuple(e.absolute_path)
-    # oneOf/anyOf: report the most specific sub-error
-    if e.context:
-        best = jsonschema.exceptions.best_match(e.context)
-        path = tuple(best.absolute_path)
-        e = best
-    if e.validator == "additionalProperties" and isinstance(e.instance, dict):
-        extra = sorted(set(e.instance) - set(e.schema.get("properties", {})))
-        if extra:
-            path = path + (extra[0],)
+    located.sort(key=lambda pe: (doc.line(pe[0]) or 0, list(map(str, pe[0]))))
+    path, e = located[0]
     line = f"{doc.where(path)}: {_describe(e)}"
-    if len(errors) > 1:
-        more = len(errors) - 1
+    if len(located) > 1:
+        more = len(located) - 1
         line += f" (and {more} more problem{'s' if more > 1 else ''})"
     raise RecipeError(line)
