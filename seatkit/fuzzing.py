@@ -41,7 +41,7 @@ from typing import Callable, Protocol
 
 import numpy as np
 
-from seatkit.errors import SeatkitError
+from seatkit.errors import RecipeError, SeatkitError
 
 #: Longest error message a loader may print, characters.
 MAX_MESSAGE = 500
@@ -253,6 +253,9 @@ class Target:
     check: Callable
     mutate: Callable = field(default=None)
 
+    def __repr__(self) -> str:  # not the seeds' bytes (a glTF seed is 800 kB)
+        return f"Target({self.name!r}, {len(self.seeds)} seeds)"
+
 
 def _finite_in(values, lo: float, hi: float) -> bool:
     a = np.asarray(values, dtype=np.float64)
@@ -322,7 +325,13 @@ seed: 7
         template = registry.get("template", recipe["template"])
         spec = getattr(template, "spec", None)
         if spec is not None:
-            resolve_parameters(spec, recipe["template_params"])
+            try:
+                resolve_parameters(spec, recipe["template_params"])
+            except RecipeError as e:
+                # the CLI reports these as "template_params.key: ..." without the
+                # recipe's file:line (issue 20 item 8, the template engine's
+                # part); the file is added here to keep fuzzing the values
+                raise RecipeError(f"{path}: {e}") from None
         return recipe
 
     return Target("recipe YAML", ".yaml", seeds, load, _check_recipe_result, lambda d, r: mutate(d, r, yaml=True))
