@@ -267,11 +267,11 @@ def _check_recipe_result(recipe) -> str | None:
     from seatkit.template.schema import PARAMETERS, parameter_problem
 
     p = recipe["pressure"]
-    if p["lambda"] != math.inf and not _finite_in([p["lambda"]], 1e-300, LIMITS["lambda"][1]):
+    if p["lambda"] != math.inf and not _finite_in([p["lambda"]], *LIMITS["lambda"][:2]):
         return f"lambda {p['lambda']!r} accepted"
     if not _finite_in([p["mu"]], *LIMITS["mu"][:2]):
         return f"mu {p['mu']!r} accepted"
-    if not _finite_in([recipe["evaluate"]["support_distance"]], 1e-300, LIMITS["support_distance"][1]):
+    if not _finite_in([recipe["evaluate"]["support_distance"]], *LIMITS["support_distance"][:2]):
         return "support_distance accepted out of range"
     for key in ("seed", "surface_level"):
         if not isinstance(recipe[key], int) or isinstance(recipe[key], bool):

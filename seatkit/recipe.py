@@ -49,9 +49,9 @@ _PARAMS = {"type": "object"}
 #: too) both use it. Numbers are finite (``.nan``/``.inf`` are refused, see
 #: :mod:`seatkit.yamlio`) except ``lambda``, whose ``inf`` means a rigid body.
 LIMITS: dict[str, tuple[float, float, str, str]] = {
-    "lambda": (0.0, 1e6, "", "a positive number up to 1e6, or inf"),
+    "lambda": (1e-9, 1e6, "", "a number from 1e-9 to 1e6, or inf"),
     "mu": (0.0, 10.0, "", "a friction coefficient between 0 and 10"),
-    "support_distance": (0.0, 0.5, "m", "a distance in metres above 0 and at most 0.5"),
+    "support_distance": (1e-4, 0.5, "m", "a distance in metres from 0.0001 to 0.5"),
     "gap": (0.0, 10.0, "m", "a gap in metres between 0 and 10"),
     "offset": (-10.0, 10.0, "m", "coordinates in metres between -10 and 10"),
     "frame": (0, 10_000_000, "", "a frame number between 0 and 10000000"),
@@ -60,15 +60,13 @@ LIMITS: dict[str, tuple[float, float, str, str]] = {
 }
 
 
-def _ranged(key: str, kind: str = "number", *, exclusive_min: bool = False) -> dict:
+def _ranged(key: str, kind: str = "number") -> dict:
     lo, hi, _, _ = LIMITS[key]
-    out = {"type": kind, "maximum": hi}
-    out["exclusiveMinimum" if exclusive_min else "minimum"] = lo
-    return out
+    return {"type": kind, "minimum": lo, "maximum": hi}
 
 
 _NUMBER_OR_INF = {
-    "anyOf": [_ranged("lambda", exclusive_min=True), {"const": math.inf}, {"type": "string", "enum": ["inf", "infinity"]}]
+    "anyOf": [_ranged("lambda"), {"const": math.inf}, {"type": "string", "enum": ["inf", "infinity"]}]
 }
 
 RECIPE_SCHEMA: dict = {
@@ -131,7 +129,7 @@ RECIPE_SCHEMA: dict = {
             "properties": {
                 "enabled": {"type": "boolean"},
                 "baseline": {"anyOf": [_NAME, {"type": "null"}]},
-                "support_distance": _ranged("support_distance", exclusive_min=True),
+                "support_distance": _ranged("support_distance"),
             },
         },
         "output": _NAME,
@@ -398,7 +396,7 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
         need("exporter", name, ("exporters", i))
     if recipe["evaluate"]["enabled"] and recipe["evaluate"]["baseline"]:
         need("template", recipe["evaluate"]["baseline"], ("evaluate", "baseline"))
-    def in_range(path, value, key, *, integer=False, above=False):
+    def in_range(path, value, key, *, integer=False):
         """``value`` (from the file or a flag) is finite and within LIMITS[key]."""
         lo, hi, _, what = LIMITS[key]
         ok = not isinstance(value, bool) and isinstance(value, (int, float))
@@ -406,15 +404,15 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
             ok = isinstance(value, int)
         if ok:
             v = float(value) if abs(value) < 1e300 else math.inf
-            ok = math.isfinite(v) and (lo < v if above else lo <= v) and v <= hi
+            ok = math.isfinite(v) and lo <= v <= hi
         if not ok:
             fail(path, f"expected {what}, got {quote(value)}")
 
     lam = recipe["pressure"]["lambda"]
     if lam != math.inf:
-        in_range(("pressure", "lambda"), lam, "lambda", above=True)
+        in_range(("pressure", "lambda"), lam, "lambda")
     in_range(("pressure", "mu"), recipe["pressure"]["mu"], "mu")
-    in_range(("evaluate", "support_distance"), recipe["evaluate"]["support_distance"], "support_distance", above=True)
+    in_range(("evaluate", "support_distance"), recipe["evaluate"]["support_distance"], "support_distance")
     in_range(("seed",), recipe["seed"], "seed", integer=True)
     in_range(("surface_level",), recipe["surface_level"], "surface_level", integer=True)
     if "gap" in recipe["placement"]:

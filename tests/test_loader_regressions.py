@@ -143,7 +143,8 @@ def registry():
     [
         ({"mu": math.inf}, r"pressure.mu: expected a friction coefficient between 0 and 10, got inf"),
         ({"mu": math.nan}, r"pressure.mu: expected a friction coefficient"),
-        ({"lam": 1e308}, r"pressure.lambda: expected a positive number up to 1e6, or inf, got 1e\+308"),
+        ({"lam": 1e308}, r"pressure.lambda: expected a number from 1e-9 to 1e6, or inf, got 1e\+308"),
+        ({"lam": 1e-320}, r"pressure.lambda: expected a number from 1e-9 to 1e6"),
         ({"lam": -1.0}, r"pressure.lambda"),
         ({"seed": -3}, r"seed: expected a whole number between 0 and 4294967295"),
         ({"frame": 10**9}, r"bodies\[0\].frame: expected a frame number"),
@@ -413,3 +414,21 @@ def test_recipe_paths_the_os_refuses(registry, tmp_path, text, pattern):
         check_recipe(recipe, registry, document=doc)
 
     refused(load_and_check, path, pattern, RecipeError)
+
+
+@pytest.mark.parametrize(("lam", "mu"), [(1e-9, 0.0), (1e6, 10.0), (math.inf, 10.0), (1e-9, 10.0)])
+def test_the_ends_of_the_recipe_ranges_still_solve(lam, mu):
+    """Every lambda and mu the recipe accepts gives reactions that carry the weight
+    (``lambda: 1e308`` was a LinAlgError and ``mu: .inf`` a ValueError in the solver)."""
+    from seatkit.constants import GRAVITY
+    from seatkit.pressure import solve_pressure
+    from seatkit.pressure.synthetic import seated_capsule_body
+    from seatkit.recipe import LIMITS
+
+    assert LIMITS["lambda"][:2] == (1e-9, 1e6) and LIMITS["mu"][:2] == (0.0, 10.0)
+    body = seated_capsule_body(resolution=1)
+    field = solve_pressure(body, exclude=[], lam=lam, mu=mu)
+    weight = body.segment_mass.sum() * GRAVITY
+    total = field.force.sum(axis=0)
+    assert abs(total[1] - weight) / weight < 1e-6
+    assert np.abs(total[[0, 2]]).max() / weight < 1e-6
