@@ -31,7 +31,15 @@ import math
 from pathlib import Path
 from typing import Any, Mapping
 
-from seatkit.constants import DEFAULT_BODY_MASS, DEFAULT_LAMBDA, DEFAULT_MU, DEFAULT_SEED, DEFAULT_SUPPORT_DISTANCE
+from seatkit.constants import (
+    DEFAULT_BODY_MASS,
+    DEFAULT_LAMBDA,
+    DEFAULT_MU,
+    DEFAULT_SEED,
+    DEFAULT_SUPPORT_DISTANCE,
+    LAMBDA_RANGE,
+    MU_RANGE,
+)
 from seatkit.errors import RecipeError
 from seatkit.yamlio import Document, load_yaml, quote, validate
 
@@ -49,8 +57,8 @@ _PARAMS = {"type": "object"}
 #: too) both use it. Numbers are finite (``.nan``/``.inf`` are refused, see
 #: :mod:`seatkit.yamlio`) except ``lambda``, whose ``inf`` means a rigid body.
 LIMITS: dict[str, tuple[float, float, str, str]] = {
-    "lambda": (1e-9, 1e6, "", "a number from 1e-9 to 1e6, or inf"),
-    "mu": (0.0, 10.0, "", "a friction coefficient between 0 and 10"),
+    "lambda": (*LAMBDA_RANGE, "", "a number from 1e-9 to 1e6, or inf"),
+    "mu": (*MU_RANGE, "", "a friction coefficient between 0 and 10"),
     "support_distance": (1e-4, 0.5, "m", "a distance in metres from 0.0001 to 0.5"),
     "gap": (0.0, 10.0, "m", "a gap in metres between 0 and 10"),
     "offset": (-10.0, 10.0, "m", "coordinates in metres between -10 and 10"),
