@@ -575,11 +575,17 @@ def read_bvh(path: str | Path) -> BvhMotion:
     # tokens of the HIERARCHY section with their (1-based) line numbers
     tokens: list[tuple[str, int]] = []
     motion_line = None
+    joints_seen = 0
     for lineno, line in enumerate(lines, start=1):
         if line.strip().upper().startswith("MOTION"):
             motion_line = lineno
             break
-        tokens.extend((t, lineno) for t in line.replace("{", " { ").replace("}", " } ").split())
+        words = line.replace("{", " { ").replace("}", " } ").split()
+        joints_seen += sum(1 for t in words if t.upper() in ("ROOT", "JOINT"))
+        if joints_seen > MAX_JOINTS:  # refused before the rest of a huge file is tokenised
+            msg = f"{path}:{lineno}: more than {MAX_JOINTS} joints; not a human skeleton seatkit reads"
+            raise InputError(msg)
+        tokens.extend((t, lineno) for t in words)
     if not tokens or tokens[0][0].upper() != "HIERARCHY":
         msg = f"{path}:1: not a BVH file: expected HIERARCHY"
         raise InputError(msg)
