@@ -49,7 +49,8 @@ DEFAULT_SURFACE_LEVEL = 3
 DEFAULT_POSE = "upright-sitting"
 DEFAULT_BODY_MODEL = "default-male"
 
-_NAME = {"type": "string", "minLength": 1, "maxLength": 4096, "pattern": "^[^\\x00]*$"}
+_NAME = {"type": "string", "minLength": 1, "maxLength": 200, "pattern": "^[^\\x00]*$"}  # a component's name
+_PATH = {"type": "string", "minLength": 1, "maxLength": 4096, "pattern": "^[^\\x00]*$"}  # a name or a file path
 _PARAMS = {"type": "object"}
 
 #: Physical range of every number of a recipe: (least, greatest, unit, what).
@@ -92,7 +93,7 @@ RECIPE_SCHEMA: dict = {
                 "properties": {
                     "model": _NAME,
                     "params": _PARAMS,
-                    "pose": _NAME,
+                    "pose": _PATH,
                     "frame": _ranged("frame", "integer"),
                     "offset": {"type": "array", "items": _ranged("offset"), "minItems": 3, "maxItems": 3},
                     "name": _NAME,
@@ -140,7 +141,7 @@ RECIPE_SCHEMA: dict = {
                 "support_distance": _ranged("support_distance"),
             },
         },
-        "output": _NAME,
+        "output": _PATH,
         "seed": _ranged("seed", "integer"),
     },
 }

@@ -109,6 +109,8 @@ MAX_DEPTH = 64
 MAX_NODES = 200_000
 #: Largest YAML file read, bytes.
 MAX_BYTES = 16 * 1024 * 1024
+#: Longest mapping key, characters (keys are names: segments, joints, options).
+MAX_KEY = 200
 #: Longest quotation of a user's value in a message, characters.
 MAX_QUOTE = 60
 
@@ -298,6 +300,9 @@ def _construct(node, path, lines, source):
                 msg = f"{source}:{line}: {format_path(path)}: mapping keys must be plain names, got {shown}"
                 raise RecipeError(msg)
             key = str(key)
+            if len(key) > MAX_KEY:
+                msg = f"{source}:{line}: {format_path(path)}: a key of {len(key)} characters; keys are names of at most {MAX_KEY}"
+                raise RecipeError(msg)
             if key in out:
                 msg = f"{source}:{line}: key {quote(format_path(path + (key,)))} is given twice"
                 raise RecipeError(msg)

@@ -432,3 +432,16 @@ def test_the_ends_of_the_recipe_ranges_still_solve(lam, mu):
     total = field.force.sum(axis=0)
     assert abs(total[1] - weight) / weight < 1e-6
     assert np.abs(total[[0, 2]]).max() / weight < 1e-6
+
+
+def test_long_names_in_templates_are_not_echoed_in_full(tmp_path):
+    from seatkit.resources import template_path
+
+    chair = template_path("chair.yaml").read_text()
+    for old, new in [("rows: [foot, shank, thigh]", "rows: [" + "a" * 5000 + "]"),
+                     ("columns: [right, left]", "columns: [" + "x" * 5000 + "]"),
+                     ("rows: [foot, shank, thigh]", "rows: [{mass: " + "9" * 400 + "}]"),
+                     ("min_distance: 0.02", "m" * 5000 + ": 0.02")]:
+        path = write(tmp_path, "t.yaml", chair.replace(old, new, 1))
+        msg = refused(lambda: load_template(path), path, r"", RecipeError)
+        assert len(msg) <= MAX_MESSAGE

@@ -235,16 +235,16 @@ def read_template(source: str | Path, *, text: str | None = None) -> TemplateSpe
     rows = [r["name"] for r in data["rows"]]
     if len(set(rows)) != len(rows):
         dup = next(n for n in rows if rows.count(n) > 1)
-        raise doc.error(("rows", rows.index(dup, rows.index(dup) + 1), "name"), f"row {dup!r} is declared twice")
+        raise doc.error(("rows", rows.index(dup, rows.index(dup) + 1), "name"), f"row {quote(dup)} is declared twice")
     faces: dict = {}
     for r, row in enumerate(data["rows"]):
         declared = row["faces"]
         for name in declared:
             if name not in columns:
-                raise doc.error(("rows", r, "faces", name), f"unknown column {name!r}; the columns are {', '.join(columns)}")
+                raise doc.error(("rows", r, "faces", name), f"unknown column {quote(name)}; the columns are {', '.join(columns)}")
         for c, col in enumerate(columns):
             if col not in declared:
-                raise doc.error(("rows", r, "faces"), f"row {row['name']!r} has no face for column {col!r}; every row needs one face per column ({', '.join(columns)})")
+                raise doc.error(("rows", r, "faces"), f"row {quote(row['name'])} has no face for column {quote(col)}; every row needs one face per column ({', '.join(columns)})")
             f = declared[col]
             role = f.get("role", "fit")
             segs = f.get("segments", [])
@@ -266,10 +266,10 @@ def read_template(source: str | Path, *, text: str | None = None) -> TemplateSpe
                 names = rows if key == "rows" else columns
                 vals = s[key]
                 if not isinstance(vals, list) or not all(isinstance(v, str) for v in vals):
-                    raise doc.error(("steps", i, key), f"expected a list of {key[:-1]} names, got {vals!r}")
+                    raise doc.error(("steps", i, key), f"expected a list of {key[:-1]} names, got {quote(vals)}")
                 for j, v in enumerate(vals):
                     if v not in names:
-                        raise doc.error(("steps", i, key, j), f"unknown {key[:-1]} {v!r}; expected one of {', '.join(names)}")
+                        raise doc.error(("steps", i, key, j), f"unknown {key[:-1]} {quote(v)}; expected one of {', '.join(names)}")
     params = dict(data.get("parameters", {}))
     return TemplateSpec(
         name=data["name"],
