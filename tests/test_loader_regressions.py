@@ -320,6 +320,10 @@ def _first_child_node(doc):
         (lambda d: d["bufferViews"][0].__setitem__("byteLength", 10**9), r"bufferViews\[0\]: bytes 0..1000000000 are beyond buffer 0"),
         (lambda d: d["meshes"].__setitem__(0, None), r"not a readable glTF/GLB file \(AttributeError"),
         (lambda d: d["buffers"][0].__setitem__("uri", "/etc/passwd"), r"buffers\[0\].uri '/etc/passwd': expected a file name beside"),
+        # _local_matrix: a zero quaternion, a short matrix, a NaN translation
+        (lambda d: d["nodes"][0].__setitem__("rotation", [0, 0, 0, 0]), r"nodes\[0\].rotation: a zero quaternion is not a rotation"),
+        (lambda d: d["nodes"][0].__setitem__("matrix", [1.0] * 15), r"nodes\[0\].matrix: expected 16 numbers"),
+        (lambda d: d["nodes"][0].__setitem__("translation", [float("nan"), 0, 0]), r"nodes\[0\].translation: expected 3 numbers"),
     ],
 )
 def test_malformed_gltf_structure(glb, tmp_path, edit, pattern):
