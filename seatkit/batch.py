@@ -71,10 +71,13 @@ def _safe_name(text: str) -> str:
 
 
 def _table_rows(path: Path) -> list[dict]:
+    from seatkit.yamlio import load_yaml, read_text
+
     if path.suffix.lower() == ".csv":
-        with path.open(newline="", encoding="utf-8") as fh:
-            return [{k.strip(): (v or "").strip() for k, v in row.items() if k} for row in csv.DictReader(fh)]
-    from seatkit.yamlio import load_yaml
+        import io
+
+        fh = io.StringIO(read_text(path, "CSV table"), newline="")  # UTF-8, named by byte offset if not
+        return [{k.strip(): (v or "").strip() for k, v in row.items() if k} for row in csv.DictReader(fh)]
 
     doc = load_yaml(path)
     rows = doc.data.get("items") if isinstance(doc.data, dict) else doc.data
