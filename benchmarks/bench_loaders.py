@@ -24,21 +24,7 @@ import time
 from pathlib import Path
 
 from seatkit.errors import SeatkitError
-
-
-def chain_bvh(n: int) -> str:
-    out = ["HIERARCHY", "ROOT j0", "{", "  OFFSET 0 0 0", "  CHANNELS 3 Zrotation Xrotation Yrotation"]
-    for k in range(1, n):
-        out += [f"JOINT j{k}", "{", "  OFFSET 0 1 0", "  CHANNELS 3 Zrotation Xrotation Yrotation"]
-    out += ["}"] * n
-    out += ["MOTION", "Frames: 1", "Frame Time: 0.04", " ".join(["0"] * (3 * n))]
-    return "\n".join(out) + "\n"
-
-
-def alias_bomb(levels: int = 9, width: int = 9) -> str:
-    out = ["a0: &a0 [1, 2, 3, 4, 5, 6, 7, 8, 9]"]
-    out += [f"a{k}: &a{k} [{', '.join([f'*a{k - 1}'] * width)}]" for k in range(1, levels + 1)]
-    return "\n".join(out) + "\n"
+from seatkit.fuzzing import alias_bomb, chain_bvh
 
 
 def timed(call, repeat: int = 3) -> float:
@@ -78,14 +64,14 @@ def main(argv=None) -> int:
         chain = tmp / "chain.bvh"
         chain.write_text(chain_bvh(100_000))
         bomb = tmp / "bomb.yaml"
-        bomb.write_text(alias_bomb())
+        bomb.write_text(alias_bomb(10, 9))
         deep = tmp / "deep.yaml"
         deep.write_text("template: " + "[" * 5000 + "]" * 5000 + "\n")
         print("| hostile input | size | refused in |")
         print("|---|---|---|")
         for name, path, call in [
             ("BVH chain of 100,000 joints", chain, lambda: bvh.read_bvh(chain)),
-            ("YAML alias bomb (9 levels of 9)", bomb, lambda: load_recipe(bomb)),
+            ("YAML alias bomb (10 levels of 9 aliases)", bomb, lambda: load_recipe(bomb)),
             ("YAML nested 5,000 deep", deep, lambda: load_recipe(deep)),
         ]:
             print(f"| {name} | {path.stat().st_size / 1e6:.3f} MB | {timed(call) * 1000:.0f} ms |")

@@ -69,10 +69,22 @@ def _pick(r: Chooser, seq):
     return seq[r.randrange(len(seq))]
 
 
-def _alias_bomb(levels: int = 9, width: int = 9) -> str:
+def alias_bomb(levels: int = 9, width: int = 9) -> str:
+    """A YAML "billion laughs": ``levels`` anchors, each ``width`` aliases of the one before
+    (a few hundred bytes that expand to ``9 * width ** (levels - 1)`` values)."""
     out = ["x0: &a0 [1, 2, 3, 4, 5, 6, 7, 8, 9]"]
     for k in range(1, levels):
         out.append(f"x{k}: &a{k} [{', '.join([f'*a{k - 1}'] * width)}]")
+    return "\n".join(out) + "\n"
+
+
+def chain_bvh(n: int) -> str:
+    """A BVH whose hierarchy is one chain of ``n`` joints (the issue's 3 MB file had 100,000)."""
+    out = ["HIERARCHY", "ROOT j0", "{", "  OFFSET 0 0 0", "  CHANNELS 3 Zrotation Xrotation Yrotation"]
+    for k in range(1, n):
+        out += [f"JOINT j{k}", "{", "  OFFSET 0 1 0", "  CHANNELS 3 Zrotation Xrotation Yrotation"]
+    out += ["}"] * n
+    out += ["MOTION", "Frames: 1", "Frame Time: 0.04", " ".join(["0"] * (3 * n))]
     return "\n".join(out) + "\n"
 
 
@@ -129,7 +141,7 @@ def _text_mutation(data: bytes, r: Chooser, *, yaml: bool) -> bytes:
     if kind == 9:  # a YAML value becomes an interesting one
         return _replace_token(data, r, _pick(r, INTERESTING_YAML).encode())
     # kind 10: a whole hostile document appended or put in place of one value
-    bomb = _pick(r, (_alias_bomb(), _alias_bomb(12, 12), "a: " + _deep(200), "a: " + _deep(5000), "a: &r {x: *r}"))
+    bomb = _pick(r, (alias_bomb(), alias_bomb(12, 12), "a: " + _deep(200), "a: " + _deep(5000), "a: &r {x: *r}"))
     if r.randrange(2):
         return bomb.encode()
     return _replace_token(data, r, bomb.split(": ", 1)[1].strip().encode())

@@ -18,7 +18,7 @@ from seatkit.body.poses import load_pose_file
 from seatkit.cli import app
 from seatkit.errors import InputError, RecipeError, SeatkitError
 from seatkit.export.meshes import read_obj_cage
-from seatkit.fuzzing import MAX_MESSAGE, join_glb, message_problem, split_glb
+from seatkit.fuzzing import MAX_MESSAGE, alias_bomb, chain_bvh, join_glb, message_problem, split_glb
 from seatkit.plugins import get_plugin_manager
 from seatkit.recipe import apply_overrides, check_recipe, load_recipe
 from seatkit.template.engine import load_template
@@ -44,10 +44,8 @@ def write(tmp_path, name, data):
 
 # --------------------------------------------------------------------------- YAML layer
 
-# a 393-byte recipe took 25.7 s and 2.5 GB; this one would build 9**9 values
-ALIAS_BOMB = "a0: &a0 [1, 2, 3, 4, 5, 6, 7, 8, 9]\n" + "".join(
-    f"a{k}: &a{k} [{', '.join([f'*a{k - 1}'] * 9)}]\n" for k in range(1, 10)
-)
+# a 393-byte recipe took 25.7 s and 2.5 GB; this one (522 bytes) would build 9**10 values
+ALIAS_BOMB = alias_bomb(10, 9)
 
 
 @pytest.mark.parametrize(
@@ -223,16 +221,6 @@ def rig():
 def bvh_text(rig, tmp_path_factory):
     path = write_bvh(tmp_path_factory.mktemp("bvh") / "seed.bvh", [load_pose("upright-sitting")], rig)
     return path.read_text()
-
-
-def chain_bvh(n: int) -> str:
-    """A BVH whose hierarchy is one chain of ``n`` joints (the issue's 3 MB file has 100,000)."""
-    out = ["HIERARCHY", "ROOT j0", "{", "  OFFSET 0 0 0", "  CHANNELS 3 Zrotation Xrotation Yrotation"]
-    for k in range(1, n):
-        out += [f"JOINT j{k}", "{", "  OFFSET 0 1 0", "  CHANNELS 3 Zrotation Xrotation Yrotation"]
-    out += ["}"] * n
-    out += ["MOTION", "Frames: 1", "Frame Time: 0.04", " ".join(["0"] * (3 * n))]
-    return "\n".join(out) + "\n"
 
 
 def test_huge_joint_chain_is_refused_quickly(tmp_path):
