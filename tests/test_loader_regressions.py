@@ -351,6 +351,9 @@ CUBE = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n
         ("v 1 0 0\n", "v 1\n", r":2: malformed OBJ record 'v 1'"),  # ValueError
         ("f 1 4 3 2\n", "f 99999999999999999999999 4 3 2\n", r":9: face 1: vertex indices must be"),  # TypeError
         ("f 1 4 3 2\n", "f 0 4 3 2\n", r":9: face 1: vertex indices must be"),
+        # found by the 10,000-case run: an OverflowError in Cage
+        ("v 0 0 0\n", "# crease 2 99999999999999999999999 1.5\nv 0 0 0\n", r":1: crease: expected two vertex numbers 1..n"),
+        ("v 0 0 0\n", "# crease 1 2 nan\nv 0 0 0\n", r":1: crease: expected two vertex numbers 1..n and a sharpness >= 0"),
     ],
 )
 def test_obj_cage(tmp_path, old, new, pattern):

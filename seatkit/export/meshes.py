@@ -120,8 +120,15 @@ def read_obj_cage(path):
                     raise InputError(msg)
                 faces.append([i - 1 if i > 0 else len(verts) + i for i in idx])
             elif parts[:2] == ["#", "crease"] and len(parts) >= 5:
-                creases.append([int(parts[2]) - 1, int(parts[3]) - 1])
-                sharp.append(float(parts[4]))
+                a, b, s = int(parts[2]), int(parts[3]), float(parts[4])
+                if not (1 <= a <= MAX_CAGE_INDEX and 1 <= b <= MAX_CAGE_INDEX and 0 <= s <= MAX_CAGE_INDEX):
+                    msg = (
+                        f"{path}:{lineno}: crease: expected two vertex numbers 1..n and a sharpness >= 0 "
+                        f"(# crease a b s), got {clip(' '.join(parts[2:5]))}"
+                    )
+                    raise InputError(msg)
+                creases.append([a - 1, b - 1])
+                sharp.append(s)
         except ValueError as exc:
             msg = f"{path}:{lineno}: malformed OBJ record {clip(raw.strip())!r}"
             raise InputError(msg) from exc
