@@ -62,6 +62,8 @@ back.
 
 from __future__ import annotations
 
+import functools
+
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -266,6 +268,16 @@ def _name_map_from_dict(data: Any, source: str) -> NameMap:
     )
 
 
+@functools.lru_cache(maxsize=None)
+def _builtin_name_map(name: str) -> NameMap:
+    """A packaged name map, parsed once per process (every BVH and glTF load asks for them)."""
+    builtin = data_path("name_maps", f"{name}.yaml")
+    return _name_map_from_dict(yaml.load(builtin.read_text(encoding="utf-8"), Loader=_FAST_LOADER), f"{name}.yaml")
+
+
+_FAST_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
 def _read_yaml(path: Path):
     """A user's name map through seatkit's safe YAML loader (see seatkit.yamlio)."""
     from seatkit.yamlio import load_yaml
@@ -295,7 +307,7 @@ def load_name_map(name_map: str | Path | Mapping) -> NameMap:
     text_name = str(name_map)
     builtin = data_path("name_maps", f"{text_name}.yaml")
     if "/" not in text_name and not text_name.endswith((".yaml", ".yml")) and builtin.is_file():
-        return _name_map_from_dict(yaml.safe_load(builtin.read_text(encoding="utf-8")), f"{text_name}.yaml")
+        return _builtin_name_map(text_name)
     path = Path(name_map)
     if not path.is_file():
         names = sorted(p.stem for p in data_path("name_maps").glob("*.yaml"))
