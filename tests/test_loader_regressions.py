@@ -308,6 +308,9 @@ def _first_child_node(doc):
         (lambda d: d["bufferViews"][0].__setitem__("byteLength", 10**9), r"bufferViews\[0\]: bytes 0..1000000000 are beyond buffer 0"),
         (lambda d: d["meshes"].__setitem__(0, None), r"not a readable glTF/GLB file \(AttributeError"),
         (lambda d: d["buffers"][0].__setitem__("uri", "/etc/passwd"), r"buffers\[0\].uri '/etc/passwd': expected a file name beside"),
+        # found by the 10,000-case run: JOINTS_0 of 4 components with WEIGHTS_0 of 3 (an IndexError)
+        (lambda d: d["accessors"][d["meshes"][0]["primitives"][0]["attributes"]["WEIGHTS_0"]].__setitem__("type", "VEC3"),
+         r"JOINTS_0 has 4 components per vertex but WEIGHTS_0 3"),
         # _local_matrix: a zero quaternion, a short matrix, a NaN translation
         (lambda d: d["nodes"][0].__setitem__("rotation", [0, 0, 0, 0]), r"nodes\[0\].rotation: a zero quaternion is not a rotation"),
         (lambda d: d["nodes"][0].__setitem__("matrix", [1.0] * 15), r"nodes\[0\].matrix: expected 16 numbers"),

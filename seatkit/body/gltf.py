@@ -433,6 +433,10 @@ def load_gltf_body(
         if not js:
             msg = f"{path}: {where}: no JOINTS_0/WEIGHTS_0 (the mesh is not skinned)"
             raise InputError(msg)
+        for k, (jset, wset) in enumerate(zip(js, ws)):
+            if jset.shape != wset.shape:
+                msg = f"{path}: {where}: JOINTS_{k} has {jset.shape[1]} components per vertex but WEIGHTS_{k} {wset.shape[1]}"
+                raise InputError(msg)
         j_arr, w_arr = np.concatenate(js, axis=1), np.concatenate(ws, axis=1)
         if j_arr.shape[0] != n or w_arr.shape[0] != n:
             msg = f"{path}: {where}: JOINTS/WEIGHTS count differs from POSITION ({n})"
