@@ -73,10 +73,13 @@ def _safe_name(text: str) -> str:
 
 
 def _table_rows(path: Path) -> list[dict]:
+    from seatkit.yamlio import load_yaml, read_text
+
     if path.suffix.lower() == ".csv":
-        with path.open(newline="", encoding="utf-8") as fh:
-            return [{k.strip(): (v or "").strip() for k, v in row.items() if k} for row in csv.DictReader(fh)]
-    from seatkit.yamlio import load_yaml
+        import io
+
+        fh = io.StringIO(read_text(path, "CSV table"), newline="")  # UTF-8, named by byte offset if not
+        return [{k.strip(): (v or "").strip() for k, v in row.items() if k} for row in csv.DictReader(fh)]
 
     doc = load_yaml(path)
     rows = doc.data.get("items") if isinstance(doc.data, dict) else doc.data
@@ -171,11 +174,12 @@ def _is_table(path: Path) -> bool:
 def _is_recipe(path: Path) -> bool:
     if path.suffix.lower() not in (".yaml", ".yml"):
         return False
-    import yaml
+    from seatkit.errors import SeatkitError
+    from seatkit.yamlio import load_yaml
 
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError):
+    try:  # the safe loader: a hostile file in the folder must not hang the batch
+        data = load_yaml(path).data
+    except SeatkitError:
         return False
     return isinstance(data, dict) and ("template" in data or "bodies" in data) and "joints" not in data
 

@@ -20,6 +20,12 @@ DEFAULT_LAMBDA = 0.013
 #: Coulomb friction coefficient between body and support, dimensionless.
 DEFAULT_MU = 0.5
 
+#: Accepted lambda (besides inf, a rigid body) and mu: beyond these the QP is
+#: ill-conditioned (lambda 1e308) or meaningless (mu inf); recipes, flags and
+#: the solver all refuse them.
+LAMBDA_RANGE = (1e-9, 1e6)
+MU_RANGE = (0.0, 10.0)
+
 #: World up axis (+Y), body faces +Z.
 UP = (0.0, 1.0, 0.0)
 FORWARD = (0.0, 0.0, 1.0)

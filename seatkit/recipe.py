@@ -31,9 +31,17 @@ import math
 from pathlib import Path
 from typing import Any, Mapping
 
-from seatkit.constants import DEFAULT_BODY_MASS, DEFAULT_LAMBDA, DEFAULT_MU, DEFAULT_SEED, DEFAULT_SUPPORT_DISTANCE
+from seatkit.constants import (
+    DEFAULT_BODY_MASS,
+    DEFAULT_LAMBDA,
+    DEFAULT_MU,
+    DEFAULT_SEED,
+    DEFAULT_SUPPORT_DISTANCE,
+    LAMBDA_RANGE,
+    MU_RANGE,
+)
 from seatkit.errors import ParamError, RecipeError
-from seatkit.yamlio import Document, load_yaml, validate
+from seatkit.yamlio import Document, load_yaml, quote, validate
 
 DEFAULT_REFINERS = ("optimize", "catmull-clark-fit")
 DEFAULT_EXPORTERS = ("usd", "obj", "surface", "body-ply", "design", "report-png", "report-html")
@@ -41,9 +49,34 @@ DEFAULT_SURFACE_LEVEL = 3
 DEFAULT_POSE = "upright-sitting"
 DEFAULT_BODY_MODEL = "default-male"
 
-_NAME = {"type": "string", "minLength": 1}
+_NAME = {"type": "string", "minLength": 1, "maxLength": 200, "pattern": "^[^\\x00]*$"}  # a component's name
+_PATH = {"type": "string", "minLength": 1, "maxLength": 4096, "pattern": "^[^\\x00]*$"}  # a name or a file path
 _PARAMS = {"type": "object"}
-_NUMBER_OR_INF = {"anyOf": [{"type": "number"}, {"type": "string", "enum": ["inf", "infinity"]}]}
+
+#: Physical range of every number of a recipe: (least, greatest, unit, what).
+#: The YAML schema and :func:`check_recipe` (which sees command-line flags
+#: too) both use it. Numbers are finite (``.nan``/``.inf`` are refused, see
+#: :mod:`seatkit.yamlio`) except ``lambda``, whose ``inf`` means a rigid body.
+LIMITS: dict[str, tuple[float, float, str, str]] = {
+    "lambda": (*LAMBDA_RANGE, "", "a number from 1e-9 to 1e6, or inf"),
+    "mu": (*MU_RANGE, "", "a friction coefficient between 0 and 10"),
+    "support_distance": (1e-4, 0.5, "m", "a distance in metres from 0.0001 to 0.5"),
+    "gap": (0.0, 10.0, "m", "a gap in metres between 0 and 10"),
+    "offset": (-10.0, 10.0, "m", "coordinates in metres between -10 and 10"),
+    "frame": (0, 10_000_000, "", "a frame number between 0 and 10000000"),
+    "seed": (0, 2**32 - 1, "", "a whole number between 0 and 4294967295"),
+    "surface_level": (1, 4, "", "a subdivision level from 1 to 4"),
+}
+
+
+def _ranged(key: str, kind: str = "number") -> dict:
+    lo, hi, _, _ = LIMITS[key]
+    return {"type": kind, "minimum": lo, "maximum": hi}
+
+
+_NUMBER_OR_INF = {
+    "anyOf": [_ranged("lambda"), {"const": math.inf}, {"type": "string", "enum": ["inf", "infinity"]}]
+}
 
 #: A refiner entry: a name, or ``{name, params}``.
 _REFINER = {
@@ -76,9 +109,9 @@ RECIPE_SCHEMA: dict = {
                 "properties": {
                     "model": _NAME,
                     "params": _PARAMS,
-                    "pose": _NAME,
-                    "frame": {"type": "integer", "minimum": 0},
-                    "offset": {"type": "array", "items": {"type": "number"}, "minItems": 3, "maxItems": 3},
+                    "pose": _PATH,
+                    "frame": _ranged("frame", "integer"),
+                    "offset": {"type": "array", "items": _ranged("offset"), "minItems": 3, "maxItems": 3},
                     "name": _NAME,
                 },
             },
@@ -86,7 +119,7 @@ RECIPE_SCHEMA: dict = {
         "placement": {
             "type": "object",
             "additionalProperties": False,
-            "properties": {"gap": {"type": "number", "minimum": 0}},
+            "properties": {"gap": _ranged("gap")},
         },
         "pressure": {
             "type": "object",
@@ -94,14 +127,14 @@ RECIPE_SCHEMA: dict = {
             "properties": {
                 "solver": _NAME,
                 "lambda": _NUMBER_OR_INF,
-                "mu": {"type": "number", "minimum": 0},
+                "mu": _ranged("mu"),
                 "exclude": {"type": "array", "items": _NAME},
                 "options": _PARAMS,
             },
         },
         "refiners": {"type": "array", "items": _REFINER},
         "exporters": {"type": "array", "items": _NAME},
-        "surface_level": {"type": "integer", "minimum": 1, "maximum": 4},
+        "surface_level": _ranged("surface_level", "integer"),
         "evaluate": {
             "type": "object",
             "additionalProperties": False,
@@ -109,11 +142,11 @@ RECIPE_SCHEMA: dict = {
                 "enabled": {"type": "boolean"},
                 "baseline": {"anyOf": [_NAME, {"type": "null"}]},
                 "baseline_refiners": {"type": "array", "items": _REFINER},
-                "support_distance": {"type": "number", "exclusiveMinimum": 0},
+                "support_distance": _ranged("support_distance"),
             },
         },
-        "output": _NAME,
-        "seed": {"type": "integer", "minimum": 0},
+        "output": _PATH,
+        "seed": _ranged("seed", "integer"),
         "structure": {"type": "object"},  # checked against seatkit.structure.build.SCHEMA in load_recipe
     },
 }
@@ -174,8 +207,8 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
     if base_dir is not None:
         for body in recipe["bodies"]:
             body["pose"] = _resolve_path_like(body["pose"], base_dir)
-            if "path" in body["params"]:
-                body["params"]["path"] = str((base_dir / body["params"]["path"]).resolve())
+            if isinstance(body["params"].get("path"), str):
+                body["params"]["path"] = _resolved(base_dir, body["params"]["path"])
         if recipe["output"] is not None:
             recipe["output"] = str((base_dir / recipe["output"]).resolve())
     return recipe
@@ -185,6 +218,22 @@ def _refiner_entry(r) -> dict:
     return {"name": r, "params": {}} if isinstance(r, str) else {"name": r["name"], "params": dict(r.get("params", {}))}
 
 
+def _is_file(path) -> bool:
+    """Whether ``path`` is a file; False (not an exception) for a NUL byte or a name too long."""
+    try:
+        return Path(path).is_file()
+    except (OSError, ValueError):
+        return False
+
+
+def _resolved(base_dir: Path, path: str) -> str:
+    """``base_dir / path`` made absolute; as given if the OS refuses it (check_recipe reports it)."""
+    try:
+        return str((base_dir / path).resolve())
+    except (OSError, ValueError):
+        return path
+
+
 def looks_like_path(spec: str) -> bool:
     """Whether a pose/body argument names a file rather than a library entry."""
     return "/" in spec or "\\" in spec or Path(spec).suffix.lower() in (".yaml", ".yml", ".bvh", ".npz", ".glb", ".gltf")
@@ -192,7 +241,7 @@ def looks_like_path(spec: str) -> bool:
 
 def _resolve_path_like(spec: str, base_dir: Path) -> str:
     if looks_like_path(spec) and not Path(spec).is_absolute():
-        return str((base_dir / spec).resolve())
+        return _resolved(base_dir, spec)
     return spec
 
 
@@ -355,8 +404,9 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
                 node_doc, node_rec = node_doc[part], node_rec[part]
         except (KeyError, IndexError, TypeError):
             return False
-        if isinstance(node_doc, str) and isinstance(node_rec, dict) and node_rec.get("name") == node_doc:
-            return True  # a refiner given by name, normalised to {name, params}
+        if isinstance(node_rec, dict) and "name" in node_rec:  # a refiner: written as a name or {name, params}
+            node_doc = node_doc.get("name") if isinstance(node_doc, dict) else node_doc
+            node_rec = node_rec["name"]
         return node_doc == node_rec or (isinstance(node_doc, str) and looks_like_path(node_doc))
 
     def fail(path, message):
@@ -394,17 +444,40 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
 
         for key, message in check_structure(recipe["structure"]):
             fail(("structure", key), message)
+
+    def in_range(path, value, key, *, integer=False):
+        """``value`` (from the file or a flag) is finite and within LIMITS[key]."""
+        lo, hi, _, what = LIMITS[key]
+        ok = not isinstance(value, bool) and isinstance(value, (int, float))
+        if ok and integer:
+            ok = isinstance(value, int)
+        if ok:
+            v = float(value) if abs(value) < 1e300 else math.inf
+            ok = math.isfinite(v) and lo <= v <= hi
+        if not ok:
+            fail(path, f"expected {what}, got {quote(value)}")
+
     lam = recipe["pressure"]["lambda"]
-    if not (lam > 0):
-        fail(("pressure", "lambda"), f"expected a positive number or inf, got {lam!r}")
+    if lam != math.inf:
+        in_range(("pressure", "lambda"), lam, "lambda")
+    in_range(("pressure", "mu"), recipe["pressure"]["mu"], "mu")
+    in_range(("evaluate", "support_distance"), recipe["evaluate"]["support_distance"], "support_distance")
+    in_range(("seed",), recipe["seed"], "seed", integer=True)
+    in_range(("surface_level",), recipe["surface_level"], "surface_level", integer=True)
+    if "gap" in recipe["placement"]:
+        in_range(("placement", "gap"), recipe["placement"]["gap"], "gap")
     for i, body in enumerate(recipe["bodies"]):
         need("body_model", body["model"], ("bodies", i, "model"))
+        in_range(("bodies", i, "frame"), body.get("frame", 0), "frame", integer=True)
+        for k, x in enumerate(body.get("offset") or ()):
+            in_range(("bodies", i, "offset", k), x, "offset")
         mass = body["params"].get("mass", DEFAULT_BODY_MASS)
-        if not isinstance(mass, (int, float)) or not (20.0 <= float(mass) <= 300.0):
-            fail(("bodies", i, "params", "mass"), f"expected a body mass in kg between 20 and 300, got {mass!r}")
+        finite = isinstance(mass, (int, float)) and not isinstance(mass, bool) and abs(mass) < 1e300
+        if not finite or not (20.0 <= float(mass) <= 300.0):
+            fail(("bodies", i, "params", "mass"), f"expected a body mass in kg between 20 and 300, got {quote(mass)}")
         path = body["params"].get("path")
-        if path is not None and not Path(path).is_file():
-            fail(("bodies", i, "params", "path"), f"file not found: {path}")
+        if path is not None and not (isinstance(path, str) and _is_file(path)):
+            fail(("bodies", i, "params", "path"), f"file not found: {quote(path)}")
         _check_pose(body["pose"], ("bodies", i, "pose"), fail, registry)
 
 
@@ -417,11 +490,11 @@ def _get(registry, kind: str, name: str):
 
 def _check_pose(spec: str, path, fail, registry) -> None:
     if looks_like_path(spec):
-        if not Path(spec).is_file():
-            fail(path, f"pose file not found: {spec}")
+        if not _is_file(spec):
+            fail(path, f"pose file not found: {quote(spec)}")
         return
     from seatkit.body import list_poses
 
     names = [p.name for p in list_poses(getattr(registry, "pose_dirs", None))]
     if spec not in names:
-        fail(path, f"unknown pose {spec!r}; library poses: {', '.join(names)} (or give a .yaml or .bvh path)")
+        fail(path, f"unknown pose {quote(spec)}; library poses: {', '.join(names)} (or give a .yaml or .bvh path)")

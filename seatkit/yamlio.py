@@ -1,14 +1,29 @@
 """YAML documents that remember where each value came from.
 
-Every YAML file seatkit reads (recipes, templates, poses, name maps) goes
-through :func:`load_yaml`, which keeps the line of every key, and
+Every YAML file seatkit reads (recipes, templates, poses, name maps, batch
+lists) goes through :func:`load_yaml` (or, for readers that walk the nodes
+themselves, :func:`compose_yaml`), which keeps the line of every key, and
 :func:`validate`, which checks the data against a JSON schema and turns the
-first problems into one :class:`~seatkit.errors.RecipeError` whose lines read
+first problem into one :class:`~seatkit.errors.RecipeError` line such as
 ``recipe.yaml:7: bodies[0].pose: expected a string, got 3``.
+
+The loader is safe against hostile files (``seatkit serve`` takes uploads):
+only YAML's plain types are built (``yaml.SafeLoader``'s constructors), text
+must be UTF-8 (a bad byte is named by its offset), and before any node is
+built an event pass refuses documents nested deeper than :data:`MAX_DEPTH`
+or that would grow past :data:`MAX_NODES` nodes once every alias is expanded
+(an "alias bomb" of a few hundred bytes otherwise takes minutes and
+gigabytes), and aliases that refer to themselves. JSON-schema numbers are
+finite (``.nan``, ``.inf`` and integers beyond 2**63 are refused) and an
+"integer" is an integer, not ``1.0`` nor ``true`` (see :func:`strict_validator`),
+and ``1e6`` is read as the number it is in YAML 1.2 and JSON.
 """
 
 from __future__ import annotations
 
+import itertools
+import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
@@ -25,6 +40,26 @@ KeyPath = tuple  # of str and int
 #: the pure-Python parser's message.
 _Loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
+#: YAML 1.2 (and JSON) floats that YAML 1.1 reads as strings: ``1e6``,
+#: ``2E-3``, ``1.5e3`` (1.1 wants a dot and a signed exponent).
+_FLOAT_12 = re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$")
+
+
+class _SafeLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, reading ``1e6`` as a number."""
+
+
+_SafeLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789"))
+if _Loader is not yaml.SafeLoader:
+
+    class _CSafeLoader(_Loader):
+        """libyaml's safe loader, reading ``1e6`` as a number."""
+
+    _CSafeLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789"))
+    _Loader = _CSafeLoader
+else:
+    _Loader = _SafeLoader
+
 
 def format_path(path: Iterable) -> str:
     """``("faces", 4, "segment")`` -> ``faces[4].segment``."""
@@ -33,7 +68,10 @@ def format_path(path: Iterable) -> str:
         if isinstance(part, int):
             out += f"[{part}]"
         else:
-            out += ("." if out else "") + str(part)
+            text = str(part)
+            if not text.isprintable() or len(text) > 60:
+                text = quote(part, 60)  # a key of control characters or a huge key, shown escaped and short
+            out += ("." if out else "") + text
     return out or "(top level)"
 
 
@@ -66,25 +104,220 @@ class Document:
         return RecipeError(f"{self.where(path)}: {message}")
 
 
-def _construct(node, path, lines, loader):
+
+#: Deepest nesting of mappings and lists a YAML file may have (the templates
+#: nest 6 deep).
+MAX_DEPTH = 64
+#: Most nodes a document may hold with every alias expanded (the chair
+#: template has about 400, a batch table of 1,000 people about 6,000).
+MAX_NODES = 50_000
+#: Schema errors looked at to report the first (in file order) and count the rest.
+MAX_SCHEMA_ERRORS = 100
+#: Largest YAML file read, bytes.
+MAX_BYTES = 16 * 1024 * 1024
+#: Longest mapping key, characters (keys are names: segments, joints, options).
+MAX_KEY = 200
+#: Longest quotation of a user's value in a message, characters.
+MAX_QUOTE = 60
+
+
+def clip(text: str, limit: int = MAX_QUOTE) -> str:
+    """``text`` on one line, shortened to about ``limit`` characters for messages."""
+    text = " ".join(str(text).split())
+    if len(text) <= limit:
+        return text
+    return f"{text[: max(limit - 20, 10)]}... ({len(text)} characters)"
+
+
+def quote(value: Any, limit: int = MAX_QUOTE) -> str:
+    """``repr(value)``, shortened to about ``limit`` characters for messages."""
+    return clip(repr(value), limit)
+
+
+def _line_of_offset(text: str | bytes, offset: int) -> int:
+    return (text[:offset].count(b"\n" if isinstance(text, bytes) else "\n")) + 1
+
+
+def decode_text(data: bytes, source: str, what: str = "file") -> str:
+    """UTF-8 ``data`` as text, or a RecipeError naming the first bad byte."""
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as e:
+        line = _line_of_offset(data, e.start)
+        msg = (
+            f"{source}:{line}: not UTF-8 text: byte 0x{data[e.start]:02x} at byte offset {e.start}; "
+            f"save the {what} as UTF-8"
+        )
+        raise RecipeError(msg) from None
+    return text[1:] if text.startswith("\ufeff") else text
+
+
+def read_text(path, what: str = "file", *, max_bytes: int = MAX_BYTES) -> str:
+    """Read a UTF-8 text file a user gave, with one-line errors.
+
+    Raises
+    ------
+    RecipeError
+        Missing or unreadable file, larger than ``max_bytes``, or not UTF-8.
+    """
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            data = fh.read(max_bytes + 1)
+    except FileNotFoundError:
+        raise RecipeError(f"{path}: file not found") from None
+    except IsADirectoryError:
+        raise RecipeError(f"{path}: is a folder, expected a {what}") from None
+    except OSError as e:
+        raise RecipeError(f"{path}: cannot read: {e.strerror or e}") from None
+    if len(data) > max_bytes:
+        raise RecipeError(f"{path}: larger than {max_bytes // (1024 * 1024)} MB; not a {what} seatkit reads")
+    return decode_text(data, str(path), what)
+
+
+def _check_events(loader, source: str) -> None:
+    """Refuse over-deep nesting, alias bombs and self-referring aliases.
+
+    One pass over the parser's events (which neither recurses nor builds
+    anything): the size and height of every anchored node are recorded, so
+    that an alias counts as the whole subtree it stands for.
+    """
+    # stack of [nodes so far, height of the subtree, anchor, line]
+    stack: list[list] = [[0, 0, None, 0]]
+    anchors: dict[str, tuple[int, int]] = {}
+    open_anchors: set[str] = set()
+    total = 0
+
+    def add(size: int, height: int, line: int) -> None:
+        nonlocal total
+        top = stack[-1]
+        top[0] += size
+        top[1] = max(top[1], height)
+        total += size
+        if total > MAX_NODES:
+            msg = (
+                f"{source}:{line}: the document grows past {MAX_NODES} values once its aliases (*name) are "
+                "expanded; seatkit refuses such alias bombs"
+            )
+            raise RecipeError(msg)
+        if len(stack) + height > MAX_DEPTH + 1:
+            msg = f"{source}:{line}: nested more than {MAX_DEPTH} levels deep; seatkit reads flatter files"
+            raise RecipeError(msg)
+
+    while loader.check_event():
+        event = loader.get_event()
+        line = event.start_mark.line + 1 if event.start_mark is not None else 0
+        if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
+            if len(stack) > MAX_DEPTH:
+                msg = f"{source}:{line}: nested more than {MAX_DEPTH} levels deep; seatkit reads flatter files"
+                raise RecipeError(msg)
+            if event.anchor is not None:
+                open_anchors.add(event.anchor)
+            stack.append([0, 0, event.anchor, line])
+        elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            size, height, anchor, start = stack.pop()
+            total -= size  # counted again, with the node itself, by add()
+            add(size + 1, height + 1, start)
+            if anchor is not None:
+                open_anchors.discard(anchor)
+                anchors[anchor] = (size + 1, height + 1)
+        elif isinstance(event, yaml.ScalarEvent):
+            add(1, 1, line)
+            if event.anchor is not None:
+                anchors[event.anchor] = (1, 1)
+        elif isinstance(event, yaml.AliasEvent):
+            if event.anchor in open_anchors:
+                msg = f"{source}:{line}: alias *{clip(event.anchor, 30)} refers to a value that contains it"
+                raise RecipeError(msg)
+            size, height = anchors.get(event.anchor, (1, 1))  # unknown: the composer names it
+            add(size, height, line)
+
+
+def _syntax_error(e: yaml.YAMLError, text: str, source: str) -> RecipeError:
+    if isinstance(e, yaml.reader.ReaderError):
+        line = _line_of_offset(text, e.position)
+        return RecipeError(f"{source}:{line}: not valid YAML: character U+{e.character:04X} is not allowed in YAML text")
+    mark = getattr(e, "problem_mark", None) or getattr(e, "context_mark", None)
+    line = f":{mark.line + 1}" if mark is not None else ""
+    problem = getattr(e, "problem", None) or str(e).splitlines()[0]
+    return RecipeError(f"{source}{line}: not valid YAML: {clip(problem, 200)}")
+
+
+def compose_yaml(text: str, *, source: str = "<string>"):
+    """The node tree of YAML ``text`` (None if empty), within the limits above.
+
+    For readers that walk the nodes themselves (poses); build scalars with
+    :func:`scalar_value`.
+
+    Raises
+    ------
+    RecipeError
+        Syntax errors (with file and line), too deep, alias bombs.
+    """
+    for loader_class in (_Loader, _SafeLoader):
+        try:
+            loader = loader_class(text)
+            try:
+                _check_events(loader, source)
+            finally:
+                loader.dispose()
+            loader = loader_class(text)
+            try:
+                return loader.get_single_node()
+            finally:
+                loader.dispose()
+        except yaml.YAMLError as e:
+            if loader_class is not _SafeLoader:
+                # a syntax error: parse again with the pure-Python parser,
+                # whose messages say more ("found character '\t' that cannot
+                # start any token")
+                continue
+            raise _syntax_error(e, text, source) from None
+    raise AssertionError("unreachable")
+
+
+def scalar_value(node, source: str = "<string>") -> Any:
+    """The Python value of a scalar node (YAML's safe types only).
+
+    Raises
+    ------
+    RecipeError
+        A value YAML's constructors cannot build (``2001-02-30``, an integer
+        of 5,000 digits, an unknown ``!tag``, bad ``!!binary``), with the line.
+    """
+    try:
+        # a fresh constructor each time: no state shared between threads
+        return yaml.constructor.SafeConstructor().construct_object(node, deep=True)
+    except (yaml.YAMLError, ValueError, OverflowError, TypeError) as e:
+        problem = getattr(e, "problem", None) or str(e)
+        msg = f"{source}:{node.start_mark.line + 1}: cannot read the value {quote(node.value if isinstance(node.value, str) else node.tag)}: {clip(problem, 120)}"
+        raise RecipeError(msg) from None
+
+
+def _construct(node, path, lines, source):
     lines[path] = node.start_mark.line + 1
     if isinstance(node, yaml.MappingNode):
         out = {}
         for key_node, value_node in node.value:
-            key = loader.construct_object(key_node, deep=True)
+            line = key_node.start_mark.line + 1
+            key = scalar_value(key_node, source) if isinstance(key_node, yaml.ScalarNode) else None
             if not isinstance(key, (str, int, float, bool)) or key is None:
-                msg = f"line {key_node.start_mark.line + 1}: mapping keys must be plain names, got {key!r}"
+                shown = quote(key) if isinstance(key_node, yaml.ScalarNode) else "a mapping or list"
+                msg = f"{source}:{line}: {format_path(path)}: mapping keys must be plain names, got {shown}"
                 raise RecipeError(msg)
             key = str(key)
-            if key in out:
-                msg = f"line {key_node.start_mark.line + 1}: key {format_path(path + (key,))!r} is given twice"
+            if len(key) > MAX_KEY:
+                msg = f"{source}:{line}: {format_path(path)}: a key of {len(key)} characters; keys are names of at most {MAX_KEY}"
                 raise RecipeError(msg)
-            out[key] = _construct(value_node, path + (key,), lines, loader)
-            lines[path + (key,)] = key_node.start_mark.line + 1
+            if key in out:
+                msg = f"{source}:{line}: key {quote(format_path(path + (key,)))} is given twice"
+                raise RecipeError(msg)
+            out[key] = _construct(value_node, path + (key,), lines, source)
+            lines[path + (key,)] = line
         return out
     if isinstance(node, yaml.SequenceNode):
-        return [_construct(child, path + (i,), lines, loader) for i, child in enumerate(node.value)]
-    return loader.construct_object(node, deep=True)
+        return [_construct(child, path + (i,), lines, source) for i, child in enumerate(node.value)]
+    return scalar_value(node, source)
 
 
 def parse_yaml(text: str, *, source: str = "<string>") -> Document:
@@ -93,48 +326,55 @@ def parse_yaml(text: str, *, source: str = "<string>") -> Document:
     Raises
     ------
     RecipeError
-        On a syntax error, with the file and line.
+        On a syntax error, with the file and line; on nesting deeper than
+        :data:`MAX_DEPTH`, more than :data:`MAX_NODES` values with aliases
+        expanded, a value that cannot be built, a key given twice.
     """
-    try:
-        return _parse(text, source, _Loader)
-    except yaml.MarkedYAMLError:
-        if _Loader is yaml.SafeLoader:
-            raise
-    # a syntax error: parse again with the pure-Python parser, whose messages
-    # say more ("found character '\t' that cannot start any token")
-    return _parse(text, source, yaml.SafeLoader)
-
-
-def _parse(text: str, source: str, loader_class) -> Document:
-    loader = loader_class(text)
-    try:
-        node = loader.get_single_node()
-        lines: dict = {}
-        data = {} if node is None else _construct(node, (), lines, loader)
-    except yaml.MarkedYAMLError as e:
-        if loader_class is not yaml.SafeLoader:
-            raise
-        mark = e.problem_mark or e.context_mark
-        line = f":{mark.line + 1}" if mark is not None else ""
-        msg = f"{source}{line}: not valid YAML: {e.problem or e}"
-        raise RecipeError(msg) from None
-    except RecipeError as e:
-        raise RecipeError(f"{source}: {e}") from None
-    finally:
-        loader.dispose()
+    node = compose_yaml(text, source=source)
+    lines: dict = {}
+    data = {} if node is None else _construct(node, (), lines, source)
     return Document(data, source, lines)
 
 
-def load_yaml(path) -> Document:
-    """Read and parse a YAML file (see :func:`parse_yaml`)."""
+def load_yaml(path, what: str = "YAML file") -> Document:
+    """Read (see :func:`read_text`) and parse (see :func:`parse_yaml`) a YAML file."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise RecipeError(f"{path}: file not found") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise RecipeError(f"{path}: cannot read: {e}") from None
-    return parse_yaml(text, source=str(path))
+    return parse_yaml(read_text(path, what), source=str(path))
+
+
+#: Largest magnitude of an integer a schema "number" or "integer" accepts.
+MAX_INTEGER = 2**63 - 1
+
+
+def _is_integer(checker, value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and abs(value) <= MAX_INTEGER
+
+
+def _is_number(checker, value) -> bool:
+    if isinstance(value, float):
+        return math.isfinite(value)
+    return _is_integer(checker, value)
+
+
+def _strict_validator():
+    """Draft 2020-12 whose "integer" is a real integer (not ``1.0`` nor ``true``)
+    and whose "number" is finite (not NaN, not infinite, no 5,000-digit integers)."""
+    import jsonschema
+
+    base = jsonschema.Draft202012Validator
+    checker = base.TYPE_CHECKER.redefine_many({"integer": _is_integer, "number": _is_number})
+    return jsonschema.validators.extend(base, type_checker=checker)
+
+
+_VALIDATOR = None
+
+
+def strict_validator(schema: dict):
+    """A jsonschema validator of ``schema`` with seatkit's strict number types."""
+    global _VALIDATOR
+    if _VALIDATOR is None:
+        _VALIDATOR = _strict_validator()
+    return _VALIDATOR(schema)
 
 
 _TYPE_NAMES = {
@@ -155,55 +395,76 @@ def _describe(error) -> str:
     if v == "type":
         want = error.validator_value
         want = [want] if isinstance(want, str) else want
-        return f"expected {' or '.join(_TYPE_NAMES.get(w, w) for w in want)}, got {inst!r}"
+        names = [_TYPE_NAMES.get(w, w) for w in want]
+        if isinstance(inst, float) and not math.isfinite(inst) and ("number" in want or "integer" in want):
+            names = ["a finite " + n[2:] if n.startswith("a ") else n for n in names]
+        elif isinstance(inst, float) and "integer" in want and inst == int(inst):
+            names = [n + " (no decimal point)" if w == "integer" else n for w, n in zip(want, names)]
+        elif isinstance(inst, int) and not isinstance(inst, bool) and abs(inst) > MAX_INTEGER:
+            return f"expected a number of at most {MAX_INTEGER}, got an integer of {len(str(abs(inst)))} digits"
+        return f"expected {' or '.join(names)}, got {quote(inst)}"
     if v == "enum":
-        return f"expected one of {', '.join(map(str, error.validator_value))}; got {inst!r}"
+        return f"expected one of {', '.join(map(str, error.validator_value))}; got {quote(inst)}"
     if v == "required":
         missing = [k for k in error.validator_value if k not in inst]
         return f"missing required key {missing[0]!r}" if missing else error.message
     if v == "additionalProperties":
         allowed = sorted(error.schema.get("properties", {}))
         extra = sorted(set(inst) - set(allowed))
-        return f"unknown key {extra[0]!r}; expected one of {', '.join(allowed)}" if extra else error.message
+        return f"unknown key {quote(extra[0])}; expected one of {', '.join(allowed)}" if extra else error.message
     if v in ("minimum", "exclusiveMinimum", "maximum", "exclusiveMaximum"):
         op = {"minimum": ">=", "exclusiveMinimum": ">", "maximum": "<=", "exclusiveMaximum": "<"}[v]
-        return f"expected a value {op} {error.validator_value}, got {inst!r}"
+        return f"expected a value {op} {error.validator_value}, got {quote(inst)}"
     if v in ("minItems", "maxItems"):
         word = "at least" if v == "minItems" else "at most"
         return f"expected {word} {error.validator_value} items, got {len(inst)}"
+    if v in ("minLength", "maxLength") and isinstance(inst, str):
+        word = "at least" if v == "minLength" else "at most"
+        return f"expected {word} {error.validator_value} characters, got {len(inst)}"
+    if v == "pattern" and isinstance(inst, str) and "\x00" in inst:
+        return f"{quote(inst)} contains a NUL character"
     if v == "pattern":
-        return f"{inst!r} does not match the expected form {error.validator_value!r}"
-    return error.message
+        return f"{quote(inst)} does not match the expected form {error.validator_value!r}"
+    return clip(error.message, 200)
 
 
-def validate(doc: Document, schema: dict, *, max_errors: int = 5) -> None:
-    """Check ``doc.data`` against a JSON schema.
+def _locate(e) -> tuple:
+    """(key path, error) to report for one jsonschema error."""
+    import jsonschema
+
+    path = tuple(e.absolute_path)
+    # anyOf/oneOf: the most specific sub-error, preferring a branch whose type
+    # matched (``lambda: 1e308`` is "too large", not "inf was expected")
+    if e.context:
+        typed = [c for c in e.context if c.validator not in ("type", "const", "enum")]
+        e = jsonschema.exceptions.best_match(typed or e.context)
+        path = tuple(e.absolute_path)
+    if e.validator == "additionalProperties" and isinstance(e.instance, dict):
+        extra = sorted(set(e.instance) - set(e.schema.get("properties", {})))
+        if extra:
+            path = path + (extra[0],)
+    return path, e
+
+
+def validate(doc: Document, schema: dict) -> None:
+    """Check ``doc.data`` against a JSON schema (with :func:`strict_validator`).
 
     Raises
     ------
     RecipeError
-        Listing up to ``max_errors`` problems, one per line, each as
-        ``file:line: key.path: what was expected``.
+        On one line: the first problem (in file order) as
+        ``file:line: key.path: what was expected``, and how many more there are.
     """
-    import jsonschema
-
-    validator = jsonschema.Draft202012Validator(schema)
-    errors = sorted(validator.iter_errors(doc.data), key=lambda e: (doc.line(e.absolute_path) or 0, list(map(str, e.absolute_path))))
-    if not errors:
+    validator = strict_validator(schema)
+    # a list of 50,000 wrong values has 50,000 errors: look at the first hundred
+    located = [_locate(e) for e in itertools.islice(validator.iter_errors(doc.data), MAX_SCHEMA_ERRORS + 1)]
+    if not located:
         return
-    lines = []
-    for e in errors[:max_errors]:
-        path = tuple(e.absolute_path)
-        # oneOf/anyOf: report the most specific sub-error
-        if e.context:
-            best = jsonschema.exceptions.best_match(e.context)
-            path = tuple(best.absolute_path)
-            e = best
-        if e.validator == "additionalProperties" and isinstance(e.instance, dict):
-            extra = sorted(set(e.instance) - set(e.schema.get("properties", {})))
-            if extra:
-                path = path + (extra[0],)
-        lines.append(f"{doc.where(path)}: {_describe(e)}")
-    if len(errors) > max_errors:
-        lines.append(f"... and {len(errors) - max_errors} more problems")
-    raise RecipeError("\n".join(lines))
+    located.sort(key=lambda pe: (doc.line(pe[0]) or 0, list(map(str, pe[0]))))
+    path, e = located[0]
+    line = f"{doc.where(path)}: {_describe(e)}"
+    if len(located) > 1:
+        more = len(located) - 1
+        count = f"{MAX_SCHEMA_ERRORS} or more" if more >= MAX_SCHEMA_ERRORS else str(more)
+        line += f" (and {count} more problem{'s' if more > 1 else ''})"
+    raise RecipeError(line)

@@ -140,7 +140,7 @@ def test_pose_object_passes_through():
     "text, line, pattern",
     [
         ("joints:\n  RightThigh: {x: 10}\n", 2, r"joints\.RightThigh: unknown joint; expected one of Hips"),
-        ("joints:\n  RightLeg: {x: ten}\n", 2, r"joints\.RightLeg\.x: expected an angle in degrees, got 'ten'"),
+        ("joints:\n  RightLeg: {x: ten}\n", 2, r"joints\.RightLeg\.x: expected an angle in degrees from -720 to 720, got 'ten'"),
         ("joints:\n  RightLeg:\n    w: 3\n", 3, r"joints\.RightLeg\.w: unknown axis"),
         ("joints:\n  RightLeg: 90\n", 2, r"joints\.RightLeg: expected a mapping"),
         ("base: no-such-pose\n", 1, r"base: unknown pose 'no-such-pose'"),

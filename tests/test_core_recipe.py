@@ -28,9 +28,8 @@ def test_type_error_names_file_line_and_key_path(tmp_path):
     path = write(tmp_path, "template: chair\nbodies:\n  - model: default-male\n    pose: 3\nseed: -1\n")
     with pytest.raises(RecipeError) as err:
         load_recipe(path)
-    lines = str(err.value).splitlines()
-    assert lines[0] == f"{path}:4: bodies[0].pose: expected a string, got 3"
-    assert lines[1] == f"{path}:5: seed: expected a value >= 0, got -1"
+    # one line: the first problem in file order, and how many more there are
+    assert str(err.value) == f"{path}:4: bodies[0].pose: expected a string, got 3 (and 1 more problem)"
 
 
 def test_unknown_key_points_at_its_own_line(tmp_path):

@@ -261,7 +261,7 @@ def test_template_params_errors_have_file_and_line(tmp_path):
         template_params:
           ransac_iterations: -3
         """)
-    with pytest.raises(RecipeError, match=r"recipe.yaml:4: template_params.ransac_iterations: expected a non-negative number"):
+    with pytest.raises(RecipeError, match=r"recipe.yaml:4: template_params.ransac_iterations: expected a whole number from 1 to 20000"):
         _check(path)
     path = _recipe_file(tmp_path, """\
         template: chair

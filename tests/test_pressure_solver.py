@@ -209,8 +209,12 @@ def test_contact_mask_is_respected(body):
 def test_bad_inputs_are_reported(body):
     with pytest.raises(InputError, match="contact must be"):
         solve_pressure(body, contact=np.ones(3, bool))
-    with pytest.raises(InputError, match="lambda must be positive"):
-        solve_pressure(body, lam=0.0)
+    for lam in (0.0, 1e308, float("nan")):
+        with pytest.raises(InputError, match=r"lambda must be from 1e-09 to 1e\+06 \(or inf for a rigid body\)"):
+            solve_pressure(body, lam=lam)
+    for mu in (-0.1, float("inf"), float("nan")):  # --mu inf was a ValueError inside the QP
+        with pytest.raises(InputError, match="mu must be from 0 to 10"):
+            solve_pressure(body, mu=mu)
     with pytest.raises(InputError, match="unknown options"):
         QPPressureSolver().solve(body, options={"bogus": 1})
 

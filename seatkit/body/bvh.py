@@ -62,6 +62,8 @@ back.
 
 from __future__ import annotations
 
+import functools
+
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -71,7 +73,8 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
-from seatkit.errors import InputError
+from seatkit.errors import InputError, RecipeError
+from seatkit.yamlio import clip, decode_text, quote
 from seatkit.model import Pose, RiggedBody
 from seatkit.resources import data_path
 from seatkit.skeleton import N_SEGMENTS, PARENTS, SEGMENTS, SEGMENT_INDEX
@@ -234,12 +237,12 @@ def _name_map_from_dict(data: Any, source: str) -> NameMap:
     segments: dict[str, tuple[str, ...]] = {}
     for seg, aliases in raw.items():
         if seg not in SEGMENT_INDEX:
-            msg = f"{source}: segments.{seg}: unknown segment; expected one of {', '.join(SEGMENTS)}"
+            msg = f"{source}: segments.{clip(seg)}: unknown segment; expected one of {', '.join(SEGMENTS)}"
             raise InputError(msg)
         if isinstance(aliases, str):
             aliases = [aliases]
         if not isinstance(aliases, list) or not all(isinstance(a, str) for a in aliases):
-            msg = f"{source}: segments.{seg}: expected a list of joint names, got {aliases!r}"
+            msg = f"{source}: segments.{seg}: expected a list of joint names, got {quote(aliases)}"
             raise InputError(msg)
         segments[seg] = tuple(aliases)
     known = data.get("known") or []
@@ -252,7 +255,7 @@ def _name_map_from_dict(data: Any, source: str) -> NameMap:
         raise InputError(msg)
     order = str(data.get("bvh_channel_order", "")).upper()
     if order and sorted(order) != ["X", "Y", "Z"]:
-        msg = f"{source}: bvh_channel_order: expected a permutation of XYZ, got {order!r}"
+        msg = f"{source}: bvh_channel_order: expected a permutation of XYZ, got {quote(order)}"
         raise InputError(msg)
     return NameMap(
         name=str(data.get("name", Path(source).stem)),
@@ -263,6 +266,26 @@ def _name_map_from_dict(data: Any, source: str) -> NameMap:
         source=source,
         description=str(data.get("description", "")),
     )
+
+
+@functools.lru_cache(maxsize=None)
+def _builtin_name_map(name: str) -> NameMap:
+    """A packaged name map, parsed once per process (every BVH and glTF load asks for them)."""
+    builtin = data_path("name_maps", f"{name}.yaml")
+    return _name_map_from_dict(yaml.load(builtin.read_text(encoding="utf-8"), Loader=_FAST_LOADER), f"{name}.yaml")
+
+
+_FAST_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def _read_yaml(path: Path):
+    """A user's name map through seatkit's safe YAML loader (see seatkit.yamlio)."""
+    from seatkit.yamlio import load_yaml
+
+    try:
+        return load_yaml(path, "name map").data
+    except RecipeError as e:
+        raise InputError(str(e)) from None
 
 
 def load_name_map(name_map: str | Path | Mapping) -> NameMap:
@@ -284,18 +307,13 @@ def load_name_map(name_map: str | Path | Mapping) -> NameMap:
     text_name = str(name_map)
     builtin = data_path("name_maps", f"{text_name}.yaml")
     if "/" not in text_name and not text_name.endswith((".yaml", ".yml")) and builtin.is_file():
-        return _name_map_from_dict(yaml.safe_load(builtin.read_text(encoding="utf-8")), f"{text_name}.yaml")
+        return _builtin_name_map(text_name)
     path = Path(name_map)
     if not path.is_file():
         names = sorted(p.stem for p in data_path("name_maps").glob("*.yaml"))
         msg = f"name map {text_name!r}: no such file, and not a built-in map ({', '.join(names)})"
         raise InputError(msg)
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as e:
-        msg = f"{path}: not valid YAML: {e}"
-        raise InputError(msg) from e
-    return _name_map_from_dict(data, str(path))
+    return _name_map_from_dict(_read_yaml(path), str(path))
 
 
 def candidate_maps(name_map, builtins: Sequence[str]) -> list[NameMap]:
@@ -311,11 +329,7 @@ def candidate_maps(name_map, builtins: Sequence[str]) -> list[NameMap]:
     else:
         path = Path(name_map)
         if path.is_file():
-            try:
-                data = yaml.safe_load(path.read_text(encoding="utf-8"))
-            except yaml.YAMLError as e:
-                msg = f"{path}: not valid YAML: {e}"
-                raise InputError(msg) from e
+            data = _read_yaml(path)
             if isinstance(data, Mapping):
                 base = data.get("base")
     user = load_name_map(user_raw)
@@ -364,6 +378,35 @@ def swing(u: np.ndarray, v: np.ndarray) -> np.ndarray:
         perp = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
         return Rotation.from_rotvec(np.pi * perp / np.linalg.norm(perp)).as_matrix()
     return Rotation.from_rotvec(axis / s * np.arctan2(s, c)).as_matrix()
+
+
+def check_axes(left: np.ndarray, up: np.ndarray, extent: float, where: str) -> None:
+    """Refuse a skeleton whose hips have no width or whose head sits on its hips.
+
+    ``left`` (right hip to left hip) and ``up`` (hips to head) must be finite,
+    at least a thousandth of the skeleton's ``extent`` long and not parallel
+    (within 5 degrees): otherwise the body's axes, and every rotation derived
+    from them, are undefined.
+
+    Raises
+    ------
+    InputError
+        Naming ``where`` (the file) and what is degenerate.
+    """
+    left, up = np.asarray(left, dtype=np.float64), np.asarray(up, dtype=np.float64)
+    if not (np.isfinite(left).all() and np.isfinite(up).all() and np.isfinite(extent) and extent > 0):
+        msg = f"{where}: the skeleton's joint positions are not finite"
+        raise InputError(msg)
+    nl, nu = float(np.linalg.norm(left)), float(np.linalg.norm(up))
+    if nl < 1e-3 * extent:
+        msg = f"{where}: degenerate skeleton: the left and right hip joints coincide (the body has no left-right axis)"
+        raise InputError(msg)
+    if nu < 1e-3 * extent:
+        msg = f"{where}: degenerate skeleton: the head joint sits on the hips (the body has no up axis)"
+        raise InputError(msg)
+    if abs(float(left @ up)) > np.cos(np.radians(5.0)) * nl * nu:
+        msg = f"{where}: degenerate skeleton: the hips' left-right axis is parallel to the hips-to-head axis"
+        raise InputError(msg)
 
 
 def facing_rotation(left: np.ndarray, up: np.ndarray, *, snap: bool = True) -> np.ndarray:
@@ -492,14 +535,23 @@ class BvhMotion:
         return float((pts.max(axis=0) - pts.min(axis=0)).max())
 
 
+#: Most joints a BVH skeleton may have (a full-body capture with fingers has
+#: about 70; more is not a human and a long chain would be slow to pose).
+MAX_JOINTS = 1000
+#: Largest OFFSET coordinate, file units (a kilometre in millimetres).
+MAX_OFFSET = 1e6
+#: Largest MOTION value: angles in degrees, positions in file units.
+MAX_CHANNEL_VALUE = 1e7
+
+
 def _float(token: str, path, line: int, what: str) -> float:
     try:
         value = float(token)
     except ValueError:
-        msg = f"{path}:{line}: {what}: expected a number, got {token!r}"
+        msg = f"{path}:{line}: {what}: expected a number, got {quote(token)}"
         raise InputError(msg) from None
     if not np.isfinite(value):
-        msg = f"{path}:{line}: {what}: expected a finite number, got {token!r}"
+        msg = f"{path}:{line}: {what}: expected a finite number, got {quote(token)}"
         raise InputError(msg)
     return value
 
@@ -523,19 +575,29 @@ def read_bvh(path: str | Path) -> BvhMotion:
     """
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        data = path.read_bytes()
     except OSError as e:
         msg = f"{path}: cannot read BVH file: {e.strerror or e}"
         raise InputError(msg) from e
+    try:
+        text = decode_text(data, str(path), "BVH file")
+    except RecipeError as e:
+        raise InputError(str(e)) from None
     lines = text.splitlines()
     # tokens of the HIERARCHY section with their (1-based) line numbers
     tokens: list[tuple[str, int]] = []
     motion_line = None
+    joints_seen = 0
     for lineno, line in enumerate(lines, start=1):
         if line.strip().upper().startswith("MOTION"):
             motion_line = lineno
             break
-        tokens.extend((t, lineno) for t in line.replace("{", " { ").replace("}", " } ").split())
+        words = line.replace("{", " { ").replace("}", " } ").split()
+        joints_seen += sum(1 for t in words if t.upper() in ("ROOT", "JOINT"))
+        if joints_seen > MAX_JOINTS:  # refused before the rest of a huge file is tokenised
+            msg = f"{path}:{lineno}: more than {MAX_JOINTS} joints; not a human skeleton seatkit reads"
+            raise InputError(msg)
+        tokens.extend((t, lineno) for t in words)
     if not tokens or tokens[0][0].upper() != "HIERARCHY":
         msg = f"{path}:1: not a BVH file: expected HIERARCHY"
         raise InputError(msg)
@@ -552,6 +614,7 @@ def read_bvh(path: str | Path) -> BvhMotion:
     position_columns = np.full(3, -1, dtype=np.int64)
     n_channels = 0
     stack: list[int] = []  # open joints; -2 marks an End Site block
+    open_joints: list[int] = []  # the joints of ``stack`` (without End Sites): parents in O(1)
     i = 1
 
     def expect(k: int, what: str) -> list[tuple[str, int]]:
@@ -566,10 +629,16 @@ def read_bvh(path: str | Path) -> BvhMotion:
         key = tok.upper()
         if key in ("ROOT", "JOINT"):
             (name, _), = expect(2, key)[1:]
-            if key == "JOINT" and not [s for s in stack if s >= 0]:
-                msg = f"{path}:{ln}: JOINT {name} outside any ROOT"
+            if key == "JOINT" and not open_joints:
+                msg = f"{path}:{ln}: JOINT {clip(name)} outside any ROOT"
                 raise InputError(msg)
-            parent = next((s for s in reversed(stack) if s >= 0), -1) if key == "JOINT" else -1
+            if len(names) >= MAX_JOINTS:
+                msg = f"{path}:{ln}: more than {MAX_JOINTS} joints; not a human skeleton seatkit reads"
+                raise InputError(msg)
+            if key == "ROOT" and stack:
+                msg = f"{path}:{ln}: ROOT {clip(name)} inside another joint"
+                raise InputError(msg)
+            parent = open_joints[-1] if key == "JOINT" else -1
             names.append(name)
             parents.append(parent)
             offsets.append(np.zeros(3))
@@ -587,13 +656,16 @@ def read_bvh(path: str | Path) -> BvhMotion:
                 msg = f"{path}:{ln}: unexpected '{{'"
                 raise InputError(msg)
             stack.append(pending)
+            if pending >= 0:
+                open_joints.append(pending)
             pending = None
             i += 1
         elif key == "}":
             if not stack:
                 msg = f"{path}:{ln}: unbalanced '}}'"
                 raise InputError(msg)
-            stack.pop()
+            if stack.pop() >= 0:
+                open_joints.pop()
             i += 1
         elif key == "OFFSET":
             vals = expect(4, "OFFSET")[1:]
@@ -601,8 +673,11 @@ def read_bvh(path: str | Path) -> BvhMotion:
             if not stack:
                 msg = f"{path}:{ln}: OFFSET outside a joint"
                 raise InputError(msg)
+            if np.abs(xyz).max() > MAX_OFFSET:
+                msg = f"{path}:{ln}: OFFSET {clip(' '.join(t for t, _ in vals))}: larger than {MAX_OFFSET:g} file units"
+                raise InputError(msg)
             if stack[-1] == -2:
-                end_sites[next(s for s in reversed(stack) if s >= 0)] = xyz
+                end_sites[open_joints[-1]] = xyz
             else:
                 offsets[stack[-1]] = xyz
             i += 4
@@ -611,7 +686,9 @@ def read_bvh(path: str | Path) -> BvhMotion:
             try:
                 count = int(count_tok)
             except ValueError:
-                msg = f"{path}:{ln}: CHANNELS: expected a channel count, got {count_tok!r}"
+                count = -1
+            if not 0 <= count <= 6:
+                msg = f"{path}:{ln}: CHANNELS: expected a channel count from 0 to 6, got {quote(count_tok)}"
                 raise InputError(msg) from None
             chans = [t for t, _ in expect(2 + count, "CHANNELS")[2:]]
             if not stack or stack[-1] < 0:
@@ -628,10 +705,10 @@ def read_bvh(path: str | Path) -> BvhMotion:
                     if joint == 0:  # position channels of other joints are ignored
                         position_columns[_POSITION_CHANNELS[low]] = n_channels + c
                 else:
-                    msg = f"{path}:{ln}: joint {names[joint]}: unknown channel {chan!r}"
+                    msg = f"{path}:{ln}: joint {clip(names[joint])}: unknown channel {quote(chan)}"
                     raise InputError(msg)
             if order and len(set(order)) != len(order):
-                msg = f"{path}:{ln}: joint {names[joint]}: repeated rotation channel in {chans}"
+                msg = f"{path}:{ln}: joint {clip(names[joint])}: repeated rotation channel in {clip(' '.join(chans))}"
                 raise InputError(msg)
             if order and len(order) != 3:
                 # fewer than three rotation channels: pad with unused axes at zero
@@ -642,7 +719,7 @@ def read_bvh(path: str | Path) -> BvhMotion:
             n_channels += count
             i += 2 + count
         else:
-            msg = f"{path}:{ln}: unexpected {tok!r} in HIERARCHY"
+            msg = f"{path}:{ln}: unexpected {quote(tok)} in HIERARCHY"
             raise InputError(msg)
     if stack:
         msg = f"{path}: HIERARCHY ends with {len(stack)} unclosed '{{'"
@@ -662,7 +739,7 @@ def read_bvh(path: str | Path) -> BvhMotion:
         head, _, value = line.partition(":")
         head = head.strip().lower()
         if head not in ("frames", "frame time"):
-            msg = f"{path}:{ln}: expected 'Frames:' and 'Frame Time:' after MOTION, got {line!r}"
+            msg = f"{path}:{ln}: expected 'Frames:' and 'Frame Time:' after MOTION, got {quote(line)}"
             raise InputError(msg)
         header[head] = (value.strip(), ln)
     if len(header) < 2:
@@ -671,7 +748,7 @@ def read_bvh(path: str | Path) -> BvhMotion:
     try:
         n_frames = int(header["frames"][0])
     except ValueError:
-        msg = f"{path}:{header['frames'][1]}: Frames: expected a whole number, got {header['frames'][0]!r}"
+        msg = f"{path}:{header['frames'][1]}: Frames: expected a whole number, got {quote(header['frames'][0])}"
         raise InputError(msg) from None
     frame_time = _float(header["frame time"][0], path, header["frame time"][1], "Frame Time")
     data_lines = [(k + 1, lines[k]) for k in range(ln, len(lines)) if lines[k].strip()]
@@ -682,7 +759,7 @@ def read_bvh(path: str | Path) -> BvhMotion:
     try:
         # fast path: every number at once
         flat = np.array(" ".join(t for _, t in data_lines).split(), dtype=np.float64)
-        ok = flat.size == n_frames * n_channels and bool(np.isfinite(flat).all())
+        ok = flat.size == n_frames * n_channels and bool((np.abs(flat) <= MAX_CHANNEL_VALUE).all())
     except ValueError:
         ok = False
     if not ok:
@@ -693,7 +770,9 @@ def read_bvh(path: str | Path) -> BvhMotion:
                 msg = f"{path}:{lineno}: frame {k}: expected {n_channels} numbers (one per channel), got {len(parts)}"
                 raise InputError(msg)
             for c, t in enumerate(parts):
-                _float(t, path, lineno, f"frame {k}, channel {c + 1}")
+                if abs(_float(t, path, lineno, f"frame {k}, channel {c + 1}")) > MAX_CHANNEL_VALUE:
+                    msg = f"{path}:{lineno}: frame {k}, channel {c + 1}: {clip(t)} is beyond +-{MAX_CHANNEL_VALUE:g}"
+                    raise InputError(msg)
     frames = flat.reshape(n_frames, n_channels)
     return BvhMotion(
         path=str(path),
@@ -784,6 +863,7 @@ def load_bvh(
     # axis conversion from the rest skeleton (see module doc, step 2)
     left = rest[index[SEGMENT_INDEX["LeftUpLeg"]]] - rest[index[SEGMENT_INDEX["RightUpLeg"]]]
     up = rest[index[SEGMENT_INDEX["Head"]]] - rest[index[0]]
+    check_axes(left, up, motion.extent(), str(path))
     A = facing_rotation(left, up)
     glob = A @ glob @ A.T
     pos = pos @ A.T
@@ -815,6 +895,9 @@ def load_bvh(
     # relative rotations R_s = G_parent^T G_s
     relative = world.copy()
     relative[1:] = np.einsum("sji,sjk->sik", world[PARENTS[1:]], world[1:])
+    if not np.isfinite(relative).all():
+        msg = f"{path}: frame {frame}: degenerate joint rotations (not finite); the skeleton or MOTION data is malformed"
+        raise InputError(msg)
     rotations = Rotation.from_matrix(relative).as_rotvec()
 
     translation = np.zeros(3)

@@ -37,16 +37,18 @@ al. (1983) through :func:`seatkit.body.rig.make_rig`.
 from __future__ import annotations
 
 import base64
+import math
 from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 
-from seatkit.body.bvh import CHAIN_CHILD, candidate_maps, choose_map, facing_rotation
+from seatkit.body.bvh import CHAIN_CHILD, candidate_maps, check_axes, choose_map, facing_rotation
 from seatkit.constants import DEFAULT_BODY_MASS
 from seatkit.errors import InputError
 from seatkit.model import RiggedBody
 from seatkit.skeleton import N_SEGMENTS, PARENTS, SEGMENT_INDEX, SEGMENTS
+from seatkit.yamlio import quote
 
 __all__ = ["load_gltf_body", "load_gltf_rig", "save_gltf_body"]
 
@@ -60,6 +62,16 @@ _COMPONENT_DTYPES = {
 }
 _TYPE_SIZES = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}
 _TRIANGLES = 4
+#: A body's largest extent must lie in this range, m: a glTF of a person is in
+#: metres, so anything smaller is a toy or the wrong unit and anything larger
+#: is a mistake (a building, a scaled node, garbage read through a bad stride).
+MIN_BODY_SIZE = 0.3
+MAX_BODY_SIZE = 3.0
+#: Most nodes, accessor elements and bytes of a body file seatkit reads.
+MAX_NODES = 100_000
+MAX_COUNT = 50_000_000
+#: Largest node translation or scale, and matrix entry, accepted.
+MAX_TRANSFORM = 1e4
 #: Where along the chain a missing segment's joint is put (0 parent, 1 child).
 _SPLIT_AT = 0.5
 #: Half-width of the weight ramp around a split point, as a fraction of the chain.
@@ -83,6 +95,32 @@ def _load_document(path: Path):
     if gltf is None:
         msg = f"{path}: not a readable glTF/GLB file"
         raise InputError(msg)
+    # the top-level arrays seatkit reads: lists of objects of the right kind
+    kinds = {
+        "nodes": pygltflib.Node,
+        "meshes": pygltflib.Mesh,
+        "skins": pygltflib.Skin,
+        "accessors": pygltflib.Accessor,
+        "bufferViews": pygltflib.BufferView,
+        "buffers": pygltflib.Buffer,
+    }
+    for key, kind in kinds.items():
+        items = getattr(gltf, key)
+        if items is None:
+            setattr(gltf, key, [])
+            continue
+        if not isinstance(items, list):
+            msg = f"{path}: {key}: expected a list of objects, got {quote(items)}"
+            raise InputError(msg)
+        for i, item in enumerate(items):
+            if not isinstance(item, kind):
+                msg = f"{path}: {key}[{i}]: expected an object, got {quote(item)}"
+                raise InputError(msg)
+    for m, mesh in enumerate(gltf.meshes):
+        prims = mesh.primitives
+        if not isinstance(prims, list) or not all(isinstance(q, pygltflib.Primitive) for q in prims):
+            msg = f"{path}: meshes[{m}].primitives: expected a list of objects"
+            raise InputError(msg)
     return gltf
 
 
@@ -91,6 +129,9 @@ def _buffers(gltf, path: Path) -> list[bytes]:
     blobs = []
     for k, buf in enumerate(gltf.buffers):
         uri = buf.uri
+        if uri is not None and not isinstance(uri, str):
+            msg = f"{path}: buffers[{k}].uri: expected text, got {quote(uri)}"
+            raise InputError(msg)
         if uri is None:
             data = gltf.binary_blob()
             if data is None:
@@ -103,95 +144,185 @@ def _buffers(gltf, path: Path) -> list[bytes]:
                 msg = f"{path}: buffer {k}: bad data URI ({e})"
                 raise InputError(msg) from None
         else:
+            # a relative file beside the glTF only: an uploaded file must not
+            # make seatkit read /etc/passwd or ../../secrets
+            from urllib.parse import unquote
+
+            name = unquote(uri)
+            if Path(name).is_absolute() or ".." in Path(name).parts or ":" in name or "\0" in name:
+                msg = f"{path}: buffers[{k}].uri {quote(uri)}: expected a file name beside the glTF file"
+                raise InputError(msg)
             try:
-                data = (path.parent / uri).read_bytes()
-            except OSError as e:
-                msg = f"{path}: buffer {k}: cannot read {uri!r} ({e.strerror or e})"
+                data = (path.parent / name).read_bytes()
+            except (OSError, ValueError) as e:
+                msg = f"{path}: buffer {k}: cannot read {quote(uri)} ({getattr(e, 'strerror', None) or e})"
                 raise InputError(msg) from None
         blobs.append(bytes(data))
     return blobs
 
 
+def _index(value, n: int, what: str, path: Path, *, lo: int = 0) -> int:
+    """``value`` as an integer in ``lo .. n - 1``, or an InputError naming ``what``."""
+    if isinstance(value, bool) or not isinstance(value, int) or not lo <= value < n:
+        msg = f"{what}: expected a whole number from {lo} to {n - 1}, got {quote(value)}"
+        raise InputError(msg)
+    return value
+
+
+def _view_array(gltf, blobs, v: int, offset: int, dtype, ncomp: int, count: int, where: str, path: Path, *, packed=False):
+    """``count`` elements of ``ncomp`` components read through bufferView ``v``, bounds-checked."""
+    view = gltf.bufferViews[v]
+    b = _index(view.buffer, len(blobs), f"{path}: bufferViews[{v}].buffer", path)
+    blob = blobs[b]
+    view_start = _index(view.byteOffset or 0, 2**40, f"{path}: bufferViews[{v}].byteOffset", path)
+    view_length = _index(view.byteLength, 2**40, f"{path}: bufferViews[{v}].byteLength", path, lo=1)
+    if view_start + view_length > len(blob):
+        msg = f"{path}: bufferViews[{v}]: bytes {view_start}..{view_start + view_length} are beyond buffer {b} ({len(blob)} bytes)"
+        raise InputError(msg)
+    element = dtype.itemsize * ncomp
+    stride = element
+    if view.byteStride is not None and not packed:
+        stride = view.byteStride
+        # glTF 2.0: 4..252, a multiple of 4; and no narrower than one element
+        # (byteStride 1 reads overlapping garbage)
+        if isinstance(stride, bool) or not isinstance(stride, int) or not 4 <= stride <= 252 or stride % 4 or stride < element:
+            msg = f"{path}: bufferViews[{v}].byteStride: expected a multiple of 4 from {max(4, element)} to 252 for {where}, got {quote(stride)}"
+            raise InputError(msg)
+    end = offset + stride * (count - 1) + element if count else offset
+    if end > view_length:
+        msg = f"{where}: reads {end} bytes of bufferViews[{v}], which has {view_length}"
+        raise InputError(msg)
+    return np.ndarray((count, ncomp), dtype=dtype, buffer=blob, offset=view_start + offset, strides=(stride, dtype.itemsize)).copy()
+
+
 def _read_accessor(gltf, blobs: list[bytes], index: int, path: Path, what: str) -> np.ndarray:
     """Accessor ``index`` as a float64 or int64 array of shape (count, components)."""
-    if index is None or not 0 <= index < len(gltf.accessors):
-        msg = f"{path}: {what}: accessor {index} does not exist"
+    if isinstance(index, bool) or not isinstance(index, int) or not 0 <= index < len(gltf.accessors):
+        msg = f"{path}: {what}: accessor {quote(index)} does not exist (the file has {len(gltf.accessors)})"
         raise InputError(msg)
     acc = gltf.accessors[index]
-    dtype = np.dtype(_COMPONENT_DTYPES.get(acc.componentType, np.float32)).newbyteorder("<")
+    where = f"{path}: {what}: accessors[{index}]"
     if acc.componentType not in _COMPONENT_DTYPES or acc.type not in _TYPE_SIZES:
-        msg = f"{path}: {what}: unsupported accessor {acc.componentType}/{acc.type}"
+        msg = f"{where}: unsupported componentType/type {quote(acc.componentType)}/{quote(acc.type)}"
         raise InputError(msg)
+    dtype = np.dtype(_COMPONENT_DTYPES[acc.componentType]).newbyteorder("<")
     ncomp = _TYPE_SIZES[acc.type]
-    count = int(acc.count)
+    count = _index(acc.count, MAX_COUNT + 1, f"{where}.count", path, lo=0)
+    offset = _index(acc.byteOffset or 0, 2**40, f"{where}.byteOffset", path, lo=0)
     if acc.bufferView is None:
         out = np.zeros((count, ncomp), dtype=dtype)
     else:
-        view = gltf.bufferViews[acc.bufferView]
-        blob = blobs[view.buffer]
-        start = (view.byteOffset or 0) + (acc.byteOffset or 0)
-        stride = view.byteStride or dtype.itemsize * ncomp
-        end = start + stride * (count - 1) + dtype.itemsize * ncomp if count else start
-        if end > len(blob) or end > (view.byteOffset or 0) + view.byteLength:
-            msg = f"{path}: {what}: accessor {index} reads past the end of its buffer"
-            raise InputError(msg)
-        strides = (stride, dtype.itemsize)
-        out = np.ndarray((count, ncomp), dtype=dtype, buffer=blob, offset=start, strides=strides).copy()
-    if acc.sparse is not None and acc.sparse.count:
+        v = _index(acc.bufferView, len(gltf.bufferViews), f"{where}.bufferView", path)
+        out = _view_array(gltf, blobs, v, offset, dtype, ncomp, count, where, path)
+    if acc.sparse is not None:
         sp = acc.sparse
-        idx_dtype = np.dtype(_COMPONENT_DTYPES[sp.indices.componentType]).newbyteorder("<")
-        iview = gltf.bufferViews[sp.indices.bufferView]
-        vview = gltf.bufferViews[sp.values.bufferView]
-        idx_start = (iview.byteOffset or 0) + (sp.indices.byteOffset or 0)
-        val_start = (vview.byteOffset or 0) + (sp.values.byteOffset or 0)
-        idx = np.frombuffer(blobs[iview.buffer], idx_dtype, sp.count, idx_start)
-        vals = np.frombuffer(blobs[vview.buffer], dtype, sp.count * ncomp, val_start)
+        n = _index(getattr(sp, "count", None), count + 1, f"{where}.sparse.count", path, lo=1)
+        indices, values = getattr(sp, "indices", None), getattr(sp, "values", None)
+        if indices is None or values is None or getattr(indices, "componentType", None) not in (5121, 5123, 5125):
+            msg = f"{where}.sparse: expected indices (unsigned byte, short or int) and values"
+            raise InputError(msg)
+        idx_dtype = np.dtype(_COMPONENT_DTYPES[indices.componentType]).newbyteorder("<")
+        iv = _index(indices.bufferView, len(gltf.bufferViews), f"{where}.sparse.indices.bufferView", path)
+        vv = _index(values.bufferView, len(gltf.bufferViews), f"{where}.sparse.values.bufferView", path)
+        io = _index(indices.byteOffset or 0, 2**40, f"{where}.sparse.indices.byteOffset", path, lo=0)
+        vo = _index(values.byteOffset or 0, 2**40, f"{where}.sparse.values.byteOffset", path, lo=0)
+        idx = _view_array(gltf, blobs, iv, io, idx_dtype, 1, n, f"{where}.sparse.indices", path, packed=True).ravel()
+        vals = _view_array(gltf, blobs, vv, vo, dtype, ncomp, n, f"{where}.sparse.values", path, packed=True)
+        if idx.size and int(idx.max()) >= count:
+            msg = f"{where}.sparse.indices: index {int(idx.max())} beyond the accessor's {count} elements"
+            raise InputError(msg)
         out = out.copy()
-        out[idx.astype(np.int64)] = vals.reshape(sp.count, ncomp)
+        out[idx.astype(np.int64)] = vals
     if np.issubdtype(dtype, np.integer):
         if acc.normalized:
             # normalised integers map to [0, 1] (unsigned) or [-1, 1] (signed)
             return np.maximum(out.astype(np.float64) / np.iinfo(dtype).max, -1.0)
         return out.astype(np.int64)
-    return out.astype(np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):  # NaN payloads: refused by the callers
+        return out.astype(np.float64)
 
 
-def _local_matrix(node) -> np.ndarray:
+def _numbers(value, n: int, what: str, limit: float) -> np.ndarray | None:
+    """``value`` as ``n`` finite floats of magnitude <= ``limit`` (None if absent)."""
+    if value is None:
+        return None
+    ok = isinstance(value, (list, tuple)) and len(value) == n
+    ok = ok and all(isinstance(x, (int, float)) and not isinstance(x, bool) and abs(x) <= limit for x in value)
+    if not ok:
+        msg = f"{what}: expected {n} numbers of magnitude at most {limit:g}, got {quote(value)}"
+        raise InputError(msg)
+    return np.asarray(value, dtype=np.float64)
+
+
+def _local_matrix(node, where: str) -> np.ndarray:
     """A node's local 4x4 matrix (``matrix`` or translation/rotation/scale)."""
-    if node.matrix is not None and len(node.matrix) == 16:
-        return np.asarray(node.matrix, dtype=np.float64).reshape(4, 4).T  # column-major
+    matrix = _numbers(node.matrix, 16, f"{where}.matrix", MAX_TRANSFORM)
+    if matrix is not None:
+        return matrix.reshape(4, 4).T  # column-major
     from scipy.spatial.transform import Rotation
 
     m = np.eye(4)
-    scale = np.asarray(node.scale if node.scale is not None else [1, 1, 1], dtype=np.float64)
-    rot = Rotation.from_quat(node.rotation).as_matrix() if node.rotation is not None else np.eye(3)  # x, y, z, w
-    m[:3, :3] = rot * scale[None, :]
-    if node.translation is not None:
-        m[:3, 3] = node.translation
+    scale = _numbers(node.scale, 3, f"{where}.scale", MAX_TRANSFORM)
+    rot = _numbers(node.rotation, 4, f"{where}.rotation", 1e3)
+    if rot is not None and not np.linalg.norm(rot) > 1e-6:
+        msg = f"{where}.rotation: a zero quaternion is not a rotation"
+        raise InputError(msg)
+    m[:3, :3] = (Rotation.from_quat(rot).as_matrix() if rot is not None else np.eye(3)) * (
+        scale[None, :] if scale is not None else 1.0
+    )  # quaternion x, y, z, w
+    translation = _numbers(node.translation, 3, f"{where}.translation", MAX_TRANSFORM)
+    if translation is not None:
+        m[:3, 3] = translation
     return m
 
 
-def _world_matrices(gltf) -> tuple[np.ndarray, np.ndarray]:
-    """World matrix (k, 4, 4) and parent index (k,) of every node."""
+def _world_matrices(gltf, path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """World matrix (k, 4, 4) and parent index (k,) of every node.
+
+    The nodes must form trees (glTF 2.0): children in range, no node with
+    two parents, no cycle. Parents are resolved before children without
+    recursion, so a chain of 100,000 nodes costs linear time.
+    """
     k = len(gltf.nodes)
+    if k > MAX_NODES:
+        msg = f"{path}: {k} nodes; seatkit reads bodies of at most {MAX_NODES}"
+        raise InputError(msg)
     parent = np.full(k, -1, dtype=np.int64)
     for i, node in enumerate(gltf.nodes):
-        for c in node.children or []:
-            parent[c] = i
-    world = np.full((k, 4, 4), np.nan)
-    local = [_local_matrix(n) for n in gltf.nodes]
-
-    def resolve(i: int, depth: int = 0) -> np.ndarray:
-        if not np.isnan(world[i, 0, 0]):
-            return world[i]
-        if depth > k:
-            msg = "node hierarchy has a cycle"
+        children = node.children or []
+        if not isinstance(children, list):
+            msg = f"{path}: nodes[{i}].children: expected a list of node indices, got {quote(children)}"
             raise InputError(msg)
-        world[i] = local[i] if parent[i] < 0 else resolve(int(parent[i]), depth + 1) @ local[i]
-        return world[i]
-
-    for i in range(k):
-        resolve(i)
+        for c in children:
+            _index(c, k, f"{path}: nodes[{i}].children", path)
+            if c == i:
+                msg = f"{path}: nodes[{i}].children: a node cannot be its own child"
+                raise InputError(msg)
+            if parent[c] >= 0:
+                msg = f"{path}: nodes[{c}] is a child of both nodes[{parent[c]}] and nodes[{i}]; glTF nodes form trees"
+                raise InputError(msg)
+            parent[c] = i
+    local = [_local_matrix(n, f"{path}: nodes[{i}]") for i, n in enumerate(gltf.nodes)]
+    world = np.empty((k, 4, 4))
+    done = np.zeros(k, dtype=bool)
+    children: list[list[int]] = [[] for _ in range(k)]
+    for c in range(k):
+        if parent[c] >= 0:
+            children[parent[c]].append(c)
+    todo = [i for i in range(k) if parent[i] < 0]
+    while todo:
+        i = todo.pop()
+        world[i] = local[i] if parent[i] < 0 else world[parent[i]] @ local[i]
+        done[i] = True
+        todo.extend(children[i])
+    if not done.all():
+        first = int(np.flatnonzero(~done)[0])
+        msg = f"{path}: the node hierarchy has a cycle (through nodes[{first}]); glTF nodes form trees"
+        raise InputError(msg)
+    if not np.isfinite(world).all():
+        first = int(np.flatnonzero(~np.isfinite(world).all(axis=(1, 2)))[0])
+        msg = f"{path}: nodes[{first}]: its world transform overflows (nested scales too large)"
+        raise InputError(msg)
     return world, parent
 
 
@@ -241,12 +372,18 @@ def load_gltf_body(
         )
         raise InputError(msg)
     node = gltf.nodes[skinned[0]]
-    skin = gltf.skins[node.skin]
-    mesh = gltf.meshes[node.mesh]
+    skin = gltf.skins[_index(node.skin, len(gltf.skins), f"{path}: nodes[{skinned[0]}].skin", path)]
+    mesh = gltf.meshes[_index(node.mesh, len(gltf.meshes), f"{path}: nodes[{skinned[0]}].mesh", path)]
     blobs = _buffers(gltf, path)
-    joint_nodes = np.asarray(skin.joints, dtype=np.int64)
-    if joint_nodes.size == 0:
+    joints_raw = skin.joints if isinstance(skin.joints, list) else None
+    if not joints_raw:
         msg = f"{path}: skin {node.skin} has no joints"
+        raise InputError(msg)
+    for j in joints_raw:
+        _index(j, len(gltf.nodes), f"{path}: skins[{node.skin}].joints", path)
+    joint_nodes = np.asarray(joints_raw, dtype=np.int64)
+    if not isinstance(mesh.primitives, list):
+        msg = f"{path}: meshes[{node.mesh}].primitives: expected a list"
         raise InputError(msg)
 
     # merge the mesh's primitives
@@ -255,11 +392,11 @@ def load_gltf_body(
     for p, prim in enumerate(mesh.primitives):
         where = f"mesh {node.mesh} primitive {p}"
         mode = _TRIANGLES if prim.mode is None else prim.mode
-        if mode != _TRIANGLES:
-            msg = f"{path}: {where}: mode {mode} is not triangles (4)"
+        if mode != _TRIANGLES or isinstance(mode, bool):
+            msg = f"{path}: {where}: mode {quote(mode)} is not triangles (4)"
             raise InputError(msg)
         attrs = prim.attributes
-        if attrs.POSITION is None:
+        if attrs is None or isinstance(attrs, (str, int, float, list, dict)) or attrs.POSITION is None:
             msg = f"{path}: {where}: no POSITION attribute"
             raise InputError(msg)
         pos = _read_accessor(gltf, blobs, attrs.POSITION, path, f"{where} POSITION")
@@ -287,11 +424,19 @@ def load_gltf_body(
             jacc, wacc = getattr(attrs, jname, None), getattr(attrs, wname, None)
             if jacc is None or wacc is None:
                 break
-            js.append(_read_accessor(gltf, blobs, jacc, path, f"{where} {jname}"))
+            joints_set = _read_accessor(gltf, blobs, jacc, path, f"{where} {jname}")
+            if not np.issubdtype(joints_set.dtype, np.integer):
+                msg = f"{path}: {where} {jname}: expected unsigned byte or short joint indices, got floats"
+                raise InputError(msg)
+            js.append(joints_set)
             ws.append(_read_accessor(gltf, blobs, wacc, path, f"{where} {wname}"))
         if not js:
             msg = f"{path}: {where}: no JOINTS_0/WEIGHTS_0 (the mesh is not skinned)"
             raise InputError(msg)
+        for k, (jset, wset) in enumerate(zip(js, ws)):
+            if jset.shape != wset.shape:
+                msg = f"{path}: {where}: JOINTS_{k} has {jset.shape[1]} components per vertex but WEIGHTS_{k} {wset.shape[1]}"
+                raise InputError(msg)
         j_arr, w_arr = np.concatenate(js, axis=1), np.concatenate(ws, axis=1)
         if j_arr.shape[0] != n or w_arr.shape[0] != n:
             msg = f"{path}: {where}: JOINTS/WEIGHTS count differs from POSITION ({n})"
@@ -322,11 +467,14 @@ def load_gltf_body(
     inf_w = inf_w / total[:, None]
 
     # rest pose = the file's node pose: v -> sum_i w_i G_j IBM_j v
-    world, node_parent = _world_matrices(gltf)
+    world, node_parent = _world_matrices(gltf, path)
     if skin.inverseBindMatrices is not None:
         ibm = _read_accessor(gltf, blobs, skin.inverseBindMatrices, path, "inverseBindMatrices")
         if ibm.shape != (len(joint_nodes), 16):
             msg = f"{path}: inverseBindMatrices has {ibm.shape[0]} matrices for {len(joint_nodes)} joints"
+            raise InputError(msg)
+        if not (np.isfinite(ibm).all() and np.abs(ibm).max() <= MAX_TRANSFORM):
+            msg = f"{path}: inverseBindMatrices: entries must be finite and at most {MAX_TRANSFORM:g} in magnitude"
             raise InputError(msg)
         ibm = ibm.reshape(-1, 4, 4).transpose(0, 2, 1)  # column-major
     else:
@@ -336,9 +484,17 @@ def load_gltf_body(
     homog = np.concatenate([vertices_local, np.ones((len(vertices_local), 1))], axis=1)
     vertices = np.einsum("nij,nj->ni", blended, homog)[:, :3]
     joint_pos = world[joint_nodes, :3, 3]
+    size = float(np.ptp(vertices, axis=0).max()) if np.isfinite(vertices).all() else math.inf
+    if not MIN_BODY_SIZE <= size <= MAX_BODY_SIZE:
+        shown = "not finite" if not math.isfinite(size) else f"{size:.3g} m across"
+        msg = (
+            f"{path}: the skinned body is {shown}; expected a person from {MIN_BODY_SIZE:g} to "
+            f"{MAX_BODY_SIZE:g} m (glTF is in metres: check the export's unit scale)"
+        )
+        raise InputError(msg)
 
     # names -> segments
-    names = [gltf.nodes[int(j)].name or f"node{int(j)}" for j in joint_nodes]
+    names = [n if isinstance(n := gltf.nodes[int(j)].name, str) and n else f"node{int(j)}" for j in joint_nodes]
     maps = candidate_maps(name_map, ("gltf-default",))
     nm, seg_joint = choose_map(names, maps)
     missing = nm.missing(seg_joint)
@@ -364,12 +520,13 @@ def load_gltf_body(
     seg_pos[have] = joint_pos[seg_joint[have]]
     left = seg_pos[SEGMENT_INDEX["LeftUpLeg"]] - seg_pos[SEGMENT_INDEX["RightUpLeg"]]
     up = seg_pos[SEGMENT_INDEX["Head"]] - seg_pos[0]
+    check_axes(left, up, size, str(path))
     A = facing_rotation(left, up)
     vertices = vertices @ A.T
     seg_pos = seg_pos @ A.T
 
     joints, weights, split = _fill_missing_segments(seg_pos, weights, vertices, path)
-    tips = _segment_tips(joints, weights, vertices)
+    tips = _segment_tips(joints, weights, vertices, path)
     meta = {
         "source": str(path),
         "format": "glTF",
@@ -439,7 +596,7 @@ def _fill_missing_segments(joints: np.ndarray, weights: np.ndarray, vertices: np
     return joints, weights, split
 
 
-def _segment_tips(joints: np.ndarray, weights: np.ndarray, vertices: np.ndarray) -> np.ndarray:
+def _segment_tips(joints: np.ndarray, weights: np.ndarray, vertices: np.ndarray, path: Path | str = "<glTF>") -> np.ndarray:
     """Distal end of each segment (module doc)."""
     tips = np.empty_like(joints)
     dominant = np.argmax(weights, axis=1)
@@ -452,6 +609,9 @@ def _segment_tips(joints: np.ndarray, weights: np.ndarray, vertices: np.ndarray)
         if len(own) == 0:
             own = vertices[weights[:, s] > 0]
         name = SEGMENTS[s]
+        if len(own) == 0:
+            msg = f"{path}: segment {name} has no skinned vertices (no vertex weighted to its joints)"
+            raise InputError(msg)
         if name == "Head":
             direction = np.array([0.0, 1.0, 0.0])
         elif name.endswith("Foot"):

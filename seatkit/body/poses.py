@@ -37,6 +37,7 @@ from seatkit.errors import InputError, PluginError, RecipeError
 from seatkit.model import Pose
 from seatkit.resources import data_path
 from seatkit.skeleton import N_SEGMENTS, SEGMENT_INDEX, SEGMENTS
+from seatkit.yamlio import clip, compose_yaml, quote, read_text, scalar_value
 
 __all__ = [
     "EULER_ORDER",
@@ -57,6 +58,11 @@ EULER_ORDER = "XYZ"
 TOP_KEYS = ("description", "supported", "base", "joints", "root")
 ROOT_KEYS = ("rotation", "translation")
 AXES = ("x", "y", "z")
+#: Largest joint angle a pose file may give, degrees (two full turns).
+MAX_ANGLE_DEG = 720.0
+#: Largest root translation a pose file may give, m: a body far from the
+#: origin loses its shape in float64 rounding (1e17 m collapses it).
+MAX_TRANSLATION = 100.0
 POSE_SUFFIXES = (".yaml", ".yml")
 
 
@@ -194,7 +200,7 @@ def list_poses(dirs=None) -> list[PoseInfo]:
         description = ""
         supported = True
         if "description" in top:
-            description = str(_scalar(top["description"][1]))
+            description = str(_scalar(top["description"][1], path))
         if "supported" in top:
             supported = _bool(top["supported"][1], path, "supported")
         infos.append(PoseInfo(name, description.strip(), supported, path))
@@ -209,29 +215,19 @@ def _where(path: Path, node: yaml.Node) -> str:
 
 
 def _compose(path: Path) -> yaml.Node:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
+    if not path.exists():
         msg = f"{path}: no such pose file"
-        raise InputError(msg) from None
-    except OSError as e:
-        msg = f"{path}: cannot read pose file ({e.strerror})"
-        raise InputError(msg) from None
-    try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as e:
-        mark = getattr(e, "problem_mark", None)
-        line = f":{mark.line + 1}" if mark is not None else ""
-        msg = f"{path}{line}: not valid YAML ({getattr(e, 'problem', None) or e})"
-        raise RecipeError(msg) from None
+        raise InputError(msg)
+    # UTF-8 only, bounded size, depth and alias expansion (seatkit.yamlio)
+    node = compose_yaml(read_text(path, "pose file"), source=str(path))
     if node is None:
         msg = f"{path}:1: empty pose file; expected a mapping with keys {', '.join(TOP_KEYS)}"
         raise RecipeError(msg)
     return node
 
 
-def _scalar(node: yaml.Node) -> Any:
-    return yaml.SafeLoader(" ").construct_object(node, deep=True)
+def _scalar(node: yaml.Node, path: Path | str = "<pose>") -> Any:
+    return scalar_value(node, str(path))
 
 
 def _mapping_items(node: yaml.Node, path: Path, key_path: str) -> dict[str, tuple[yaml.Node, yaml.Node]]:
@@ -242,7 +238,10 @@ def _mapping_items(node: yaml.Node, path: Path, key_path: str) -> dict[str, tupl
         raise RecipeError(msg)
     items: dict[str, tuple[yaml.Node, yaml.Node]] = {}
     for k, v in node.value:
-        key = str(_scalar(k))
+        if not isinstance(k, yaml.ScalarNode):
+            msg = f"{_where(path, k)}: {key_path or 'the file'}: keys must be plain names, got {_kind(k)}"
+            raise RecipeError(msg)
+        key = clip(str(_scalar(k, path)), 80)
         if key in items:
             msg = f"{_where(path, k)}: {_join(key_path, key)}: key given twice"
             raise RecipeError(msg)
@@ -255,23 +254,25 @@ def _kind(node: yaml.Node) -> str:
         return "a mapping"
     if isinstance(node, yaml.SequenceNode):
         return "a list"
-    return repr(node.value)
+    return quote(node.value)
 
 
 def _join(key_path: str, key: str) -> str:
     return f"{key_path}.{key}" if key_path else key
 
 
-def _number(node: yaml.Node, path: Path, key_path: str, what: str) -> float:
-    value = _scalar(node) if isinstance(node, yaml.ScalarNode) else None
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        msg = f"{_where(path, node)}: {key_path}: expected {what}, got {_kind(node)}"
+def _number(node: yaml.Node, path: Path, key_path: str, what: str, limit: float) -> float:
+    """A finite number with ``abs(value) <= limit``."""
+    value = _scalar(node, path) if isinstance(node, yaml.ScalarNode) else None
+    ok = not isinstance(value, bool) and isinstance(value, (int, float)) and abs(value) < 1e300
+    if not ok or not math.isfinite(value) or abs(value) > limit:
+        msg = f"{_where(path, node)}: {key_path}: expected {what} from {-limit:g} to {limit:g}, got {_kind(node)}"
         raise RecipeError(msg)
     return float(value)
 
 
 def _bool(node: yaml.Node, path: Path, key_path: str) -> bool:
-    value = _scalar(node) if isinstance(node, yaml.ScalarNode) else None
+    value = _scalar(node, path) if isinstance(node, yaml.ScalarNode) else None
     if not isinstance(value, bool):
         msg = f"{_where(path, node)}: {key_path}: expected true or false, got {_kind(node)}"
         raise RecipeError(msg)
@@ -285,20 +286,24 @@ def _angles(node: yaml.Node, path: Path, key_path: str) -> np.ndarray:
         if key not in AXES:
             msg = f"{_where(path, knode)}: {_join(key_path, key)}: unknown axis; expected x, y, z (degrees)"
             raise RecipeError(msg)
-        angles[AXES.index(key)] = _number(vnode, path, _join(key_path, key), "an angle in degrees")
+        angles[AXES.index(key)] = _number(vnode, path, _join(key_path, key), "an angle in degrees", MAX_ANGLE_DEG)
     return angles
 
 
 def _resolve_base(base: str, path: Path, node: yaml.Node) -> Path:
     if base.endswith(POSE_SUFFIXES):
-        candidate = (path.parent / base).resolve()
-        if not candidate.is_file():
-            msg = f"{_where(path, node)}: base: no pose file {candidate}"
+        try:
+            candidate = (path.parent / base).resolve()
+            found = candidate.is_file()
+        except (OSError, ValueError):  # a name too long for the file system, a NUL byte
+            found = False
+        if not found:
+            msg = f"{_where(path, node)}: base: no pose file {quote(base)} beside {path.name}"
             raise RecipeError(msg)
         return candidate
     library = _library()
     if base not in library:
-        msg = f"{_where(path, node)}: base: unknown pose {base!r}; expected one of {', '.join(sorted(library))}"
+        msg = f"{_where(path, node)}: base: unknown pose {quote(base)}; expected one of {', '.join(sorted(library))}"
         raise RecipeError(msg)
     return library[base][0]
 
@@ -337,14 +342,14 @@ def load_pose_file(path, *, _chain: tuple[Path, ...] = ()) -> PoseSpec:
         if not isinstance(value, yaml.ScalarNode):
             msg = f"{_where(path, value)}: description: expected text, got {_kind(value)}"
             raise RecipeError(msg)
-        description = str(_scalar(value)).strip()
+        description = str(_scalar(value, path)).strip()
     supported = _bool(top["supported"][1], path, "supported") if "supported" in top else True
 
     angles = np.zeros((N_SEGMENTS, 3))
     translation = np.zeros(3)
     if "base" in top:
         bnode = top["base"][1]
-        base_name = _scalar(bnode) if isinstance(bnode, yaml.ScalarNode) else None
+        base_name = _scalar(bnode, path) if isinstance(bnode, yaml.ScalarNode) else None
         if not isinstance(base_name, str) or not base_name:
             msg = f"{_where(path, bnode)}: base: expected a pose name or a pose file path, got {_kind(bnode)}"
             raise RecipeError(msg)
@@ -360,7 +365,7 @@ def load_pose_file(path, *, _chain: tuple[Path, ...] = ()) -> PoseSpec:
 
     if "joints" in top:
         jnode = top["joints"][1]
-        if not (isinstance(jnode, yaml.ScalarNode) and _scalar(jnode) is None):
+        if not (isinstance(jnode, yaml.ScalarNode) and _scalar(jnode, path) is None):
             for joint, (knode, vnode) in _mapping_items(jnode, path, "joints").items():
                 if joint not in SEGMENT_INDEX:
                     msg = f"{_where(path, knode)}: joints.{joint}: unknown joint; expected one of {', '.join(SEGMENTS)}"
@@ -384,7 +389,10 @@ def load_pose_file(path, *, _chain: tuple[Path, ...] = ()) -> PoseSpec:
                 msg = f"{_where(path, tnode)}: root.translation: expected [x, y, z] in metres, got {_kind(tnode)}"
                 raise RecipeError(msg)
             translation = np.array(
-                [_number(v, path, f"root.translation[{i}]", "a number of metres") for i, v in enumerate(tnode.value)]
+                [
+                    _number(v, path, f"root.translation[{i}]", "a number of metres", MAX_TRANSLATION)
+                    for i, v in enumerate(tnode.value)
+                ]
             )
     return PoseSpec(angles, translation, description, supported, path)
 

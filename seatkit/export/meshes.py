@@ -30,6 +30,13 @@ __all__ = [
     "write_surface",
 ]
 
+#: Largest cage coordinate :func:`read_obj_cage` accepts (100 m in a
+#: millimetre export; beyond it the normals' squared lengths lose precision,
+#: and 1e308 overflows them to zero).
+MAX_CAGE_COORDINATE = 1e5
+#: Largest vertex index an OBJ face may name.
+MAX_CAGE_INDEX = 10_000_000
+
 #: File suffixes :func:`write_surface` writes.
 SURFACE_FORMATS = (".obj", ".ply", ".stl", ".glb")
 
@@ -78,28 +85,52 @@ def read_obj_cage(path):
     """
     from seatkit.subdivision import Cage
 
+    from seatkit.errors import RecipeError
+    from seatkit.yamlio import clip, decode_text
+
     path = Path(path)
     verts, faces, creases, sharp = [], [], [], []
     try:
-        text = path.read_text(encoding="utf-8", errors="replace")
+        text = decode_text(path.read_bytes(), str(path), "OBJ file")
     except OSError as exc:
         msg = f"{path}: cannot read OBJ cage: {exc.strerror}"
         raise InputError(msg) from exc
+    except RecipeError as exc:
+        raise InputError(str(exc)) from None
     for lineno, raw in enumerate(text.splitlines(), start=1):
         parts = raw.split()
         if not parts:
             continue
         try:
             if parts[0] == "v":
-                verts.append([float(x) for x in parts[1:4]])
+                xyz = [float(x) for x in parts[1:4]]
+                if len(xyz) != 3:
+                    raise ValueError("a vertex needs x, y and z")
+                if not all(abs(x) <= MAX_CAGE_COORDINATE for x in xyz):  # NaN fails too
+                    msg = (
+                        f"{path}:{lineno}: vertex {len(verts) + 1}: coordinates must be finite and within "
+                        f"+-{MAX_CAGE_COORDINATE:g} (m, or mm for a millimetre export), got {clip(' '.join(parts[1:4]))}"
+                    )
+                    raise InputError(msg)
+                verts.append(xyz)
             elif parts[0] == "f":
                 idx = [int(tok.split("/")[0]) for tok in parts[1:]]
+                if not all(-len(verts) <= i <= MAX_CAGE_INDEX and i != 0 for i in idx):
+                    msg = f"{path}:{lineno}: face {len(faces) + 1}: vertex indices must be 1..n or -1..-{len(verts)} (OBJ), got {clip(' '.join(parts[1:]))}"
+                    raise InputError(msg)
                 faces.append([i - 1 if i > 0 else len(verts) + i for i in idx])
             elif parts[:2] == ["#", "crease"] and len(parts) >= 5:
-                creases.append([int(parts[2]) - 1, int(parts[3]) - 1])
-                sharp.append(float(parts[4]))
+                a, b, s = int(parts[2]), int(parts[3]), float(parts[4])
+                if not (1 <= a <= MAX_CAGE_INDEX and 1 <= b <= MAX_CAGE_INDEX and 0 <= s <= MAX_CAGE_INDEX):
+                    msg = (
+                        f"{path}:{lineno}: crease: expected two vertex numbers 1..n and a sharpness >= 0 "
+                        f"(# crease a b s), got {clip(' '.join(parts[2:5]))}"
+                    )
+                    raise InputError(msg)
+                creases.append([a - 1, b - 1])
+                sharp.append(s)
         except ValueError as exc:
-            msg = f"{path}:{lineno}: malformed OBJ record {raw.strip()!r}"
+            msg = f"{path}:{lineno}: malformed OBJ record {clip(raw.strip())!r}"
             raise InputError(msg) from exc
     if not verts or not faces:
         msg = f"{path}: no vertices or faces in OBJ cage"

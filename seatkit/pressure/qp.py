@@ -6,12 +6,22 @@ wraps it as a :class:`seatkit.interfaces.PressureSolver` component.
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from seatkit.constants import DEFAULT_LAMBDA, DEFAULT_MU, FORCE_TOL_RELATIVE, FRICTION_TOL, GRAVITY, NORMAL_FORCE_TOL
+from seatkit.constants import (
+    DEFAULT_LAMBDA,
+    DEFAULT_MU,
+    FORCE_TOL_RELATIVE,
+    FRICTION_TOL,
+    GRAVITY,
+    LAMBDA_RANGE,
+    MU_RANGE,
+    NORMAL_FORCE_TOL,
+)
 from seatkit.errors import InfeasibleSupportError, InputError, SolverError
 from seatkit.model import PressureField
 from seatkit.pressure.assembly import assemble, body_geometry, joint_loads, segment_gravity
@@ -171,11 +181,11 @@ def solve_pressure(
     t0 = time.perf_counter()
     lam = DEFAULT_LAMBDA if lam is None else float(lam)
     mu = DEFAULT_MU if mu is None else float(mu)
-    if not lam > 0:
-        msg = f"lambda must be positive (or inf for a rigid body), got {lam}"
+    if not (lam == math.inf or LAMBDA_RANGE[0] <= lam <= LAMBDA_RANGE[1]):
+        msg = f"lambda must be from {LAMBDA_RANGE[0]:g} to {LAMBDA_RANGE[1]:g} (or inf for a rigid body), got {lam}"
         raise InputError(msg)
-    if not mu >= 0:
-        msg = f"mu must be >= 0, got {mu}"
+    if not MU_RANGE[0] <= mu <= MU_RANGE[1]:
+        msg = f"mu must be from {MU_RANGE[0]:g} to {MU_RANGE[1]:g}, got {mu}"
         raise InputError(msg)
     exclude = DEFAULT_EXCLUDE if exclude is None else tuple(exclude)
     weights = _coerce_body(body)

@@ -17,7 +17,7 @@ from typing import Any, Mapping
 from seatkit.errors import ParamError, RecipeError
 from seatkit.template.options import did_you_mean
 from seatkit.skeleton import SEGMENT_INDEX, SEGMENTS
-from seatkit.yamlio import Document, load_yaml, parse_yaml, validate
+from seatkit.yamlio import Document, load_yaml, parse_yaml, quote, validate
 
 __all__ = [
     "PARAMETERS",
@@ -51,7 +51,39 @@ PARAMETERS: dict[str, tuple[float, str, str]] = {
     "fit_attempts": (6, "count", "RANSAC starts tried (the seed's, then fixed fallbacks) before the optional steps are dropped"),
 }
 
-_NAME = {"type": "string", "pattern": "^[A-Za-z][A-Za-z0-9_.-]*$"}
+#: Largest value of a parameter, by unit: a bound that keeps a build finite
+#: in time and memory (``ransac_iterations: 1e12`` would not be) and the
+#: geometry meaningful (a support distance of a kilometre is not).
+PARAMETER_MAXIMA: dict[str, float] = {"count": 20_000, "m": 1.0, "deg": 180.0, "1": 100.0}
+
+#: Most people a template may seat.
+MAX_PEOPLE = 64
+
+
+def _parameter_schema(unit: str) -> dict:
+    kind = "integer" if unit == "count" else "number"
+    return {"type": kind, "minimum": 1 if unit == "count" else 0, "maximum": PARAMETER_MAXIMA[unit]}
+
+
+def parameter_problem(key: str, value: Any) -> str | None:
+    """What is wrong with ``value`` for parameter ``key`` (None if nothing).
+
+    Counts are whole numbers (``2.5`` and ``1.0e+12`` are refused, not
+    truncated), the rest finite numbers from 0 to :data:`PARAMETER_MAXIMA`.
+    """
+    unit = PARAMETERS[key][1]
+    hi = PARAMETER_MAXIMA[unit]
+    if unit == "count":
+        if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= hi:
+            return f"expected a whole number from 1 to {int(hi)} ({unit}), got {quote(value)}"
+        return None
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and abs(value) < 1e300
+    if not ok or not math.isfinite(value) or not 0 <= value <= hi:
+        return f"expected a number from 0 to {hi:g} ({unit}), got {quote(value)}"
+    return None
+
+
+_NAME = {"type": "string", "pattern": "^[A-Za-z][A-Za-z0-9_.-]*$", "maxLength": 100}
 _SEGMENT = {"type": "string", "enum": list(SEGMENTS)}
 
 _FACE = {
@@ -76,12 +108,15 @@ TEMPLATE_SCHEMA: dict = {
         "people": {
             "type": "object",
             "additionalProperties": False,
-            "properties": {"min": {"type": "integer", "minimum": 1}, "max": {"type": "integer", "minimum": 1}},
+            "properties": {
+                "min": {"type": "integer", "minimum": 1, "maximum": MAX_PEOPLE},
+                "max": {"type": "integer", "minimum": 1, "maximum": MAX_PEOPLE},
+            },
         },
         "parameters": {
             "type": "object",
             "additionalProperties": False,
-            "properties": {k: ({"type": "integer", "minimum": 1} if u == "count" else {"type": "number", "minimum": 0}) for k, (_, u, _) in PARAMETERS.items()},
+            "properties": {k: _parameter_schema(u) for k, (_, u, _) in PARAMETERS.items()},
         },
         "columns": {"type": "array", "items": _NAME, "minItems": 1, "uniqueItems": True},
         "rows": {
@@ -202,16 +237,16 @@ def read_template(source: str | Path, *, text: str | None = None) -> TemplateSpe
     rows = [r["name"] for r in data["rows"]]
     if len(set(rows)) != len(rows):
         dup = next(n for n in rows if rows.count(n) > 1)
-        raise doc.error(("rows", rows.index(dup, rows.index(dup) + 1), "name"), f"row {dup!r} is declared twice")
+        raise doc.error(("rows", rows.index(dup, rows.index(dup) + 1), "name"), f"row {quote(dup)} is declared twice")
     faces: dict = {}
     for r, row in enumerate(data["rows"]):
         declared = row["faces"]
         for name in declared:
             if name not in columns:
-                raise doc.error(("rows", r, "faces", name), f"unknown column {name!r}; the columns are {', '.join(columns)}")
+                raise doc.error(("rows", r, "faces", name), f"unknown column {quote(name)}; the columns are {', '.join(columns)}")
         for c, col in enumerate(columns):
             if col not in declared:
-                raise doc.error(("rows", r, "faces"), f"row {row['name']!r} has no face for column {col!r}; every row needs one face per column ({', '.join(columns)})")
+                raise doc.error(("rows", r, "faces"), f"row {quote(row['name'])} has no face for column {quote(col)}; every row needs one face per column ({', '.join(columns)})")
             f = declared[col]
             role = f.get("role", "fit")
             segs = f.get("segments", [])
@@ -234,10 +269,10 @@ def read_template(source: str | Path, *, text: str | None = None) -> TemplateSpe
                 names = rows if key == "rows" else columns
                 vals = s[key]
                 if not isinstance(vals, list) or not all(isinstance(v, str) for v in vals):
-                    raise doc.error(("steps", i, key), f"expected a list of {key[:-1]} names, got {vals!r}")
+                    raise doc.error(("steps", i, key), f"expected a list of {key[:-1]} names, got {quote(vals)}")
                 for j, v in enumerate(vals):
                     if v not in names:
-                        raise doc.error(("steps", i, key, j), f"unknown {key[:-1]} {v!r}; expected one of {', '.join(names)}")
+                        raise doc.error(("steps", i, key, j), f"unknown {key[:-1]} {quote(v)}; expected one of {', '.join(names)}")
     params = dict(data.get("parameters", {}))
     return TemplateSpec(
         name=data["name"],
@@ -298,10 +333,9 @@ def resolve_parameters(spec: TemplateSpec, overrides: Mapping[str, Any] | None) 
                 hint = did_you_mean(key, list(PARAMETERS) + ["steps"])
             msg = f"unknown parameter of template {spec.name!r}; expected one of {', '.join(PARAMETERS)} or steps{hint}"
             raise ParamError((key,), msg)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0 or not math.isfinite(value):
-            raise ParamError((key,), f"expected a non-negative number ({PARAMETERS[key][1]}), got {value!r}")
-        if PARAMETERS[key][1] == "count" and value < 1:
-            raise ParamError((key,), f"expected a whole number >= 1, got {value!r}")
+        problem = parameter_problem(key, value)
+        if problem:
+            raise ParamError((key,), problem)
         values[key] = value
     values["ransac_iterations"] = int(values["ransac_iterations"])
     values["fit_attempts"] = int(values["fit_attempts"])
