@@ -22,7 +22,7 @@ def test_every_extra_named_in_the_code_and_docs_exists():
     named = {}
     for path in [*ROOT.glob("seatkit/**/*.py"), *ROOT.glob("plugins/**/*.py"), *ROOT.glob("docs/*.md"), ROOT / "README.md"]:
         text = path.read_text(encoding="utf-8")
-        for extra in re.findall(r"(?:seatkit|\.)\[([a-z0-9_-]+)\]", text):
+        for extra in re.findall(r"(?:seatkit|(?<=['\"\s])\.)\[([a-z0-9_-]+)\]", text):
             named.setdefault(extra, path.relative_to(ROOT))
         for extra in re.findall(r"MissingExtraError\([^)]*?,\s*\"([a-z0-9_-]+)\"", text):
             named.setdefault(extra, path.relative_to(ROOT))
