@@ -171,6 +171,11 @@ class StructureExporter:
     name = "structure"
     description = "structure.json/.png: stress, safety factor and deflection of the shell under its people (FEM)"
 
+    prepare_ahead = False
+
+    def prepare(self) -> None:
+        """Nothing to prepare ahead: scikit-fem is imported by the analysis, in the build's process."""
+
     def export(self, result, directory: Path) -> dict[str, Path]:
         analysis = (result.extra or {}).get("structure")
         if analysis is None:  # listed as an exporter without the build step: analyse now
