@@ -128,15 +128,6 @@ class Elasticity:
         # H[e, a, i, b, j] = sum_q dx g[a, i] g[b, j]
         H = np.matmul((flat * self.dx[:, :, None]).transpose(0, 2, 1), flat).reshape(n_el, n_b, 3, n_b, 3)
         trace = np.einsum("eakbk->eab", H)
-        # K[a i, b j] = lam g_ai g_bj + mu g_aj g_bi + mu delta_ij (g_a . g_b), built in place (each temporary is 65 MB for a chair)
-        K = np.empty_like(H)
-        np.multiply(H.transpose(0, 1, 4, 3, 2), mu, out=K)
-        H *= lam
-        K += H
-        del H
-        for i in range(3):
-            K[:, :, i, :, i] += mu * trace
-        K = K.reshape(n_el, 3 * n_b, 3 * n_b)
         if self.shear_basis is not None:
             # transverse shear: take out its fully integrated energy and put in the reduced one, in one product
             gs = np.stack([self.shear_basis.basis[a][0].grad for a in range(n_b)]).transpose(2, 3, 0, 1)
@@ -144,7 +135,19 @@ class Elasticity:
             reduced, w_reduced = self._shear_strains(self.shear_basis, gs, np.asarray(self.shear_basis.dx))
             S = np.concatenate([full, reduced], axis=1)  # (E, R, 81)
             W = mu * np.concatenate([-w_full, w_reduced], axis=1)  # (E, R)
-            K += np.matmul((S * W[:, :, None]).transpose(0, 2, 1), S)
+            K = np.matmul((S * W[:, :, None]).transpose(0, 2, 1), S)
+            del S
+        else:
+            K = np.zeros((n_el, 3 * n_b, 3 * n_b))
+        # K[a i, b j] += lam g_ai g_bj + mu g_aj g_bi + mu delta_ij (g_a . g_b), in place (each temporary is 65 MB for a chair)
+        K5 = K.reshape(H.shape)
+        H *= mu
+        K5 += H.transpose(0, 1, 4, 3, 2)
+        H *= lam / mu
+        K5 += H
+        del H
+        for i in range(3):
+            K5[:, :, i, :, i] += mu * trace
         return K
 
     def _shear_strains(self, basis, g: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -174,26 +177,29 @@ class Elasticity:
             rows.append(G.reshape(n_el, n_q, n_b * 3))
         return np.concatenate(rows, axis=1), np.concatenate([dx, dx], axis=1)
 
-    def _assemble(self, kept: np.ndarray) -> sp.csr_matrix:
+    def _assemble(self, kept: np.ndarray, element_matrices=None, element_nodes=None) -> sp.csr_matrix:
         """The stiffness of the scalar degrees of freedom ``kept`` ((N,) bool; all 3 components of each).
 
-        Assembled in 3 x 3 blocks: the sparsity pattern is found among the
-        27 x 27 node pairs of every element (9 times fewer than the 81 x 81
-        entries), each block component summed with ``np.bincount``, then
-        converted once to CSR. Rows and columns follow the kept degrees of
-        freedom in order, 3 per node.
+        ``element_matrices`` (E, 3 m, 3 m) on the scalar degrees of freedom
+        ``element_nodes`` (E, m): by default the element stiffness on all 27
+        nodes. Assembled in 3 x 3 blocks: the sparsity pattern is found among
+        the m x m node pairs of every element (9 times fewer than the entries),
+        each block component summed with ``np.bincount``, then converted once
+        to CSR. Rows and columns follow the kept degrees of freedom in order,
+        3 per node.
         """
-        d = self.basis.element_dofs.T  # (E, 27)
+        d = self.basis.element_dofs.T if element_nodes is None else element_nodes  # (E, m)
+        Ke = self.element_stiffness if element_matrices is None else element_matrices
         n_el, n_b = d.shape
         index = np.full(self.basis.N, -1, np.int64)
         index[kept] = np.arange(int(kept.sum()))
         n = int(kept.sum())
         loc = index[d]
-        pair = (loc[:, :, None] >= 0) & (loc[:, None, :] >= 0)  # (E, 27, 27)
+        pair = (loc[:, :, None] >= 0) & (loc[:, None, :] >= 0)  # (E, m, m)
         rows = np.broadcast_to(loc[:, :, None], pair.shape)[pair]
         cols = np.broadcast_to(loc[:, None, :], pair.shape)[pair]
         keys, block = np.unique(rows * n + cols, return_inverse=True)
-        K = self.element_stiffness.reshape(n_el, n_b, 3, n_b, 3).transpose(0, 1, 3, 2, 4)[pair]  # (pairs, 3, 3)
+        K = Ke.reshape(n_el, n_b, 3, n_b, 3).transpose(0, 1, 3, 2, 4)[pair]  # (pairs, 3, 3)
         data = np.empty((len(keys), 3, 3))
         for i in range(3):
             for j in range(3):
@@ -211,7 +217,14 @@ class Elasticity:
         return out
 
     def solve(self, load: np.ndarray, held_nodes: np.ndarray) -> Solution:
-        """Displacements for nodal forces ``load`` (N, 3) with ``held_nodes`` fixed in every direction."""
+        """Displacements for nodal forces ``load`` (N, 3) with ``held_nodes`` fixed in every direction.
+
+        The nodes that belong to one element only, at the same place in
+        every element (the centre, and with one layer the centres of the
+        top and bottom faces: a quarter of the unknowns), are eliminated
+        element by element first (static condensation, exact), SuperLU
+        factorises what remains, and they are recovered from it.
+        """
         import scipy.sparse.linalg as sla
 
         self._check_held(np.asarray(held_nodes, dtype=np.int64))
@@ -221,9 +234,31 @@ class Elasticity:
         held_node = np.zeros(self.basis.N, bool)
         held_node[self.dof[np.asarray(held_nodes, dtype=np.int64)]] = True
         held = np.repeat(held_node, 3)
-        free = np.flatnonzero(~held)
-        # the free block only, assembled directly (symmetric: its CSR arrays are its CSC arrays)
-        Kff = self._assemble(~held_node)
+        d = self.basis.element_dofs.T  # (E, 27)
+        count = np.bincount(d.ravel(), minlength=self.basis.N)
+        inner = np.flatnonzero((count[d] == 1).all(axis=0))  # element slots whose node is the element's own
+        outer = np.setdiff1d(np.arange(d.shape[1]), inner)
+        bi = (3 * inner[:, None] + np.arange(3)).ravel()
+        bo = (3 * outer[:, None] + np.arange(3)).ravel()
+        Ke = self.element_stiffness
+        dofs = self._vector_dofs()
+        # a held inner unknown: its row and column replaced by the identity, its force by 0 (so it stays 0)
+        fixed = held[dofs[:, bi]]  # (E, 3 k)
+        Kii = Ke[:, bi][:, :, bi]
+        Kio = Ke[:, bi][:, :, bo]
+        Kii[fixed] = 0.0
+        Kii.transpose(0, 2, 1)[fixed] = 0.0
+        Kii[:, np.arange(len(bi)), np.arange(len(bi))] += fixed
+        Kio[fixed] = 0.0
+        fi = np.where(fixed, 0.0, f[dofs[:, bi]])
+        X = np.linalg.solve(Kii, np.concatenate([Kio, fi[:, :, None]], axis=2))  # Kii^-1 [Kio, fi]
+        Koo = Ke[:, bo][:, :, bo] - np.matmul(Kio.transpose(0, 2, 1), X[:, :, :-1])
+        fo = f - np.bincount(dofs[:, bo].ravel(), weights=np.matmul(Kio.transpose(0, 2, 1), X[:, :, -1:]).ravel(), minlength=n)
+        kept = ~held_node
+        kept[d[:, inner].ravel()] = False
+        free = np.flatnonzero(np.repeat(kept, 3))
+        # the free outer block only, assembled directly (symmetric: its CSR arrays are its CSC arrays)
+        Kff = self._assemble(kept, Koo, d[:, outer])
         Kff = sp.csc_matrix((Kff.data, Kff.indices, Kff.indptr), shape=Kff.shape)
         u = np.zeros(n)
         # symmetric positive definite: a symmetric ordering without pivoting
@@ -237,7 +272,9 @@ class Elasticity:
             else:
                 msg = f"the sparse solver failed on {len(free)} unknowns ({e}); out of memory? try a lower --level"
             raise StructureError(msg) from None
-        u[free] = lu.solve(f[free])
+        u[free] = lu.solve(fo[free])
+        # the inner unknowns: Kii u_i = f_i - Kio u_o
+        u[dofs[:, bi]] = X[:, :, -1] - np.matmul(X[:, :, :-1], u[dofs[:, bo]][:, :, None])[:, :, 0]
         reaction = self._element_product(u) - f
         reaction[~held] = 0.0
         disp = u.reshape(-1, 3)[self.dof]
