@@ -11,7 +11,12 @@ figure.
 ``--convergence`` also analyses the chair at finer meshes (level 2, two
 layers) and prints how the figures move: the table in docs/structure.md.
 
-    python benchmarks/bench_structure.py [--repeat 5] [--material petg --thickness 0.003] [--level 1] [--convergence]
+``--against REV`` times the FEM module (seatkit/structure/fem.py) of a git
+revision side by side with the working tree's, alternating the two in each
+round (on a shared machine the load drifts: alternating keeps the
+comparison fair), and prints how far their figures differ.
+
+    python benchmarks/bench_structure.py [--repeat 5] [--material petg --thickness 0.003] [--level 1] [--convergence] [--against REV]
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ def main() -> None:
     ap.add_argument("--template", default="chair")
     ap.add_argument("--level", type=int, default=None, help="mesh level (default: the analysis' default, 2)")
     ap.add_argument("--convergence", action="store_true")
+    ap.add_argument("--against", metavar="REV", help="also time seatkit/structure/fem.py of this git revision, alternating")
     args = ap.parse_args()
 
     from threadpoolctl import threadpool_limits
@@ -71,6 +77,8 @@ def main() -> None:
     print(f"  peak memory allocated by one analysis: {peak / 2**20:.0f} MiB")
     print(f"  max von Mises {s['max_von_mises_pa'] / 1e6:.3f} MPa, safety factor {s['safety_factor']:.1f}, "
           f"max deflection {s['max_deflection_m'] * 1000:.3f} mm")
+    if args.against:
+        _against(args.against, run, args.repeat)
     if args.convergence:
         print("  level layers  elements    dofs   max deflection   max von Mises   away from floor   seconds")
         with threadpool_limits(limits=1):
@@ -80,6 +88,57 @@ def main() -> None:
                 print(f"  {level:5d} {layers:6d} {r['mesh']['elements']:9d} {r['mesh']['dofs']:7d} "
                       f"{r['max_deflection_m'] * 1000:13.4f} mm {r['max_von_mises_pa'] / 1e6:11.4f} MPa "
                       f"{r['max_von_mises_away_from_floor_pa'] / 1e6:11.4f} MPa {time.perf_counter() - t0:9.2f}")
+
+
+def _against(rev: str, run, repeat: int) -> None:
+    """Old (``rev``'s fem.py) and new analyses alternating: CPU and wall medians, largest figure difference."""
+    import importlib.util
+    import os
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    import numpy as np
+    from threadpoolctl import threadpool_limits
+
+    import seatkit.structure.analysis as analysis
+    from seatkit.structure import fem
+
+    root = Path(__file__).resolve().parent.parent
+    source = subprocess.run(["git", "show", f"{rev}:seatkit/structure/fem.py"], cwd=root, capture_output=True, text=True, check=True).stdout
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "fem_reference.py"
+        path.write_text(source)
+        spec = importlib.util.spec_from_file_location("fem_reference", path)
+        old = importlib.util.module_from_spec(spec)
+        sys.modules["fem_reference"] = old
+        spec.loader.exec_module(old)
+    models = {rev: old.Elasticity, "working tree": fem.Elasticity}
+    times = {k: [] for k in models}
+    out, loads = {}, []
+    try:
+        with threadpool_limits(limits=1):
+            for r in range(repeat + 1):  # round 0 warms both up
+                for name in models if r % 2 == 0 else list(models)[::-1]:
+                    analysis.Elasticity = models[name]
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    out[name] = run()
+                    if r:
+                        times[name].append((time.process_time() - c0, time.perf_counter() - t0))
+                loads.append(os.getloadavg()[0])
+    finally:
+        analysis.Elasticity = fem.Elasticity
+    print(f"  against {rev}, {repeat} alternating rounds, 1-minute load average {min(loads):.1f}-{max(loads):.1f}:")
+    for name, v in times.items():
+        cpu, wall = np.array(v).T
+        print(f"    {name:>14}: median {np.median(cpu):.2f} s CPU (min {cpu.min():.2f}, max {cpu.max():.2f}), "
+              f"{np.median(wall):.2f} s wall (min {wall.min():.2f}, max {wall.max():.2f})")
+    a, b = out[rev], out["working tree"]
+    keys = ("max_von_mises_pa", "safety_factor", "max_deflection_m", "applied_load_n", "floor_reaction_n", "mass_kg")
+    figures = max(abs(a.summary[k] - b.summary[k]) / abs(a.summary[k]) for k in keys)
+    field = np.abs(a.solution.displacement - b.solution.displacement).max() / np.abs(a.solution.displacement).max()
+    print(f"    largest relative difference: figures {figures:.1e}, displacement field {field:.1e}")
 
 
 if __name__ == "__main__":

@@ -26,6 +26,7 @@ scikit-fem's scalar degree of freedom ``d``.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -103,7 +104,7 @@ class Elasticity:
         self.dx = np.asarray(self.basis.dx)
         self.volume = float(self.dx.sum())
         self.shear_basis = skfem.Basis(skmesh, skfem.ElementHex2(), quadrature=_shear_rule()) if selective else None
-        self.stiffness = self._assemble(self.shear_basis)
+        self.element_stiffness = self._element_stiffness()  # (E, 81, 81)
 
     @property
     def n_dofs(self) -> int:
@@ -113,41 +114,52 @@ class Elasticity:
         d = self.basis.element_dofs.T  # (E, 27)
         return (3 * d[:, :, None] + np.arange(3)).reshape(len(d), -1)  # (E, 81): node-major, then component
 
-    def _assemble(self, shear_basis=None) -> sp.csr_matrix:
+    @functools.cached_property
+    def stiffness(self) -> sp.csr_matrix:
+        """The global stiffness (every degree of freedom); :meth:`solve` assembles only the free ones."""
+        return self._assemble(np.ones(self.basis.N, bool))
+
+    def _element_stiffness(self) -> np.ndarray:
+        """(E, 81, 81) element stiffness matrices, rows and columns numbered node-major then component."""
         lam, mu = self.material.lame
         g = self.grads  # (E, Q, a, i)
         n_el, n_q, n_b, _ = g.shape
         flat = g.reshape(n_el, n_q, n_b * 3)
         # H[e, a, i, b, j] = sum_q dx g[a, i] g[b, j]
         H = np.matmul((flat * self.dx[:, :, None]).transpose(0, 2, 1), flat).reshape(n_el, n_b, 3, n_b, 3)
-        # K[a i, b j] = lam g_ai g_bj + mu g_aj g_bi + mu delta_ij (g_a . g_b)
-        K = lam * H + mu * H.transpose(0, 1, 4, 3, 2)
         trace = np.einsum("eakbk->eab", H)
+        if self.shear_basis is not None:
+            # transverse shear: take out its fully integrated energy and put in the reduced one, in one product
+            gs = np.stack([self.shear_basis.basis[a][0].grad for a in range(n_b)]).transpose(2, 3, 0, 1)
+            full, w_full = self._shear_strains(self.basis, g, self.dx)
+            reduced, w_reduced = self._shear_strains(self.shear_basis, gs, np.asarray(self.shear_basis.dx))
+            S = np.concatenate([full, reduced], axis=1)  # (E, R, 81)
+            W = mu * np.concatenate([-w_full, w_reduced], axis=1)  # (E, R)
+            K = np.matmul((S * W[:, :, None]).transpose(0, 2, 1), S)
+            del S
+        else:
+            K = np.zeros((n_el, 3 * n_b, 3 * n_b))
+        # K[a i, b j] += lam g_ai g_bj + mu g_aj g_bi + mu delta_ij (g_a . g_b), in place (each temporary is 65 MB for a chair)
+        K5 = K.reshape(H.shape)
+        H *= mu
+        K5 += H.transpose(0, 1, 4, 3, 2)
+        H *= lam / mu
+        K5 += H
+        del H
         for i in range(3):
-            K[:, :, i, :, i] += mu * trace
-        if shear_basis is not None:
-            # transverse shear: take out its fully integrated energy, put in the reduced one
-            K -= self._shear_stiffness(self.basis, g, self.dx)
-            gs = np.stack([shear_basis.basis[a][0].grad for a in range(n_b)]).transpose(2, 3, 0, 1)
-            K += self._shear_stiffness(shear_basis, gs, np.asarray(shear_basis.dx))
-        dofs = self._vector_dofs()
-        m = dofs.shape[1]
-        rows = np.broadcast_to(dofs[:, :, None], (n_el, m, m)).ravel()
-        cols = np.broadcast_to(dofs[:, None, :], (n_el, m, m)).ravel()
-        A = sp.coo_matrix((K.reshape(-1), (rows, cols)), shape=(self.n_dofs, self.n_dofs)).tocsr()
-        A.sum_duplicates()
-        return A
+            K5[:, :, i, :, i] += mu * trace
+        return K
 
-    def _shear_stiffness(self, basis, g: np.ndarray, dx: np.ndarray) -> np.ndarray:
-        """(E, a, i, b, j) stiffness of the two transverse shear strains, integrated by ``basis``'s rule.
+    def _shear_strains(self, basis, g: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The two transverse shear strains per point of ``basis``'s rule as rows (E, 2 Q, 81), and their weights (E, 2 Q).
 
         At each point the thickness direction ``n`` is the normal of the
         element's reference x-y plane (its surface directions), ``t1`` and
         ``t2`` complete an orthonormal frame; the shear strains are
         ``gamma_k = t_k . grad(u) . n + n . grad(u) . t_k`` and their energy
-        density is ``mu / 2 (gamma_1^2 + gamma_2^2)``.
+        density is ``mu / 2 (gamma_1^2 + gamma_2^2)``: the stiffness is
+        ``mu sum_q dx_q G_q G_q^T`` over the rows ``G`` returned.
         """
-        mu = self.material.lame[1]
         DF = basis.mapping.DF(basis.X)  # (3, 3, E, Q): d x_i / d X_j
         a1 = np.moveaxis(DF[:, 0], 0, -1)
         a2 = np.moveaxis(DF[:, 1], 0, -1)
@@ -156,15 +168,45 @@ class Elasticity:
         t1 = a1 / np.linalg.norm(a1, axis=-1, keepdims=True)
         t2 = np.cross(n, t1)
         gn = np.einsum("eqai,eqi->eqa", g, n)
-        K = 0.0
+        n_el, n_q, n_b, _ = g.shape
+        rows = []
         for t in (t1, t2):
             gt = np.einsum("eqai,eqi->eqa", g, t)
             # G[e, q, a, c] = (t . g_a) n_c + (n . g_a) t_c
             G = gt[..., None] * n[:, :, None, :] + gn[..., None] * t[:, :, None, :]
-            flat = G.reshape(G.shape[0], G.shape[1], -1)
-            K = K + mu * np.matmul((flat * dx[:, :, None]).transpose(0, 2, 1), flat)
-        n_b = g.shape[2]
-        return K.reshape(g.shape[0], n_b, 3, n_b, 3)
+            rows.append(G.reshape(n_el, n_q, n_b * 3))
+        return np.concatenate(rows, axis=1), np.concatenate([dx, dx], axis=1)
+
+    def _assemble(self, kept: np.ndarray, element_matrices=None, element_nodes=None) -> sp.csr_matrix:
+        """The stiffness of the scalar degrees of freedom ``kept`` ((N,) bool; all 3 components of each).
+
+        ``element_matrices`` (E, 3 m, 3 m) on the scalar degrees of freedom
+        ``element_nodes`` (E, m): by default the element stiffness on all 27
+        nodes. Assembled in 3 x 3 blocks: the sparsity pattern is found among
+        the m x m node pairs of every element (9 times fewer than the entries),
+        each block component summed with ``np.bincount``, then converted once
+        to CSR. Rows and columns follow the kept degrees of freedom in order,
+        3 per node.
+        """
+        d = self.basis.element_dofs.T if element_nodes is None else element_nodes  # (E, m)
+        Ke = self.element_stiffness if element_matrices is None else element_matrices
+        n_el, n_b = d.shape
+        index = np.full(self.basis.N, -1, np.int64)
+        index[kept] = np.arange(int(kept.sum()))
+        n = int(kept.sum())
+        loc = index[d]
+        pair = (loc[:, :, None] >= 0) & (loc[:, None, :] >= 0)  # (E, m, m)
+        rows = np.broadcast_to(loc[:, :, None], pair.shape)[pair]
+        cols = np.broadcast_to(loc[:, None, :], pair.shape)[pair]
+        keys, block = np.unique(rows * n + cols, return_inverse=True)
+        K = Ke.reshape(n_el, n_b, 3, n_b, 3).transpose(0, 1, 3, 2, 4)[pair]  # (pairs, 3, 3)
+        data = np.empty((len(keys), 3, 3))
+        for i in range(3):
+            for j in range(3):
+                data[:, i, j] = np.bincount(block, weights=K[:, i, j], minlength=len(keys))
+        indptr = np.searchsorted(keys // n, np.arange(n + 1)) if n else np.zeros(1, np.int64)
+        A = sp.bsr_matrix((data, keys % n if n else keys, indptr), shape=(3 * n, 3 * n))
+        return A.tocsr()
 
     def weight_load(self, g: float = GRAVITY) -> np.ndarray:
         """(N, 3) nodal forces of the shell's own weight (along -Y), N."""
@@ -175,18 +217,49 @@ class Elasticity:
         return out
 
     def solve(self, load: np.ndarray, held_nodes: np.ndarray) -> Solution:
-        """Displacements for nodal forces ``load`` (N, 3) with ``held_nodes`` fixed in every direction."""
+        """Displacements for nodal forces ``load`` (N, 3) with ``held_nodes`` fixed in every direction.
+
+        The nodes that belong to one element only, at the same place in
+        every element (the centre, and with one layer the centres of the
+        top and bottom faces: a quarter of the unknowns), are eliminated
+        element by element first (static condensation, exact), SuperLU
+        factorises what remains, and they are recovered from it.
+        """
         import scipy.sparse.linalg as sla
 
         self._check_held(np.asarray(held_nodes, dtype=np.int64))
         n = self.n_dofs
         f = np.zeros(n)
         f.reshape(-1, 3)[self.dof] = load
-        held = np.zeros(n, bool)
-        held.reshape(-1, 3)[self.dof[np.asarray(held_nodes, dtype=np.int64)]] = True
-        free = np.flatnonzero(~held)
-        K = self.stiffness
-        Kff = K[free][:, free].tocsc()
+        held_node = np.zeros(self.basis.N, bool)
+        held_node[self.dof[np.asarray(held_nodes, dtype=np.int64)]] = True
+        held = np.repeat(held_node, 3)
+        d = self.basis.element_dofs.T  # (E, 27)
+        count = np.bincount(d.ravel(), minlength=self.basis.N)
+        inner = np.flatnonzero((count[d] == 1).all(axis=0))  # element slots whose node is the element's own
+        outer = np.setdiff1d(np.arange(d.shape[1]), inner)
+        bi = (3 * inner[:, None] + np.arange(3)).ravel()
+        bo = (3 * outer[:, None] + np.arange(3)).ravel()
+        Ke = self.element_stiffness
+        dofs = self._vector_dofs()
+        # a held inner unknown: its row and column replaced by the identity, its force by 0 (so it stays 0)
+        fixed = held[dofs[:, bi]]  # (E, 3 k)
+        Kii = Ke[:, bi][:, :, bi]
+        Kio = Ke[:, bi][:, :, bo]
+        Kii[fixed] = 0.0
+        Kii.transpose(0, 2, 1)[fixed] = 0.0
+        Kii[:, np.arange(len(bi)), np.arange(len(bi))] += fixed
+        Kio[fixed] = 0.0
+        fi = np.where(fixed, 0.0, f[dofs[:, bi]])
+        X = np.linalg.solve(Kii, np.concatenate([Kio, fi[:, :, None]], axis=2))  # Kii^-1 [Kio, fi]
+        Koo = Ke[:, bo][:, :, bo] - np.matmul(Kio.transpose(0, 2, 1), X[:, :, :-1])
+        fo = f - np.bincount(dofs[:, bo].ravel(), weights=np.matmul(Kio.transpose(0, 2, 1), X[:, :, -1:]).ravel(), minlength=n)
+        kept = ~held_node
+        kept[d[:, inner].ravel()] = False
+        free = np.flatnonzero(np.repeat(kept, 3))
+        # the free outer block only, assembled directly (symmetric: its CSR arrays are its CSC arrays)
+        Kff = self._assemble(kept, Koo, d[:, outer])
+        Kff = sp.csc_matrix((Kff.data, Kff.indices, Kff.indptr), shape=Kff.shape)
         u = np.zeros(n)
         # symmetric positive definite: a symmetric ordering without pivoting
         try:
@@ -199,11 +272,19 @@ class Elasticity:
             else:
                 msg = f"the sparse solver failed on {len(free)} unknowns ({e}); out of memory? try a lower --level"
             raise StructureError(msg) from None
-        u[free] = lu.solve(f[free])
-        reaction = K @ u - f
+        u[free] = lu.solve(fo[free])
+        # the inner unknowns: Kii u_i = f_i - Kio u_o
+        u[dofs[:, bi]] = X[:, :, -1] - np.matmul(X[:, :, :-1], u[dofs[:, bo]][:, :, None])[:, :, 0]
+        reaction = self._element_product(u) - f
         reaction[~held] = 0.0
         disp = u.reshape(-1, 3)[self.dof]
         return Solution(disp, reaction.reshape(-1, 3)[self.dof], np.asarray(load, dtype=np.float64), self.von_mises(u), self.volume)
+
+    def _element_product(self, u: np.ndarray) -> np.ndarray:
+        """``K @ u`` from the element matrices (3 N_dofs,), without the global matrix."""
+        dofs = self._vector_dofs()
+        Ku = np.matmul(self.element_stiffness, u[dofs][:, :, None])[:, :, 0]
+        return np.bincount(dofs.ravel(), weights=Ku.ravel(), minlength=self.n_dofs)
 
     def stress_basis(self):
         """The basis whose quadrature points the stresses are evaluated at.
