@@ -176,11 +176,6 @@ class StructureExporter:
     def prepare(self) -> None:
         """Nothing to prepare: scikit-fem is imported when an analysis runs."""
 
-    prepare_ahead = False
-
-    def prepare(self) -> None:
-        """Nothing to prepare ahead: scikit-fem is imported by the analysis, in the build's process."""
-
     def export(self, result, directory: Path) -> dict[str, Path]:
         analysis = (result.extra or {}).get("structure")
         if analysis is None:  # listed as an exporter without the build step: analyse now
