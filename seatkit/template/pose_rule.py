@@ -17,6 +17,10 @@ docs/templates.md, "The pose rule"):
 - **kneeling**: the same, with the knee within ``kneel_height`` of the
   floor and the thigh more than 45 deg below level: the body rests on the shins, which the chair's leg rows cannot
   reach from below;
+- **standing upright**: both thighs within ``min_thigh_lift_deg`` of
+  straight down: the body stands on its feet and gives the seat and the
+  back nothing to carry (leaning back against the chair, as in
+  ``standing-leaning-back``, lifts the thighs further);
 - **a hand hanging beside or below the seat** (sitting: the trunk within
   60 deg of vertical, the thighs within 45 deg of level): a wrist less than
   ``hand_clearance`` above the hip joints and more than
@@ -52,6 +56,7 @@ DEFAULT_RULE = {
     "hand_clearance": 0.05,
     "hand_side_margin": 0.04,
     "max_hand_drop": 0.08,
+    "min_thigh_lift_deg": 10.0,
 }
 
 _UP = np.array([0.0, 1.0, 0.0])
@@ -151,6 +156,13 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
                 f"{r['max_shank_back_deg']:.0f}): a seat under the thigh would cut through the calf"
             )
             parts += [side + "Leg", side + "UpLeg"]
+    lift = [90.0 - measures["legs"][sd]["thigh_down_deg"] for sd in ("Right", "Left")]
+    if max(lift) < r["min_thigh_lift_deg"]:
+        reasons.append(
+            f"standing upright: both thighs hang within {max(lift):.0f} deg of straight down (at least {r['min_thigh_lift_deg']:.0f} needed): "
+            "the body stands on its feet and gives the seat and the back nothing to carry"
+        )
+        parts += ["RightUpLeg", "LeftUpLeg"]
     # hands hanging beside or below the seat (sitting only: standing and lying bodies have no seat beside the hands)
     hips_c = 0.5 * (j[S["LeftUpLeg"]] + j[S["RightUpLeg"]])
     half = 0.5 * float(np.linalg.norm(j[S["LeftUpLeg"]] - j[S["RightUpLeg"]]))
@@ -187,7 +199,7 @@ class PoseRuleStep:
     """Refuse, before any fitting, the poses the template's grid cannot follow (:func:`assess_pose`)."""
 
     name = "pose-rule"
-    description = "refuse poses the grid cannot follow (lying on the side, sitting sideways, feet under the body, kneeling), from the skeleton, before fitting"
+    description = "refuse poses the grid cannot follow (lying on the side, sitting sideways, feet under the body, kneeling, standing upright), from the skeleton, before fitting"
     stage = "blocks"
     requires = ()
     options = {
@@ -198,6 +210,7 @@ class PoseRuleStep:
         "hand_clearance": Option("number", "sitting, a wrist less than this above the hip joints and outside them hangs beside the seat", DEFAULT_RULE["hand_clearance"], "m", 0.0, 1.0),
         "hand_side_margin": Option("number", "how far outside the hip joints such a wrist must be", DEFAULT_RULE["hand_side_margin"], "m", 0.0, 1.0),
         "max_hand_drop": Option("number", "sitting, a wrist more than this below the hip joints hangs below the seat", DEFAULT_RULE["max_hand_drop"], "m", 0.0, 2.0),
+        "min_thigh_lift_deg": Option("number", "a body whose thighs both hang closer than this to straight down stands upright", DEFAULT_RULE["min_thigh_lift_deg"], "deg", 0.0, 90.0),
     }
 
     def run(self, state, *, options: Mapping[str, Any]) -> None:
