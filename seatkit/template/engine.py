@@ -153,38 +153,39 @@ class YamlTemplate:
         # Several starts (docs/templates.md, "Seed-independent success"): the
         # seed's own RANSAC stream first; when its cage is refused, the same
         # fixed fallback streams whatever the seed, first with every step,
-        # then without the optional ones (armrests). The first valid cage wins,
-        # so success does not depend on the seed; the seed only picks among
-        # valid designs.
-        plan = [(np.random.default_rng(seed), False)]
-        plan += [(np.random.default_rng([_FALLBACK, k]), False) for k in range(1, p["fit_attempts"])]
-        if any(getattr(step, "optional", False) for step, _ in bound):
-            plan += [(np.random.default_rng(seed), True)] + [(np.random.default_rng([_FALLBACK, k]), True) for k in range(1, p["fit_attempts"])]
+        # then without the last optional step (armrests), then without the
+        # last two (and the crossed-legs merge), and so on. The first valid
+        # cage wins, so success does not depend on the seed; the seed only
+        # picks among valid designs.
+        streams = [lambda: np.random.default_rng(seed)] + [lambda k=k: np.random.default_rng([_FALLBACK, k]) for k in range(1, p["fit_attempts"])]
+        optional = [i for i, (step, _) in enumerate(bound) if getattr(step, "optional", False)]
+        phases = [frozenset(optional[len(optional) - n :]) for n in range(len(optional) + 1)]
+        plan = [(stream(), dropped) for dropped in phases for stream in streams]
         first = None
-        for attempt, (rng, drop_optional) in enumerate(plan):
+        for attempt, (rng, dropped) in enumerate(plan):
             try:
-                mesh = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, drop_optional)
+                mesh = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
             except UnsupportedPoseError as e:
                 if getattr(e, "seed_independent", False):
                     raise
                 first = first or e
                 continue
             stream = "seed" if attempt % max(1, p["fit_attempts"]) == 0 else f"fallback {attempt % p['fit_attempts']}"
-            mesh.meta["fit_attempts"] = {"attempt": attempt + 1, "of": len(plan), "stream": stream, "optional_steps_dropped": drop_optional}
+            mesh.meta["fit_attempts"] = {"attempt": attempt + 1, "of": len(plan), "stream": stream, "optional_steps_dropped": bool(dropped)}
             if attempt:
                 mesh.meta["fit_attempts"]["first_refusal"] = str(first)
             return mesh
         first.diagnostics["fit_attempts"] = len(plan)
         raise first
 
-    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, drop_optional) -> ControlMesh:
+    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset()) -> ControlMesh:
         """One run of the bound steps and the final check with one random stream."""
         state = FitState(self.spec, p, [self._block(i, b, pr) for i, (b, pr) in enumerate(zip(bodies, pressures))], rng)
         state.meta["template"] = self.name
         state.meta["seed"] = int(seed)
         state.meta["special_cases"] = []
         for i, (step, options) in enumerate(bound):
-            if drop_optional and getattr(step, "optional", False):
+            if i in dropped:
                 state.meta.setdefault("dropped_steps", []).append(self.spec.steps[i]["step"])
                 continue
             step.run(state, options=dict(per_step.get(i, options)))

@@ -208,7 +208,7 @@ class PoseRuleStep:
     """Refuse, before any fitting, the poses the template's grid cannot follow (:func:`assess_pose`)."""
 
     name = "pose-rule"
-    description = "refuse poses the grid cannot follow (lying on the side, sitting sideways, feet under the body, kneeling), from the skeleton, before fitting"
+    description = "refuse poses the grid cannot follow (lying on the side, sitting sideways, feet under the body, kneeling, standing upright), from the skeleton, before fitting"
     stage = "blocks"
     requires = ()
     options = {

@@ -177,6 +177,10 @@ class CrossedLegsStep:
     """One plane for both legs when their faces come too close (paper Sec. 5.2)."""
 
     name = "crossed-legs"
+    #: when every start's cage with the merged rows is refused (the raised
+    #: leg's calf hangs through the shared plane), the engine tries the legs
+    #: on their own faces, after dropping the armrests (docs/templates.md)
+    optional = True
     description = "merge the two leg faces of a row into one plane when they are closer than min_distance"
     stage = "blocks"
     requires = ("fit-planes",)
