@@ -142,9 +142,16 @@ def test_python_step_example_is_installed_and_builds(installed_level, tmp_path):
 
 def test_an_uninstalled_checkout_says_what_failed_to_import(tmp_path):
     # the checkout on the path, its dependencies too, but not its installation (no site: no .pth finder)
-    deps = [p for p in sys.path if p.endswith("site-packages")]
+    # the dependencies without seatkit's own installed copy (a non-editable
+    # install puts seatkit and its built-in plugins in site-packages too)
+    deps = tmp_path / "deps"
+    deps.mkdir()
+    for site in (Path(p) for p in sys.path if p.endswith("site-packages")):
+        for entry in site.iterdir():
+            if not entry.name.lower().startswith("seatkit") and not (deps / entry.name).exists():
+                (deps / entry.name).symlink_to(entry)
     env = {k: v for k, v in os.environ.items() if not k.startswith("PYTHON")}
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), *deps])
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), str(deps)])
     code = "import sys; from seatkit.cli import main; sys.argv = ['seatkit', 'build', '--template', 'chair']; main()"
     done = subprocess.run([sys.executable, "-S", "-c", code], capture_output=True, text=True, env=env, cwd=tmp_path)
     assert done.returncode == 1, done.stderr
