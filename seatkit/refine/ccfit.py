@@ -56,13 +56,19 @@ supported body regions without passing through the body. ICP-like:
 6. repeat until the weighted mean distance stops improving by more than
    ``tolerance`` (m) and no probe is deeper in the body than
    ``max_penetration`` (3 mm at the probes leaves 2 mm for the surface
-   between them, for the 5 mm the evaluation allows), or ``max_iterations``.
+   between them, for the 5 mm the evaluation allows), or ``max_iterations``
+   (then up to ``extra_iterations`` more while the limit is not met and the
+   deepest probe still gets shallower).
 
 Ground and fixed control points do not move. The best iterate (smallest
 mean distance among those within the penetration limit, else the
-shallowest) is returned; the penetration left is reported in ``meta``, and
+shallowest) is kept; the penetration left is reported in ``meta``, and
 with ``raise_on_penetration`` a penetration above the limit is a
-:class:`~seatkit.errors.SolverError`.
+:class:`~seatkit.errors.SolverError`. Last, the guarantee: the kept
+surface is measured as the evaluation measures it (surface below the skin,
+body vertices inside the furniture); deeper than ``surface_limit`` (5 mm),
+it is refitted with a tighter probe target, and refused with a
+``SolverError`` if it stays too deep, never returned as a success.
 """
 
 from __future__ import annotations
