@@ -303,7 +303,11 @@ def fit_baseline(recipe: Mapping, bodies, pressures, registry, segments) -> dict
     # a design.npz written before evaluate.baseline_refiners existed: the default
     refs = ev.get("baseline_refiners", [{"name": n, "params": {}} for n in DEFAULT_BASELINE_REFINERS])
     for ref in refs:
-        base = registry.get("refiner", ref["name"]).refine(base, bodies, pressures, params=ref["params"])
+        params = ref["params"]
+        if ref["name"] == "catmull-clark-fit" and "surface_limit" not in params:
+            # the baseline is measured, not delivered: its penetration is reported, never refused
+            params = {**params, "surface_limit": 0.0}
+        base = registry.get("refiner", ref["name"]).refine(base, bodies, pressures, params=params)
     surface = limit_surface(base, level=recipe["surface_level"])
     solver = registry.get("pressure_solver", p["solver"])
     metrics, fields = evaluate_design(

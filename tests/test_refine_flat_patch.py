@@ -93,7 +93,8 @@ def test_chair_after_both_refiners_beats_flat_patch(seated, pose):
     ours = fit_report(fitted, [body], [pressure])
     segments = fitted.meta["catmull-clark-fit"]["supported_segments"][0]
     flat = FlatPatchTemplate().fit([body], [pressure], params={"segments": segments})
-    baseline = fit_report(CatmullClarkFitRefiner().refine(flat, [body], [pressure]), [body], [pressure])
+    # the baseline is measured, not delivered: no 5 mm refusal (as seatkit.pipeline.fit_baseline)
+    baseline = fit_report(CatmullClarkFitRefiner().refine(flat, [body], [pressure], params={"surface_limit": 0.0}), [body], [pressure])
     # the paper's Table 1 distance (supported body vertices to the surface)
     assert ours["avg_distance"] < baseline["avg_distance"]
     # no body vertex more than 5 mm inside the surface, read both ways: the

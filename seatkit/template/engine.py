@@ -187,6 +187,8 @@ class YamlTemplate:
         for i, (step, options) in enumerate(bound):
             if i in dropped:
                 state.meta.setdefault("dropped_steps", []).append(self.spec.steps[i]["step"])
+                if hasattr(step, "fallback"):  # the step says what doing without it means (no-backrest)
+                    step.fallback(state, options=dict(per_step.get(i, options)))
                 continue
             step.run(state, options=dict(per_step.get(i, options)))
         if state.grid is None:

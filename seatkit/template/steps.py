@@ -206,20 +206,35 @@ class NoBackrestStep:
     front direction (the body's left-right axis crossed with the hips-to-
     upper-back axis), so that a chest resting on the thighs does not count
     as a back needing a backrest.
+
+    Optional (as the armrests): when every cage with the backrest is
+    refused, the engine tries again without the optional steps; for this
+    step that means going without a backrest whose load is below
+    ``optional_below`` (a lightly loaded back a cage cannot reach without
+    crossing the body, as the lower back of a large body behind its hips).
     """
 
     name = "no-backrest"
+    optional = True
     description = "remove the given end rows when the load pushing their segments forwards is below min_load_fraction of the total"
     stage = "blocks"
     requires = ()
     options = {
         "rows": Option("rows", "the backrest rows (must be the last or first rows; default: none)"),
         "min_load_fraction": Option("number", "share of the total normal reaction, pushing the back forwards, below which the back needs no support", 0.01, "1", 0.0, 1.0),
+        "optional_below": Option("number", "share below which the backrest is dropped too when every cage with it is refused (0: never)", 0.0, "1", 0.0, 1.0),
     }
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        self._apply(state, options, float(options.get("min_load_fraction", 0.01)), fallback=False)
+
+    def fallback(self, state: FitState, *, options: Mapping[str, Any]) -> None:
+        """What doing without this optional step means: no backrest below ``optional_below`` either."""
+        thr = max(float(options.get("min_load_fraction", 0.01)), float(options.get("optional_below", 0.0)))
+        self._apply(state, options, thr, fallback=True)
+
+    def _apply(self, state: FitState, options: Mapping[str, Any], thr: float, *, fallback: bool) -> None:
         names = options.get("rows") or []
-        thr = float(options.get("min_load_fraction", 0.01))
         for block in state.blocks:
             rows = [state.spec.rows.index(n) for n in names]
             segs = {s for r in rows for s in block.row_segments(r)}
@@ -230,6 +245,8 @@ class NoBackrestStep:
             total = float(block.normal_force.sum()) or 1.0
             share = load / total
             record = {"case": "no-backrest", "person": block.person, "load_fraction": share, "threshold": thr, "taken": share < thr}
+            if fallback:
+                record["fallback"] = True  # every cage with the backrest was refused
             if share < thr:
                 keep = [r for r in block.rows if r not in rows]
                 if not keep or keep != list(range(keep[0], keep[-1] + 1)):
