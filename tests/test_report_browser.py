@@ -29,6 +29,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from chromium import OFFLINE_FLAGS
 from test_report_support import evaluated_result, plain_result
 
 pytestmark = pytest.mark.browser
@@ -61,18 +62,8 @@ class Browser:
             os.dup2(b, 4)
 
         flags = [
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--enable-unsafe-swiftshader",  # software WebGL without the deprecation warning
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--disable-dev-shm-usage",
+            *OFFLINE_FLAGS,
             f"--user-data-dir={profile}",
-            "--proxy-server=127.0.0.1:9",
             "--host-resolver-rules=MAP * ~NOTFOUND",
             "--remote-debugging-pipe",
             f"--window-size={WINDOW[0]},{WINDOW[1]}",
