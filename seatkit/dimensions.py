@@ -26,6 +26,7 @@ from __future__ import annotations
 import numpy as np
 
 from seatkit.skeleton import SEGMENT_INDEX
+from seatkit.template.grid import segment_of_vertex
 
 __all__ = ["support_dimensions", "LOADED_PA"]
 
@@ -60,7 +61,7 @@ def support_dimensions(bodies, fields) -> list[dict]:
             out.append(dict(_NONE))
             continue
         loaded = np.asarray(field.pressure) > LOADED_PA
-        segment = np.argmax(body.weights, axis=1)
+        segment = segment_of_vertex(body)
         v = body.vertices
         seat = loaded & np.isin(segment, _SEAT)
         thighs = loaded & np.isin(segment, _THIGHS)

@@ -42,6 +42,7 @@ import numpy as np
 from seatkit.errors import UnsupportedPoseError
 from seatkit.model import Body
 from seatkit.skeleton import SEGMENT_INDEX as S
+from seatkit.template.grid import segment_of_vertex
 from seatkit.template.options import Option
 
 __all__ = ["DEFAULT_RULE", "PoseVerdict", "assess_pose", "PoseRuleStep", "template_rule"]
@@ -188,7 +189,7 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
     # body needs no support (standing-leaning-back has its centre of mass
     # behind the heels: it leans on the support)
     com = (body.segment_mass[:, None] * body.segment_com).sum(axis=0) / float(body.segment_mass.sum())
-    feet = np.isin(np.argmax(body.weights, axis=1), [S["LeftFoot"], S["RightFoot"]])
+    feet = np.isin(segment_of_vertex(body), [S["LeftFoot"], S["RightFoot"]])
     sole = body.vertices[feet & (body.vertices[:, 1] < floor + 0.03)] @ front
     standing = all(leg["thigh_down_deg"] > 45.0 for leg in measures["legs"].values())
     if standing and len(sole):
