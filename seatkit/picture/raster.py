@@ -1,4 +1,4 @@
-"""A small vectorised z-buffer rasteriser for the report pictures.
+"""A small vectorised z-buffer rasteriser: every picture seatkit draws.
 
 Matplotlib draws a 27k-triangle body in about a second per view; the report
 needs a dozen views in a fraction of that. This module projects triangle
