@@ -19,7 +19,7 @@ surface is drawn with it: the report's pictures, ``seatkit body``,
 from __future__ import annotations
 
 from seatkit.picture.colour import PRESSURE_SCALE, ColourScale, colour_scale, nice_ticks
-from seatkit.picture.raster import Frame, Raster, composite, fit_frame, light_vertices, rasterize, to_uint8, view_rotation
+from seatkit.picture.raster import Frame, Raster, composite, fit_frame, fit_frames, light_vertices, rasterize, to_uint8, view_rotation
 from seatkit.picture.sheet import BACKGROUND, TEXT, colour_bar, font, png_bytes, sheet, to_pil
 
 __all__ = [
@@ -33,6 +33,7 @@ __all__ = [
     "colour_scale",
     "composite",
     "fit_frame",
+    "fit_frames",
     "font",
     "light_vertices",
     "nice_ticks",

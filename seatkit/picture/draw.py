@@ -8,9 +8,10 @@ reads the depth buffers of the rasters to leave out what a solid hides.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from seatkit.picture.colour import nice_ticks
 from seatkit.picture.raster import Frame
 
 __all__ = ["WIRE_DEPTH_MARGIN", "WIRE_SAMPLES", "draw_dashed_line", "draw_scale_bar", "draw_segments", "draw_wire", "quad_edges"]
@@ -117,7 +118,8 @@ def draw_scale_bar(image, frame: Frame, *, colour, font, fraction: float = 0.25)
     from PIL import ImageDraw
 
     target = fraction * frame.width / frame.scale
-    length = float(nice_ticks(0.0, 2 * target, 2)[1])  # a 1, 2 or 5 step about the target length
+    power = 10.0 ** math.floor(math.log10(target))
+    length = max(s * power for s in (1, 2, 5) if s * power <= target)  # the longest round length up to the target
     draw = ImageDraw.Draw(image)
     x0, y = 10, image.height - 12
     x1 = x0 + length * frame.scale
