@@ -9,6 +9,7 @@ input gives the same bytes.
 
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
@@ -16,7 +17,7 @@ import pytest
 from PIL import Image
 
 from seatkit import picture as pic
-from seatkit.body.render import render_body
+from seatkit.body.render import SCALE_BAND, render_body
 from seatkit.picture import raster as rs
 from seatkit.picture.sheet import BAR_MARGIN, BAR_STRIP_LEFT, BAR_STRIP_WIDTH, CAPTION_HEIGHT, TITLE_HEIGHT
 
@@ -51,7 +52,8 @@ def _read(png, points, width: int, view=(0.0, 0.0)):
     top = TITLE_HEIGHT + CAPTION_HEIGHT
     rot = rs.view_rotation(*view)
     scale = rs.fit_frame([points], rot, width, round(1.25 * width)).scale
-    return img, top, rs.fit_frame([points], rot, width, img.shape[0] - top, scale=scale)
+    frame = rs.fit_frame([points], rot, width, img.shape[0] - top - SCALE_BAND, scale=scale)
+    return img, top, dataclasses.replace(frame, height=frame.height + SCALE_BAND)
 
 
 BG = np.round(pic.BACKGROUND * 255).astype(int)
@@ -68,8 +70,8 @@ def test_the_body_covers_the_pixels_of_its_outline(tmp_path):
     yy, xx = np.mgrid[0 : frame.height, 0:width] + 0.5
     inside = (xx > x0) & (xx < x1) & (yy > y0) & (yy < y1)
     body = np.any(np.abs(panel - BG) > 3, axis=2)
-    body[-40:, :] = False  # the scale bar and its label, bottom left
-    inside[-40:, :] = False
+    assert not inside[-SCALE_BAND:].any()  # the band of the scale bar, under the view
+    body[-SCALE_BAND:, :] = False
     assert body[inside].all()
     assert not body[~inside].any()
     # the box is 0.5 m wide: its outline spans 0.5 m at the frame's scale, within a pixel

@@ -11,6 +11,7 @@ with a colour bar in the scalar's unit. Each panel carries a scale bar
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Sequence
 
@@ -67,6 +68,8 @@ def view_axes(view: str | Sequence[float]) -> np.ndarray:
 
 #: Colours of the overlays: bones, joints, the ground line, the scale bar (RGB bytes).
 BONE_RGB, JOINT_RGB, GROUND_RGB, SCALE_BAR_RGB = (0, 0, 0), (220, 20, 20), (100, 100, 100), (60, 60, 60)
+#: Height of the band under each view that holds its scale bar, pixels.
+SCALE_BAND = 34
 
 
 def _caption(view) -> str:
@@ -119,7 +122,8 @@ def render_body(
         Draw the ground line y = 0 in views whose up is +Y.
     panel_size : float
         Inches per view panel (with ``dpi``: ``panel_size * dpi`` pixels
-        wide, 1.25 times that high).
+        wide, at most 1.25 times that high: as high as the views need,
+        and a band for the scale bar).
     dpi : int
     base_color : RGB tuple
         Colour of the mesh without scalars.
@@ -157,6 +161,9 @@ def render_body(
     if need + 2 < height:
         height = int(np.ceil(need)) + 2
         frames = [pic.fit_frame(fit, r, width, height, margin=margin, scale=frames[0].scale) for r in rotations]
+    # a band below the views for the scale bar, clear of the feet and the ground line
+    height += SCALE_BAND
+    frames = [replace(f, height=height) for f in frames]
     normals = vertex_normals(vertices, faces)
     base = np.broadcast_to(np.asarray(base_color, dtype=np.float64), vertices.shape)
     text = pic.font(13)
