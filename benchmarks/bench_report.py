@@ -55,7 +55,7 @@ def main() -> None:
             print(f"{exporter.name:12s} first {first:.3f} s  best {min(runs):.3f} s  median {statistics.median(runs):.3f} s  ({sizes})")
     print(f"both exporters, first call: {sum(firsts.values()):.3f} s (budget 0.5 s)")
 
-    from seatkit.export import raster as rs
+    from seatkit.picture import raster as rs
 
     rot = rs.view_rotation(0.0, 0.0)
     frame = rs.fit_frame([body.vertices], rot, 360, 440)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from seatkit.export import raster as rs
+from seatkit.picture import raster as rs
 from seatkit.export import report
 from seatkit.parallel import can_fork, forking, forking_allowed
 from test_report_support import evaluated_result, plain_result

@@ -17,9 +17,9 @@ Two exporters (registered by the ``seatkit_exporters`` plugin):
     switch to the baseline) and the metrics table. plotly.js is embedded, so
     the file opens with no network.
 
-The pictures come from :mod:`seatkit.export.raster` (a numpy z-buffer) and
-PIL, not matplotlib, to stay within the build's time budget (see
-docs/performance.md, "Report"). Both exporters draw what the result holds:
+The pictures are drawn with :mod:`seatkit.picture` (a numpy z-buffer, the
+colour scale and bar, the sheet layout, PIL), not matplotlib, to stay within
+the build's time budget (see docs/performance.md, "Report"). Both exporters draw what the result holds:
 without an evaluation (``metrics`` empty) the contact pressure, the baseline
 and the table are left out, never invented.
 
@@ -41,9 +41,11 @@ from pathlib import Path
 
 import numpy as np
 
+from seatkit import picture as pic
 from seatkit.errors import InputError
-from seatkit.export import raster as rs
-from seatkit.io import atomic_write, write_text_atomic
+from seatkit.io import write_bytes_atomic, write_text_atomic
+from seatkit.picture import draw as pic_draw
+from seatkit.picture import raster as rs
 from seatkit.pressure.areas import vertex_normals
 
 __all__ = [
@@ -66,7 +68,7 @@ PNG_FILES = {
 
 #: Size of one rendered view, pixels.
 PANEL_WIDTH, PANEL_HEIGHT = 360, 440
-#: Camera (azimuth, elevation) of each named view, degrees (see :func:`seatkit.export.raster.view_rotation`).
+#: Camera (azimuth, elevation) of each named view, degrees (see :func:`seatkit.picture.raster.view_rotation`).
 VIEWS = {
     "front": (0.0, 0.0),
     "back": (180.0, 0.0),
@@ -74,7 +76,7 @@ VIEWS = {
     "three-quarter": (35.0, 20.0),
     "from below": (160.0, -50.0),
 }
-BACKGROUND = np.array([0.965, 0.965, 0.975])
+BACKGROUND = pic.BACKGROUND
 #: Body colour where no pressure is drawn; surface and cage colours.
 BODY_RGB = np.array([0.86, 0.79, 0.72])
 SURFACE_RGB = np.array([0.42, 0.60, 0.80])
@@ -82,7 +84,7 @@ BASELINE_RGB = np.array([0.80, 0.58, 0.40])
 CAGE_FACE_RGB = np.array([0.55, 0.70, 0.90])
 CAGE_EDGE = (25, 70, 160)
 CAGE_EDGE_HIDDEN = (140, 165, 215)
-TEXT = (30, 30, 30)
+TEXT = pic.TEXT
 #: Opacity of the limit surface drawn with the body, of the cage faces.
 SURFACE_ALPHA, CAGE_ALPHA = 0.55, 0.22
 #: plotly's name of the pressure colour scale, and whether it is reversed:
@@ -103,14 +105,9 @@ HTML_SURFACE_OPACITY = 0.35
 
 
 def _colorscale_stops() -> tuple[np.ndarray, np.ndarray]:
-    """Positions (s,) and RGB (s, 3) in [0, 1] of the pressure colour scale."""
-    import plotly.colors as pc
-
-    hexes = list(getattr(pc.sequential, COLORSCALE))
-    if COLORSCALE_REVERSED:
-        hexes = hexes[::-1]
-    rgb = np.array([[int(h[i : i + 2], 16) for i in (1, 3, 5)] for h in hexes], dtype=np.float64) / 255.0
-    return np.linspace(0.0, 1.0, len(hexes)), rgb
+    """Positions (s,) and RGB (s, 3) in [0, 1] of the pressure colour scale
+    (:data:`seatkit.picture.PRESSURE_SCALE`: plotly's :data:`COLORSCALE`)."""
+    return pic.PRESSURE_SCALE.positions, pic.PRESSURE_SCALE.colours
 
 
 def pressure_rgb(pressure: np.ndarray, vmax: float) -> np.ndarray:
@@ -128,9 +125,7 @@ def pressure_rgb(pressure: np.ndarray, vmax: float) -> np.ndarray:
     (n, 3) float64
         RGB in [0, 1].
     """
-    pos, rgb = _colorscale_stops()
-    t = np.clip(np.asarray(pressure, dtype=np.float64) / vmax, 0.0, 1.0) if vmax > 0 else np.zeros(len(pressure))
-    return np.stack([np.interp(t, pos, rgb[:, c]) for c in range(3)], axis=1)
+    return pic.PRESSURE_SCALE.rgb(pressure, 0.0, vmax)
 
 
 def contact_scale(*fields) -> float:
@@ -146,16 +141,6 @@ def contact_scale(*fields) -> float:
     loaded = [f[f > LOADED_PRESSURE] for f in fields if f is not None]
     loaded = np.concatenate(loaded) if loaded else np.zeros(0)
     return float(loaded.max()) if loaded.size else 0.0
-
-
-def _nice_ticks(vmax: float, count: int = 5) -> np.ndarray:
-    """Round tick values in [0, vmax] (steps of 1, 2 or 5 times a power of ten)."""
-    if vmax <= 0:
-        return np.array([0.0])
-    raw = vmax / count
-    power = 10.0 ** math.floor(math.log10(raw))
-    step = next(s * power for s in (1, 2, 5, 10) if s * power >= raw)
-    return np.arange(0.0, vmax + 1e-9 * vmax, step)
 
 
 # ----------------------------------------------------------------------------- the scene
@@ -307,156 +292,45 @@ def person_labels(bodies) -> list[str]:
 # ----------------------------------------------------------------------------- drawing
 
 
-def _font(size: int):
-    from PIL import ImageFont
-
-    return ImageFont.load_default(size=size)
-
-
-#: Points tested along each cage edge for visibility, and the depth margin, m:
-#: a point of an edge lies on the cage's own faces, so it is hidden only when
-#: the body or another face is nearer than it by more than the margin.
-CAGE_EDGE_SAMPLES, CAGE_DEPTH_MARGIN = 24, 0.012
+#: Points tested along each cage edge for visibility, and the depth margin, m
+#: (:func:`seatkit.picture.draw.draw_wire`).
+CAGE_EDGE_SAMPLES, CAGE_DEPTH_MARGIN = pic_draw.WIRE_SAMPLES, pic_draw.WIRE_DEPTH_MARGIN
 
 
 def _draw_cage(image, scene: _Scene, name: str, view: str, family: str) -> None:
     """Draw a cage's edges on a PIL image, with the lines its own faces hide removed.
 
-    Each edge is cut into :data:`CAGE_EDGE_SAMPLES` pieces. A piece behind
-    a nearer face of the cage is left out: the cage reads as the solid it
-    is, and the edges of its far side never cross those of its near side. A
-    piece behind the body only is drawn light and thin (the cage shows
-    through the body); the rest solid. Control points likewise.
+    :func:`seatkit.picture.draw.draw_wire`: edges behind a nearer face of
+    the cage are left out, edges behind the body only are drawn light and
+    thin (the cage shows through the body), the rest solid; control points
+    likewise.
     """
-    from PIL import ImageDraw
-
     cage = scene.cage if name == "cage" else scene.baseline_cage
     if cage is None:
         return
-    frame = scene.frame(view, family)
-    quads = np.asarray(cage.faces, dtype=np.int64)
-    edges = np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    edges = np.unique(edges, axis=0)
-    verts = np.asarray(cage.vertices, dtype=np.float64)
-    t = (np.arange(CAGE_EDGE_SAMPLES + 1) / CAGE_EDGE_SAMPLES)[None, :, None]
-    pts = verts[edges[:, 0]][:, None] * (1 - t) + verts[edges[:, 1]][:, None] * t  # (e, k+1, 3)
-    xy, z = frame.project(pts.reshape(-1, 3))
-    xy, z = xy.reshape(len(edges), -1, 2), z.reshape(len(edges), -1)
-    mid_xy, mid_z = 0.5 * (xy[:, 1:] + xy[:, :-1]), 0.5 * (z[:, 1:] + z[:, :-1])
-    px = np.clip(mid_xy[..., 0].astype(np.int64), 0, frame.width - 1)
-    py = np.clip(mid_xy[..., 1].astype(np.int64), 0, frame.height - 1)
-    by_cage = scene.raster(name, view, family).depth[py, px] > mid_z + CAGE_DEPTH_MARGIN
-    by_body = scene.raster("body", view, family).depth[py, px] > mid_z + CAGE_DEPTH_MARGIN
-    # runs of pieces of one kind along each edge, each drawn as one straight line:
-    # 0 behind the cage (left out), 1 behind the body only (light), 2 in front
-    kind = np.where(by_cage, 0, np.where(by_body, 1, 2))
-    change = np.ones(kind.shape, dtype=bool)
-    change[:, 1:] = kind[:, 1:] != kind[:, :-1]
-    run_edge, run_start = np.nonzero(change)
-    same_edge = np.append(run_edge[1:] == run_edge[:-1], False)
-    run_end = np.where(same_edge, np.append(run_start[1:], 0), kind.shape[1])  # point index ending the run
-    run_kind = kind[run_edge, run_start]
-    draw = ImageDraw.Draw(image)
-    for wanted, fill, width in ((1, CAGE_EDGE_HIDDEN, 1), (2, CAGE_EDGE, 2)):  # the light lines first
-        for e, a, b in zip(*(x[run_kind == wanted].tolist() for x in (run_edge, run_start, run_end))):
-            draw.line([tuple(xy[e, a]), tuple(xy[e, b])], fill=fill, width=width)
-    pxy, pz = frame.project(verts)
-    ix = np.clip(pxy[:, 0].astype(np.int64), 0, frame.width - 1)
-    iy = np.clip(pxy[:, 1].astype(np.int64), 0, frame.height - 1)
-    front = scene.raster(name, view, family).depth[iy, ix] <= pz + CAGE_DEPTH_MARGIN
-    clear = scene.raster("body", view, family).depth[iy, ix] <= pz + CAGE_DEPTH_MARGIN
-    for (x, y), f, c in zip(pxy.tolist(), front.tolist(), clear.tolist()):
-        if f:
-            draw.ellipse([x - 2, y - 2, x + 2, y + 2], fill=CAGE_EDGE if c else CAGE_EDGE_HIDDEN)
+    pic_draw.draw_wire(
+        image,
+        scene.frame(view, family),
+        cage.vertices,
+        cage.faces,
+        scene.raster(name, view, family).depth,
+        scene.raster("body", view, family).depth,
+        colour=CAGE_EDGE,
+        hidden_colour=CAGE_EDGE_HIDDEN,
+    )
 
 
 def _colorbar(height: int, vmax_pa: float, label: str):
     """A vertical colour bar image (PIL) for 0..vmax_pa, ticks in kPa."""
-    from PIL import Image, ImageDraw
-
-    bar_w, width = 18, 92
-    top, bottom = 30, height - 30
-    img = Image.new("RGB", (width, height), tuple(int(255 * c) for c in BACKGROUND))
-    t = np.linspace(1.0, 0.0, bottom - top)
-    strip = rs.to_uint8(pressure_rgb(t * vmax_pa, vmax_pa))
-    img.paste(Image.fromarray(np.repeat(strip[:, None, :], bar_w, axis=1)), (8, top))
-    draw = ImageDraw.Draw(img)
-    font = _font(13)
-    draw.text((4, 6), label, fill=TEXT, font=font)
-    vmax_kpa = vmax_pa / 1000.0
-    for tick in _nice_ticks(vmax_kpa):
-        y = bottom - (tick / vmax_kpa) * (bottom - top) if vmax_kpa > 0 else bottom
-        draw.line([(8 + bar_w, y), (12 + bar_w, y)], fill=TEXT)
-        draw.text((15 + bar_w, y - 7), f"{tick:g}", fill=TEXT, font=font)
-    return img
+    return pic.colour_bar(height, pic.PRESSURE_SCALE, 0.0, vmax_pa, label, unit=1000.0)
 
 
-def _sheet(title: str, panels, *, colorbar=None, table=None, table_head=("ours", "baseline"), columns: int | None = None):
-    """Lay out captioned panels in a grid with a title, an optional colour bar and table.
-
-    Parameters
-    ----------
-    title : str
-    panels : list of (PIL.Image, str)
-        Rendered views and their captions.
-    colorbar : PIL.Image, optional
-        Placed right of the grid.
-    table : (rows, labels), optional
-        :func:`table_rows` output, drawn under the grid, one block per person.
-    table_head : (str, str)
-        Column titles of the two designs.
-    columns : int, optional
-        Panels per row (default all in one row).
-    """
-    from PIL import Image, ImageDraw
-
-    columns = columns or len(panels)
-    n_rows = math.ceil(len(panels) / columns)
-    title_h, caption_h, line_h = 34, 22, 19
-    rows, labels = table if table is not None else ([], [])
-    table_h = len(rows) * (len(labels) + 2) * line_h + 16 if rows else 0
-    grid_w, grid_h = columns * PANEL_WIDTH, n_rows * (PANEL_HEIGHT + caption_h)
-    width = grid_w + (colorbar.width if colorbar is not None else 0)
-    sheet = Image.new("RGB", (width, title_h + grid_h + table_h), tuple(int(255 * c) for c in BACKGROUND))
-    draw = ImageDraw.Draw(sheet)
-    draw.text((10, 8), title, fill=TEXT, font=_font(17))
-    font = _font(14)
-    for k, (img, caption) in enumerate(panels):
-        x = (k % columns) * PANEL_WIDTH
-        y = title_h + (k // columns) * (PANEL_HEIGHT + caption_h)
-        draw.text((x + 10, y + 2), caption, fill=TEXT, font=font)
-        sheet.paste(img, (x, y + caption_h))
-    if colorbar is not None:
-        sheet.paste(colorbar, (grid_w, title_h + caption_h))
-    # the table: a label column and two right-aligned value columns
-    y = title_h + grid_h + 8
-    bold = _font(14)
-    col_right = (400, 560)
-    for person, ours, base in rows:
-        draw.text((12, y), person, fill=TEXT, font=bold)  # who: pose, body, mass
-        y += line_h
-        draw.text((28, y), "the paper's Table 1", fill=TEXT, font=font)
-        for x, head in zip(col_right, table_head):
-            draw.text((x, y), head, fill=TEXT, font=bold, anchor="ra")
-        y += line_h
-        for lab, a, b in zip(labels, ours, base):
-            draw.text((28, y), lab, fill=TEXT, font=font)
-            draw.text((col_right[0], y), a, fill=TEXT, font=font, anchor="ra")
-            draw.text((col_right[1], y), b, fill=TEXT, font=font, anchor="ra")
-            y += line_h
-    return sheet
-
-
-def _pil(image: np.ndarray):
-    from PIL import Image
-
-    return Image.fromarray(rs.to_uint8(image))
+_sheet = pic.sheet
+_pil = pic.to_pil
 
 
 def _write_png(image, path: Path) -> Path:
-    with atomic_write(path, "wb") as fh:
-        image.save(fh, format="PNG", compress_level=1)
-    return path
+    return write_bytes_atomic(path, pic.png_bytes(image))
 
 
 class _PngWriter:

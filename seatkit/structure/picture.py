@@ -4,7 +4,7 @@ Each element is drawn flat in the colour of its largest stress on the face
 shown (the top face: the body side; the bottom face: the underside), on a
 scale from zero to the largest stress of the analysis, so no value is
 clipped. Elements whose mapping folds (docs/structure.md, "Limits") are grey
-(folded or nearly) and left out of the scale. Views are rasterised with :mod:`seatkit.export.raster`.
+(folded or nearly) and left out of the scale. Views are rasterised with :mod:`seatkit.picture.raster`.
 """
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ def write_stress_png(analysis: Analysis, path, *, title: str = "") -> Path:
     from matplotlib import colormaps
     from matplotlib.colors import Normalize
 
-    from seatkit.export import raster as rs
+    from seatkit.picture import raster as rs
     from seatkit.io import write_bytes_atomic
 
     mesh, s = analysis.mesh, analysis.summary

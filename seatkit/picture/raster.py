@@ -1,4 +1,4 @@
-"""A small vectorised z-buffer rasteriser for the report pictures.
+"""A small vectorised z-buffer rasteriser: every picture seatkit draws.
 
 Matplotlib draws a 27k-triangle body in about a second per view; the report
 needs a dozen views in a fraction of that. This module projects triangle
@@ -30,6 +30,7 @@ __all__ = [
     "Raster",
     "composite",
     "fit_frame",
+    "fit_frames",
     "light_vertices",
     "rasterize",
     "to_uint8",
@@ -143,6 +144,16 @@ def fit_frame(point_sets, rotation: np.ndarray, width: int, height: int, *, marg
         scale = float(min(width * (1 - 2 * margin) / extent[0], height * (1 - 2 * margin) / extent[1]))
     centre = 0.5 * (lo + hi)
     return Frame(rotation, scale, centre[0] - 0.5 * width / scale, centre[1] + 0.5 * height / scale, int(width), int(height))
+
+
+def fit_frames(point_sets, rotations, width: int, height: int, *, margin: float = 0.05) -> list[Frame]:
+    """Frames of several views at one scale (the largest at which every view fits).
+
+    A body drawn from the front and from the side is then the same size in
+    both, so lengths compare across the views.
+    """
+    scale = min(fit_frame(point_sets, r, width, height, margin=margin).scale for r in rotations)
+    return [fit_frame(point_sets, r, width, height, margin=margin, scale=scale) for r in rotations]
 
 
 @dataclass(frozen=True)
