@@ -3,9 +3,13 @@
 Starts `seatkit serve --no-browser` on a free port in a fresh process, warms it
 with one design of the default recipe, then moves joints as the page does
 (each move a new pose, so nothing comes from the design memory): for each,
-POST /api/pose with the new angles and POST /api/design?files=0&baseline=0&view=1
+POST /api/pose with the new angles and POST /api/design?files=0&baseline=0&evaluate=0&view=1
 with the recipe, and times the two requests together (what the page waits for
-before it draws the new design, the meshes included). Meanwhile it polls
+before it draws the new design, the meshes included); then POST
+/api/design/ID/evaluate?view=1, as the page does next (the contact pressure
+colours and our Table 1 figures). It reads the server process's CPU time
+(psutil) around each move: on a loaded machine the wall time is mostly
+waiting for a core, the CPU time is what the move costs. Meanwhile it polls
 GET /api/status every 50 ms as the page does (every 100 ms) and fetches each
 preview when it appears (the posed body; the template's cage; the refined
 surface, before the evaluation), timing
@@ -23,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import shutil
 import socket
 import statistics
@@ -34,6 +39,7 @@ import time
 from pathlib import Path
 
 import httpx
+import psutil
 
 #: Joint moves, as the page's sliders make them: (segment index, axis, degrees added).
 MOVES = [
@@ -77,24 +83,32 @@ def main() -> None:
                     if proc.poll() is not None or time.monotonic() > deadline:
                         sys.exit(f"seatkit serve did not start: {proc.stderr.read() if proc.stderr else ''}")
                     time.sleep(0.1)
+            server = psutil.Process(proc.pid)
+
+            def cpu() -> float:
+                c = server.cpu_times()
+                return c.user + c.system
+
+            print(f"load average at the start: {' '.join(f'{x:.1f}' for x in os.getloadavg())} ({os.cpu_count()} cores)")
             t0 = time.perf_counter()
             first = client.post("/api/design?files=0&baseline=0&view=1", json={})
             first.raise_for_status()
             print(f"first design (cold server: imports, rig, operators): {time.perf_counter() - t0:.2f} s")
             pose = client.get("/api/pose", params={"pose": "upright-sitting"}).json()
             trips, stages, builds, previews = [], [], [], {}
+            evaluated, cpu_design, cpu_total = [], [], []
             for i in range(args.moves):
                 seg, axis, delta = MOVES[i % len(MOVES)]
                 angles = [row[:] for row in pose["angles"]]
                 angles[seg][axis] += delta * (1 + 0.15 * (i // len(MOVES)))  # never a pose seen before
-                t = time.perf_counter()
+                t, c = time.perf_counter(), cpu()
                 name = client.post("/api/pose", json={"angles": angles, "translation": pose["translation"]}).json()["pose"]
                 request = f"bench-{i}"
                 answer = {}
 
                 def post(name=name, request=request, answer=answer):
                     answer["r"] = client.post(
-                        "/api/design?files=0&baseline=0&view=1", json={"bodies": [{"pose": name}]}, headers={"X-Request-Id": request}
+                        "/api/design?files=0&baseline=0&evaluate=0&view=1", json={"bodies": [{"pose": name}]}, headers={"X-Request-Id": request}
                     )
 
                 worker = threading.Thread(target=post)
@@ -111,13 +125,18 @@ def main() -> None:
                 worker.join()
                 r = answer["r"]
                 trips.append(time.perf_counter() - t)
+                cpu_design.append(cpu() - c)
                 for stage, seconds in seen.items():
                     previews.setdefault(stage, []).append(seconds)
                 if r.status_code != 200:
                     print(f"  move {i}: {r.status_code} {r.json().get('error')}")
                     continue
                 d = r.json()
-                stages.append({**d["timings_s"], "evaluate (total)": d["seconds"]["evaluate"], "view payload MB": len(r.content) / 1e6})
+                e = client.post(f"/api/design/{d['id']}/evaluate", params={"seq": d["request_seq"], "view": 1})
+                evaluated.append(time.perf_counter() - t)
+                cpu_total.append(cpu() - c)
+                e.raise_for_status()
+                stages.append({**d["timings_s"], "evaluate (next request)": e.json()["seconds"]["evaluate"], "view payload MB": len(r.content) / 1e6})
                 if args.compare:
                     path = Path(tmp) / "serve" / "uploads" / name
                     t = time.perf_counter()
@@ -129,7 +148,7 @@ def main() -> None:
                     builds.append(time.perf_counter() - t)
                     if done.returncode != 0:
                         print(f"  seatkit build failed: {done.stderr.strip()}")
-                line = f"  move {i}: round trip {trips[-1]:.2f} s"
+                line = f"  move {i}: design shown {trips[-1]:.2f} s (CPU {cpu_design[-1]:.2f} s), evaluated {evaluated[-1]:.2f} s (CPU {cpu_total[-1]:.2f} s)"
                 line += "".join(f", {k} preview {v:.2f} s" for k, v in seen.items())
                 if args.compare and builds:
                     line += f", seatkit build {builds[-1]:.2f} s"
@@ -139,8 +158,12 @@ def main() -> None:
             proc.terminate()
             proc.wait(timeout=30)
     print(f"designs answered from memory: {status['caches']['design_hits']} (0 expected: every move is a new pose)")
+    print(f"load average at the end: {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
     print(f"slider move -> new design shown (POST /api/pose + POST /api/design, meshes included): {len(trips)} moves")
     print(f"  round trip: median {statistics.median(trips):.2f} s, min {min(trips):.2f} s, max {max(trips):.2f} s")
+    print(f"  server CPU time until the design is shown: median {statistics.median(cpu_design):.2f} s, min {min(cpu_design):.2f} s, max {max(cpu_design):.2f} s")
+    if evaluated:
+        print(f"  evaluated (contact colours, Table 1): median {statistics.median(evaluated):.2f} s; server CPU time {statistics.median(cpu_total):.2f} s")
     labels = {
         "posed": "preview: the body in its new pose",
         "template": "preview: the template's cage and surface",

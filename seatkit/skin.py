@@ -170,22 +170,24 @@ class SkinDistance:
             vertex's normal for far points.
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        gap, near = self.tree.query(points, workers=1)
-        near = self._used[near]
+        # the candidate vertices of the exact query come with the nearest one
+        # (one tree search per point instead of two for those near the skin)
+        gap, candidates = self.tree.query(points, k=self.CANDIDATE_VERTICES, workers=1)
+        gap, candidates = gap.reshape(len(points), -1), self._used[candidates.reshape(len(points), -1)]
+        near = candidates[:, 0]
         closest = self.vertices[near].copy()
         normal = self.vertex_normals[near].copy()
         depth = -np.einsum("ij,ij->i", normal, points - closest)
         # the exact query where it matters: near the skin, or where the
         # nearest vertex alone would call the point inside or nearly so
-        exact = np.flatnonzero((gap < self.EXACT_WITHIN) | (depth > -self.EXACT_WITHIN))
+        exact = np.flatnonzero((gap[:, 0] < self.EXACT_WITHIN) | (depth > -self.EXACT_WITHIN))
         if exact.size:
-            d, q, n = self._exact(points[exact])
+            d, q, n = self._exact(points[exact], candidates[exact])
             depth[exact], closest[exact], normal[exact] = d, q, n
         return depth, closest, normal
 
-    def _exact(self, points: np.ndarray):
-        _, near = self.tree.query(points, k=self.CANDIDATE_VERTICES, workers=1)
-        cand = self.rings[self._used[near]].reshape(len(points), -1)
+    def _exact(self, points: np.ndarray, near: np.ndarray):
+        cand = self.rings[near].reshape(len(points), -1)
         valid = cand >= 0
         tri_i = np.where(valid, cand, 0)
         ap = points[:, None, :] - self._a[tri_i]

@@ -417,6 +417,37 @@ def test_a_baseline_asked_for_after_a_newer_request_is_skipped(client, designer)
     assert client.get("/api/status").json()["stage"] == "idle"
 
 
+def test_the_evaluation_can_follow_the_design(client, designer, default_design):
+    """``evaluate=0`` answers with the design alone; ``/evaluate`` adds the same figures and colours as one request."""
+    recipe = {"bodies": [{"pose": "reclined-sitting"}], "seed": 43}
+    first = client.post("/api/design?files=0&baseline=0&evaluate=0&view=1", json=recipe).json()
+    assert first["evaluated"] is False and not first["metrics"]
+    assert first["view"]["bodies"][0]["pressure_kind"] == "importance"  # no contact pressure yet
+    assert "evaluate" not in first["timings_s"]
+    r = client.post(f"/api/design/{first['id']}/evaluate", params={"seq": first["request_seq"], "view": 1})
+    assert r.status_code == 200, r.text
+    later = r.json()
+    assert later["evaluated"] is True and later["view"]["bodies"][0]["pressure_kind"] == "contact"
+    # the same figures as a design evaluated in its own request (a fresh designer: nothing from memory)
+    other = Designer(designer.root.parent / "serve-evaluate")
+    whole = other.design(other.prepare(recipe), other.new_request())
+    for col in later["table_columns"]:
+        key = col["key"]
+        assert later["metrics"]["ours"][0][key] == pytest.approx(whole.result.metrics["ours"][0][key], rel=1e-9)
+    # asked again: once only
+    again = client.post(f"/api/design/{first['id']}/evaluate").json()
+    assert again["seconds"]["evaluate"] == later["seconds"]["evaluate"]
+    # asked after a newer design request: skipped (409), the design stays unevaluated
+    b = client.post("/api/design?files=0&baseline=0&evaluate=0", json={**recipe, "seed": 44}).json()
+    client.post(FAST, json={"template": "chair"})  # newer (from memory)
+    r = client.post(f"/api/design/{b['id']}/evaluate", params={"seq": b["request_seq"]})
+    assert r.status_code == 409 and r.json()["kind"] == "superseded"
+    assert designer.get(b["id"]).evaluated is False
+    # a later request for the same recipe with the evaluation gets it
+    full = client.post("/api/design?files=0&baseline=0", json={**recipe, "seed": 44}).json()
+    assert full["id"] == b["id"] and full["evaluated"] is True and full["metrics"]["ours"]
+
+
 def test_a_bench_for_two_people(client, designer):
     """The page's people count: a multi-person template gets one body entry per person, placed side by side."""
     o = client.get("/api/options").json()

@@ -146,6 +146,9 @@ def test_page_designs_and_redesigns_offline(server, tmp_path):
         assert second["id"] != first
         after = _canvas_stats(page)
         assert after["colours"] > 50 and after["differ"] > 0.05, after
+        # our evaluation follows the design (contact pressure colours, Table 1)
+        page.wait_for_function("() => window.seatkit.design.evaluated === true", timeout=180_000)
+        assert page.locator("#table1 tbody tr td").nth(1).inner_text() != "-"
         # the baseline follows once the sliders rest: Table 1 gets its second column
         page.wait_for_function("() => window.seatkit.design.metrics.baseline !== undefined", timeout=180_000)
         page.locator('#view-options button:text-is("back-left")').click()  # the pressure on the back and seat

@@ -692,18 +692,29 @@ def _final_depths(mesh: ControlMesh, bodies: Sequence[Body], level: int) -> dict
     surface's) and level 4: a coarser tessellation's chords can read
     deeper than the limit surface.
     """
-    from seatkit.evaluate import SurfaceQuery, body_depth_in_surface, surface_depth_in_body
+    from seatkit.evaluate import body_depth_in_surface
     from seatkit.model import Surface
     from seatkit.subdivision import Cage, build_operators
 
-    out = {"surface_in_body": 0.0, "body_in_surface": 0.0}
-    for level in sorted({level, 4}):
-        ops = build_operators(Cage.from_control_mesh(mesh), level)
-        surface = Surface(ops.limit_points(mesh.vertices), ops.limit_normals(mesh.vertices), ops.faces, level)
-        query = SurfaceQuery(surface)
-        out["surface_in_body"] = max(out["surface_in_body"], *(surface_depth_in_body(surface, b) for b in bodies))
-        out["body_in_surface"] = max(out["body_in_surface"], *(body_depth_in_surface(surface, b, query) for b in bodies))
-    return out
+    cage = Cage.from_control_mesh(mesh)
+    surfaces = []
+    for lv in sorted({level, 4}):
+        ops = build_operators(cage, lv)
+        surfaces.append(Surface(ops.limit_points(mesh.vertices), ops.limit_normals(mesh.vertices), ops.faces, lv))
+    # the surface in the body: the probes of surface_depth_in_body (every
+    # tessellation vertex and quad centre) of both tessellations in one
+    # query per body; a coarser level's vertices are the first limit points
+    # of the finer one (a vertex's limit position does not change with
+    # refinement), so only its quad centres are added
+    finest = surfaces[-1]
+    probes = [finest.vertices, finest.vertices[finest.faces].mean(axis=1)]
+    probes += [s.vertices[s.faces].mean(axis=1) for s in surfaces[:-1]]
+    points = np.concatenate(probes)
+    surface_in_body = max(SkinDistance.of(b.vertices, b.faces).max_depth(points) for b in bodies)
+    # a body vertex inside the furniture, at each level (a coarser
+    # tessellation's chords can read deeper than the finer one's)
+    body_in_surface = max(body_depth_in_surface(s, b) for s in surfaces for b in bodies)
+    return {"surface_in_body": float(surface_in_body), "body_in_surface": float(body_in_surface)}
 
 
 class CatmullClarkFitRefiner:

@@ -7,6 +7,7 @@ The API (docs/serve.md describes every route)::
     POST /api/pose                    {"angles": [[x, y, z] x 21], "translation": [x, y, z]} -> {"pose": FILE}
     POST /api/upload?filename=F.bvh   the file as the body -> {"pose": FILE}
     POST /api/design                  a recipe (JSON) -> the report and file URLs
+    POST /api/design/ID/evaluate      our evaluation of a design made with ?evaluate=0 -> the report
     POST /api/design/ID/baseline      the flat-patch baseline of a design -> the report
     POST /api/design/ID/files         write the design's files -> the report with file URLs
     GET  /api/design/ID/view          the meshes the page draws
@@ -138,7 +139,10 @@ def create_app(designer: Designer) -> Starlette:
         seq = designer.new_request()
         recipe = await run_in_threadpool(designer.prepare, data)
         request_id = request.headers.get("x-request-id") or request.query_params.get("request")
-        d = await run_in_threadpool(designer.design, recipe, seq, request_id)
+        evaluate = _flag(request, "evaluate", True)
+        d = await run_in_threadpool(lambda: designer.design(recipe, seq, request_id, evaluate=evaluate))
+        if evaluate or _flag(request, "baseline", True) or _flag(request, "files", True):
+            await run_in_threadpool(designer.evaluate, d, seq)  # a design from memory may not be evaluated yet
         if _flag(request, "baseline", True):
             await run_in_threadpool(designer.baseline, d, seq)
         if _flag(request, "files", True):
@@ -154,6 +158,18 @@ def create_app(designer: Designer) -> Starlette:
         if d is None:
             raise HTTPException(404, "no such design on this server (it may have been dropped from memory: design it again)")
         return d
+
+    def _seq(request: Request) -> int | None:
+        seq = request.query_params.get("seq")
+        return int(seq) if seq and seq.isdigit() else None
+
+    async def evaluate(request: Request):
+        d = _design_of(request)
+        await run_in_threadpool(designer.evaluate, d, _seq(request))
+        answer = designer.report(d)
+        if _flag(request, "view", False):
+            answer["view"] = designer.view(d)
+        return JSONResponse(answer)
 
     async def baseline(request: Request):
         d = _design_of(request)
@@ -194,6 +210,7 @@ def create_app(designer: Designer) -> Starlette:
         Route("/api/pose", guarded(post_pose), methods=["POST"]),
         Route("/api/upload", guarded(upload), methods=["POST"]),
         Route("/api/design", guarded(design), methods=["POST"]),
+        Route("/api/design/{ident:str}/evaluate", guarded(evaluate), methods=["POST"]),
         Route("/api/design/{ident:str}/baseline", guarded(baseline), methods=["POST"]),
         Route("/api/design/{ident:str}/files", guarded(files), methods=["POST"]),
         Route("/api/design/{ident:str}/view", guarded(view)),

@@ -10,7 +10,9 @@ deferred, so that the first answer holds only what the page shows:
 1. the design: bodies -> pressure -> template -> refiners -> limit surface
    (``build(write=False, processes=False)``, evaluation off);
 2. the evaluation of our design (contact pressure on the designed surface,
-   the Table 1 figures) with :func:`seatkit.pipeline.evaluate_result`;
+   the Table 1 figures) with :func:`seatkit.pipeline.evaluate_result`, in
+   the same request or (``evaluate=False``, as the page asks) in the next
+   one (:meth:`Designer.evaluate`), so the design is shown before it;
 3. only when asked: the flat-patch baseline (:meth:`Designer.baseline`) and
    the files (:meth:`Designer.files`: the recipe's exporters, written by
    :func:`seatkit.pipeline.write_result` exactly as ``seatkit build`` does,
@@ -205,6 +207,7 @@ class Design:
     recipe: dict
     result: Any
     seconds: dict = field(default_factory=dict)
+    evaluated: bool = False
     baseline: dict | None = None
     files: dict | None = None
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
@@ -504,8 +507,13 @@ class Designer:
             if self.status.get("seq") == seq:
                 self.status = {"seq": seq, "stage": "idle", "started": None}
 
-    def design(self, recipe: dict, seq: int, request: str | None = None) -> Design:
+    def design(self, recipe: dict, seq: int, request: str | None = None, *, evaluate: bool = True) -> Design:
         """Compute a design (or return it from memory): the view's part only.
+
+        With ``evaluate=False`` the evaluation (the contact pressure on the
+        designed surface, our Table 1 figures) is left for
+        :meth:`evaluate`: the page shows the design as soon as it exists
+        and the figures follow.
 
         Raises
         ------
@@ -514,7 +522,7 @@ class Designer:
         SeatkitError
             The build's own errors (an unsupported pose, an infeasible support).
         """
-        from seatkit.pipeline import _Timer, build, evaluate_result
+        from seatkit.pipeline import build
 
         ident = Path(recipe["output"]).name
         with self._state:
@@ -536,23 +544,58 @@ class Designer:
                 fast["evaluate"]["enabled"] = False
                 result = build(fast, pm=self._plugins, progress=lambda s: self._check(seq, s), write=False, processes=False)
                 designed = time.perf_counter()
-                result.recipe = copy.deepcopy(recipe)
-                result.recipe["evaluate"]["baseline"] = None
-                if recipe["evaluate"]["enabled"]:
-                    self._check(seq, "evaluate")
-                    evaluate_result(result, self.registry, _Timer(lambda s: self._check(seq, s)))
                 result.recipe = recipe
-                seconds = {"design": designed - start, "evaluate": time.perf_counter() - designed}
+                seconds = {"design": designed - start}
+                design = Design(ident, seq, recipe, result, seconds)
+                if evaluate:
+                    self._evaluate(design, seq)
             finally:
                 with self._state:
                     self._observing = None
                 self._idle(seq)
-        design = Design(ident, seq, recipe, result, seconds)
         with self._state:
             self._designs[ident] = design
             while len(self._designs) > KEEP_DESIGNS:
                 self._designs.popitem(last=False)
         return design
+
+    def _evaluate(self, design: Design, seq: int | None) -> None:
+        """Our evaluation of a design (the caller holds the run lock); the baseline is :meth:`baseline`'s."""
+        from seatkit.pipeline import _Timer, evaluate_result
+
+        result = design.result
+        if not design.recipe["evaluate"]["enabled"] or design.evaluated:
+            design.evaluated = True
+            return
+        check = (lambda s: self._check(seq, s)) if seq is not None else (lambda s: None)
+        check("evaluate")
+        start = time.perf_counter()
+        result.recipe = copy.deepcopy(design.recipe)
+        result.recipe["evaluate"]["baseline"] = None
+        try:
+            evaluate_result(result, self.registry, _Timer(check))
+        finally:
+            result.recipe = design.recipe
+        design.seconds["evaluate"] = time.perf_counter() - start
+        design.evaluated = True
+
+    def evaluate(self, design: Design, seq: int | None = None) -> None:
+        """Evaluate a design made with ``evaluate=False`` (once): the contact pressure and our Table 1 figures.
+
+        With ``seq`` (the ``request_seq`` of the design's answer), stops
+        (:class:`Superseded`) when a newer design request has arrived: the
+        page asks for the figures after showing a design, and a newer slider
+        move comes first.
+        """
+        with design.lock:
+            if design.evaluated:
+                return
+            with self._run:
+                try:
+                    self._evaluate(design, seq)
+                finally:
+                    if seq is not None:
+                        self._idle(seq)
 
     def get(self, ident: str) -> Design | None:
         with self._state:
@@ -571,6 +614,7 @@ class Designer:
         ev = design.recipe["evaluate"]
         if not (ev["enabled"] and ev["baseline"]):
             return None
+        self.evaluate(design, seq)  # ours first: the baseline's figures go beside them
         with design.lock:
             if design.baseline is not None:
                 return design.baseline
@@ -595,6 +639,7 @@ class Designer:
         """Write a design's files (the recipe's exporters, report.json, recipe.zip) once; role -> file name."""
         from seatkit.pipeline import write_result
 
+        self.evaluate(design)
         self.baseline(design)
         with design.lock:
             if design.files is not None:
@@ -675,6 +720,7 @@ class Designer:
                 "template": design.recipe["template"],
                 "control_mesh": {"vertices": len(r.control_mesh.vertices), "faces": len(r.control_mesh.faces)},
                 "special_cases": r.control_mesh.meta.get("special_cases", []),
+                "evaluated": design.evaluated,
                 "metrics": r.metrics,
                 "table_columns": [{"key": k, "label": lab, "unit": u, "scale": s} for k, lab, u, s in TABLE_COLUMNS],
                 "timings_s": r.timings,

@@ -372,7 +372,9 @@ function showReport(report) {
     tbody.appendChild(tr);
   }
   $("baseline-head").textContent = m.baseline_template || "flat patch";
-  $("baseline-note").textContent = base ? "Lower is better; bold where our design beats the baseline."
+  $("baseline-note").textContent = report.evaluated === false
+    ? "The design is shown first; our figures follow (evaluating), then the baseline's when the sliders rest."
+    : base ? "Lower is better; bold where our design beats the baseline."
     : "The baseline is fitted when the sliders rest.";
   const facts = $("facts");
   facts.innerHTML = "";
@@ -433,7 +435,9 @@ async function requestDesign() {
   const recipe = { template: $("template-select").value, bodies: Array.from({ length: people }, () => ({ ...entry })) };
   const tp = changedParams($("template-params"));
   if (Object.keys(tp).length) recipe.template_params = tp;
-  const r = await api("/api/design?files=0&baseline=0&view=1", { method: "POST", headers: { "Content-Type": "application/json", "X-Request-Id": request }, body: JSON.stringify(recipe) });
+  // the design first (drawn as soon as it exists), then our evaluation (the contact pressure
+  // colours, Table 1), then, once the sliders rest, the baseline's figures beside ours
+  const r = await api("/api/design?files=0&baseline=0&evaluate=0&view=1", { method: "POST", headers: { "Content-Type": "application/json", "X-Request-Id": request }, body: JSON.stringify(recipe) });
   if (seq !== state.clientSeq) return; // a newer request was made: never show a stale design
   stopPolling();
   if (r.status === 409) return;
@@ -451,8 +455,21 @@ async function requestDesign() {
   state.designsShown += 1;
   const secs = (performance.now() - started) / 1000;
   state.lastRoundTrip = secs;
-  setProgress(`design shown in ${secs.toFixed(2)} s`, 1, "idle");
   const serverSeq = r.data.request_seq;
+  let evaluated = secs;
+  if (!r.data.evaluated) {
+    setProgress(`design shown in ${secs.toFixed(2)} s; evaluating (contact pressure, Table 1)`, 0.9, "running");
+    const e = await api(`/api/design/${r.data.id}/evaluate?seq=${serverSeq}&view=1`, { method: "POST" });
+    if (seq !== state.clientSeq) return; // superseded meanwhile (the server answers 409): the newer design comes
+    if (!e.ok) { if (e.status !== 409) setProgress(`evaluation: ${e.data.error}`, 1, "error"); return; }
+    state.design = e.data;
+    showView(e.data.view);
+    delete e.data.view;
+    showReport(e.data);
+    evaluated = (performance.now() - started) / 1000;
+  }
+  state.lastEvaluated = evaluated;
+  setProgress(`design shown in ${secs.toFixed(2)} s, evaluated after ${evaluated.toFixed(2)} s`, 1, "idle");
   baselineTimer = setTimeout(() => requestBaseline(seq, r.data.id, serverSeq), 700);
 }
 

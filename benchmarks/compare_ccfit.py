@@ -1,0 +1,161 @@
+"""The Catmull-Clark surface fit on fixed inputs: time per fit, and how far two versions' results lie apart.
+
+Three steps, so that two versions of seatkit (say a commit and the working
+tree, each in its own venv) fit exactly the same cages to exactly the same
+bodies:
+
+    python benchmarks/compare_ccfit.py record fits.pkl     # every supported library pose x both default bodies
+    python benchmarks/compare_ccfit.py run fits.pkl new.npz [--repeat 3]
+    python benchmarks/compare_ccfit.py compare old.npz new.npz
+
+``record`` builds each design (nothing written) and keeps the inputs of every
+``catmull-clark-fit`` call: our cage after ``optimize`` and the flat-patch
+baseline's. ``run`` fits each of them ``--repeat`` times and keeps the best
+time, the fitted control points and the final depths (the 5 mm guarantee).
+``compare`` prints, per fit, the largest control-point and limit-surface
+distance between the two results and both versions' times and depths; it
+exits 1 when a limit-surface vertex moved more than ``--tolerance`` (m) or a
+depth exceeds the 5 mm limit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import pickle
+import sys
+import time
+
+import numpy as np
+
+BODIES = ("default-female", "default-male")
+
+
+def record(path: str) -> None:
+    from seatkit import pipeline
+    from seatkit.errors import SeatkitError
+    import seatkit.refine.ccfit as ccfit
+
+    calls = []
+    original = ccfit.fit_cage
+
+    def keep(mesh, bodies, pressures, params=None):
+        calls.append({"mesh": mesh, "bodies": bodies, "pressures": pressures, "params": params})
+        return original(mesh, bodies, pressures, params)
+
+    ccfit.fit_cage = keep
+    fits = []
+    for pose in _poses():
+        for model in BODIES:
+            calls.clear()
+            recipe = {"template": "chair", "bodies": [{"model": model, "pose": pose}]}
+            try:
+                pipeline.build(recipe, write=False, processes=False)
+            except SeatkitError as e:
+                print(f"{model} {pose}: {str(e).splitlines()[0][:100]}", file=sys.stderr)
+            for call in calls:  # ours and the baseline's (on a thread: in either order)
+                fits.append({"name": f"{model}/{pose}/{call['mesh'].meta.get('template', '?')}", **call})
+            print(f"{model} {pose}: {len(calls)} fit(s)", file=sys.stderr)
+    with open(path, "wb") as f:
+        pickle.dump(fits, f)
+
+
+def _poses() -> list[str]:
+    from seatkit.body.poses import list_poses
+
+    return [info.name for info in list_poses() if info.supported]
+
+
+def run(path: str, out: str, repeat: int) -> None:
+    from seatkit.errors import SolverError
+    from seatkit.refine.ccfit import fit_cage
+    from seatkit.subdivision import limit_surface
+
+    with open(path, "rb") as f:
+        fits = pickle.load(f)
+    result = {}
+    for fit in fits:
+        best, cpu = np.inf, np.inf
+        for _ in range(repeat):
+            t0, c0 = time.perf_counter(), time.process_time()
+            try:
+                mesh = fit_cage(fit["mesh"], fit["bodies"], fit["pressures"], fit["params"])
+                error = ""
+            except SolverError as e:
+                mesh, error = None, str(e)
+            best = min(best, time.perf_counter() - t0)
+            cpu = min(cpu, time.process_time() - c0)
+        name = fit["name"]
+        result[f"{name}|seconds"] = best
+        result[f"{name}|cpu"] = cpu
+        if mesh is None:
+            result[f"{name}|error"] = np.array(error)
+            print(f"{name:50s} {best:6.2f} s  refused: {error[:80]}")
+            continue
+        report = mesh.meta["catmull-clark-fit"]
+        depth = report["final_depth"] or {}
+        result[f"{name}|cage"] = mesh.vertices
+        result[f"{name}|surface"] = limit_surface(mesh, level=3).vertices
+        result[f"{name}|depth"] = np.array([depth.get("surface_in_body", np.nan), depth.get("body_in_surface", np.nan)])
+        result[f"{name}|iterations"] = report["iterations"]
+        result[f"{name}|mean"] = report["after"]["mean_distance"]
+        print(
+            f"{name:50s} {best:6.2f} s (cpu {cpu:5.2f})  {report['iterations']:3d} it  "
+            f"mean {report['after']['mean_distance'] * 1000:6.2f} mm  depth {1000 * max(depth.values(), default=0):4.1f} mm"
+        )
+    np.savez(out, **result)
+
+
+def compare(a_path: str, b_path: str, tolerance: float, limit: float) -> int:
+    a, b = np.load(a_path), np.load(b_path)
+    names = sorted({k.split("|")[0] for k in a.files} | {k.split("|")[0] for k in b.files})
+    bad, ta, tb, ca, cb = 0, 0.0, 0.0, 0.0, 0.0
+    print(f"{'fit':50s} {'cage':>8s} {'surface':>8s}  {'time a':>7s} {'time b':>7s}  {'depth a':>7s} {'depth b':>7s}  it a/b")
+    for name in names:
+        ta += float(a[f"{name}|seconds"])
+        tb += float(b[f"{name}|seconds"])
+        ca += float(a[f"{name}|cpu"])
+        cb += float(b[f"{name}|cpu"])
+        ea, eb = f"{name}|error" in a.files, f"{name}|error" in b.files
+        if ea or eb:
+            same = ea and eb
+            bad += not same
+            print(f"{name:50s} refused in {'both' if same else ('a' if ea else 'b')}")
+            continue
+        dc = np.linalg.norm(a[f"{name}|cage"] - b[f"{name}|cage"], axis=1).max()
+        ds = np.linalg.norm(a[f"{name}|surface"] - b[f"{name}|surface"], axis=1).max()
+        da, db = a[f"{name}|depth"].max(), b[f"{name}|depth"].max()
+        flag = ds > tolerance or db > limit
+        bad += flag
+        print(
+            f"{name:50s} {dc * 1000:6.3f}mm {ds * 1000:6.3f}mm  {float(a[name + '|seconds']):6.2f}s {float(b[name + '|seconds']):6.2f}s  "
+            f"{da * 1000:5.2f}mm {db * 1000:5.2f}mm  {int(a[name + '|iterations'])}/{int(b[name + '|iterations'])}{'  <--' if flag else ''}"
+        )
+    print(f"total fit time: a {ta:.2f} s, b {tb:.2f} s ({ta / max(tb, 1e-9):.2f}x); CPU time a {ca:.2f} s, b {cb:.2f} s ({ca / max(cb, 1e-9):.2f}x); {bad} fit(s) off")
+    return 1 if bad else 0
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("record")
+    r.add_argument("fits")
+    u = sub.add_parser("run")
+    u.add_argument("fits")
+    u.add_argument("out")
+    u.add_argument("--repeat", type=int, default=1)
+    c = sub.add_parser("compare")
+    c.add_argument("a")
+    c.add_argument("b")
+    c.add_argument("--tolerance", type=float, default=1e-4, help="m, largest limit-surface vertex move allowed")
+    c.add_argument("--limit", type=float, default=0.005, help="m, the surface_limit every fit must hold")
+    args = ap.parse_args()
+    if args.cmd == "record":
+        record(args.fits)
+    elif args.cmd == "run":
+        run(args.fits, args.out, args.repeat)
+    else:
+        sys.exit(compare(args.a, args.b, args.tolerance, args.limit))
+
+
+if __name__ == "__main__":
+    main()
