@@ -161,7 +161,7 @@ def analyse(
     people, per_person = contact_loads(mesh, bodies, fields, radius=spread_radius)
     load = people + (model.weight_load() if self_weight else 0.0)
     solution = model.solve(load, np.flatnonzero(held))
-    det = model.basis.mapping.detDF(model.basis.X)
+    det = model.det
     folded = det.min(axis=1) < MIN_JACOBIAN_RATIO * det.max(axis=1)  # folded or nearly folded
     sound = ~folded
     vm = solution.von_mises
