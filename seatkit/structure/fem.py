@@ -233,8 +233,9 @@ class Elasticity:
         self.element_stiffness = self._element_stiffness()  # (E, 81, 81)
 
     def _points(self, X: np.ndarray, W: np.ndarray) -> _Points:
-        values = np.stack([self.element.lbasis(X, a)[0] for a in range(27)], axis=1)  # (P, 27)
-        ref = np.stack([self.element.lbasis(X, a)[1] for a in range(27)], axis=1).transpose(2, 1, 0)  # (P, 27, 3)
+        shapes = [self.element.lbasis(X, a) for a in range(27)]
+        values = np.stack([v for v, _ in shapes], axis=1)  # (P, 27)
+        ref = np.stack([d for _, d in shapes], axis=1).transpose(2, 1, 0)  # (P, 27, 3)
         g = np.einsum("eam,paj->epjm", self._x, ref)  # (E, P, 3, 3): row j is dx/dxi_j
         jac = g.transpose(0, 1, 3, 2)  # jac[m, j] = dx_m / dxi_j
         return _Points(X, W, values, ref, g, np.linalg.inv(jac), np.linalg.det(jac))
