@@ -8,8 +8,9 @@ Target: at most 2 s at the default resolution. Wall and CPU time are both
 printed: on a shared machine the CPU time (this process's) is the steadier
 figure.
 
-``--convergence`` also analyses the chair at finer meshes (level 2, two
-layers) and prints how the figures move: the table in docs/structure.md.
+``--convergence`` also analyses the chair at levels 1-3 (and two layers at
+levels 1 and 2) and prints how the figures move, with the CPU time and the
+process' peak resident memory so far: the table in docs/structure.md.
 
 ``--against REV`` times the FEM module (seatkit/structure/fem.py) of a git
 revision side by side with the working tree's, alternating the two in each
@@ -80,14 +81,18 @@ def main() -> None:
     if args.against:
         _against(args.against, run, args.repeat)
     if args.convergence:
-        print("  level layers  elements    dofs   max deflection   max von Mises   away from floor   seconds")
+        import resource
+
+        print("  level layers  elements    dofs   max deflection   max von Mises   away from floor   CPU s  wall s  peak RSS so far")
         with threadpool_limits(limits=1):
-            for level, layers in ((1, 1), (1, 2), (2, 1), (2, 2)):
-                t0 = time.perf_counter()
+            for level, layers in ((1, 1), (1, 2), (2, 1), (2, 2), (3, 1)):
+                t0, c0 = time.perf_counter(), time.process_time()
                 r = run(level=level, layers=layers).summary
+                rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB -> GiB
                 print(f"  {level:5d} {layers:6d} {r['mesh']['elements']:9d} {r['mesh']['dofs']:7d} "
                       f"{r['max_deflection_m'] * 1000:13.4f} mm {r['max_von_mises_pa'] / 1e6:11.4f} MPa "
-                      f"{r['max_von_mises_away_from_floor_pa'] / 1e6:11.4f} MPa {time.perf_counter() - t0:9.2f}")
+                      f"{r['max_von_mises_away_from_floor_pa'] / 1e6:11.4f} MPa {time.process_time() - c0:7.1f} "
+                      f"{time.perf_counter() - t0:7.1f} {rss:6.2f} GiB  ({r['distorted_elements']} distorted)", flush=True)
 
 
 def _against(rev: str, run, repeat: int) -> None:
@@ -114,6 +119,8 @@ def _against(rev: str, run, repeat: int) -> None:
         old = importlib.util.module_from_spec(spec)
         sys.modules["fem_reference"] = old
         spec.loader.exec_module(old)
+    if not hasattr(old.Elasticity, "det"):  # before 052f275 the analysis read the Jacobian from scikit-fem's basis
+        old.Elasticity.det = property(lambda self: self.basis.mapping.detDF(self.basis.X))
     models = {rev: old.Elasticity, "working tree": fem.Elasticity}
     times = {k: [] for k in models}
     out, loads = {}, []

@@ -113,6 +113,7 @@ def analyse(
     self_weight: bool = True,
     spread_radius: float = SPREAD_RADIUS,
     _geometry=None,
+    _people=None,
 ) -> Analysis:
     """Solve the shell of ``control_mesh``'s limit surface under the people's contact forces.
 
@@ -140,11 +141,7 @@ def analyse(
     start = time.perf_counter()
     mat = _material(material)
     t = check_thickness(thickness)
-    bodies, fields = list(bodies), list(fields)
-    missing = [i + 1 for i, f in enumerate(fields) if f is None]
-    if missing or len(fields) != len(bodies):
-        msg = f"no contact forces for person {', '.join(map(str, missing)) or '?'}: the design cannot hold them, so there is no load to analyse"
-        raise StructureError(msg)
+    bodies, fields = _check_fields(bodies, fields)
     surface, quads9, normals = _geometry if _geometry is not None else _surface_geometry(control_mesh, level)
     mesh = ShellMesh.extrude(surface.vertices, normals, quads9, t, layers)
     on_floor = np.flatnonzero(surface.vertices[:, 1] <= FLOOR_TOLERANCE)
@@ -158,10 +155,11 @@ def analyse(
     held = np.zeros(len(mesh.nodes), bool)
     held[mesh.column(on_floor)] = True
     model = Elasticity(mesh, mat)
-    people, per_person = contact_loads(mesh, bodies, fields, radius=spread_radius)
+    # the people's loads sit on the top face, which the thickness does not move (sizing computes them once)
+    people, per_person = _people if _people is not None else contact_loads(mesh, bodies, fields, radius=spread_radius)
     load = people + (model.weight_load() if self_weight else 0.0)
     solution = model.solve(load, np.flatnonzero(held))
-    det = model.basis.mapping.detDF(model.basis.X)
+    det = model.det
     folded = det.min(axis=1) < MIN_JACOBIAN_RATIO * det.max(axis=1)  # folded or nearly folded
     sound = ~folded
     vm = solution.von_mises
@@ -209,6 +207,16 @@ def analyse(
     return Analysis(summary, mesh, solution, folded, held, mat)
 
 
+def _check_fields(bodies, fields) -> tuple[list, list]:
+    """The people and their contact forces as lists, or one line naming a person the design cannot hold."""
+    bodies, fields = list(bodies), list(fields)
+    missing = [i + 1 for i, f in enumerate(fields) if f is None]
+    if missing or len(fields) != len(bodies):
+        msg = f"no contact forces for person {', '.join(map(str, missing)) or '?'}: the design cannot hold them, so there is no load to analyse"
+        raise StructureError(msg)
+    return bodies, fields
+
+
 def _surface_geometry(control_mesh, level: int):
     surface, quads9 = surface_quads9(control_mesh, level)
     return surface, quads9, element_normals(surface.vertices, quads9)
@@ -252,7 +260,10 @@ def size_thickness(
     if not (max_deflection > 0 and math.isfinite(max_deflection)):
         raise StructureError(f"--max-deflection must be a positive number of metres, got {max_deflection!r}")
     mat = _material(material)
+    bodies, fields = _check_fields(bodies, fields)
     geometry = _surface_geometry(control_mesh, level)
+    surface, quads9, normals = geometry
+    people = contact_loads(ShellMesh.extrude(surface.vertices, normals, quads9, check_thickness(start), layers), bodies, fields)
     lo, hi = THICKNESS_RANGE
     history: list[dict] = []
     cache: dict[float, Analysis] = {}
@@ -260,7 +271,7 @@ def size_thickness(
     def run(t: float) -> Analysis:
         t = round(min(max(t, lo), hi), 7)
         if t not in cache:
-            a = analyse(control_mesh, bodies, fields, material=mat, thickness=t, level=level, layers=layers, _geometry=geometry)
+            a = analyse(control_mesh, bodies, fields, material=mat, thickness=t, level=level, layers=layers, _geometry=geometry, _people=people)
             cache[t] = a
             s = a.summary
             history.append({"thickness_m": t, "safety_factor": s["safety_factor"], "max_deflection_m": s["max_deflection_m"]})
