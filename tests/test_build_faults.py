@@ -72,7 +72,7 @@ def _copy_previous(previous: Path, out: Path) -> None:
     shutil.copytree(previous, out)
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="children are forked on Linux only")
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="workers end with a killed build on Linux only")
 def test_kill_9_during_the_export_children_end_and_the_next_build_cleans_up(tmp_path, previous):
     out = tmp_path / "X"
     _copy_previous(previous, out)
@@ -83,10 +83,11 @@ def test_kill_9_during_the_export_children_end_and_the_next_build_cleans_up(tmp_
         """
         import os, signal
         import seatkit.pipeline as pl
-        def run(self, result, directory):
-            print(self.worker._pid if self.worker else "", flush=True)
-            os.kill(os.getpid(), signal.SIGKILL)
-        pl._Exports.run = run
+        def write(result, exporters, registry, timer, *, overwrite, helper=None):
+            with pl.staging_folder(pl.output_target(result.recipe), overwrite=overwrite):
+                print(helper.pid() if helper else "", flush=True)
+                os.kill(os.getpid(), signal.SIGKILL)
+        pl._write = write
         """,
         out,
     )
@@ -256,7 +257,6 @@ def _build_unprivileged(out: Path, monkeypatch):
     import threadpoolctl  # noqa: F401 - imported before dropping rights
 
     import seatkit.output  # noqa: F401
-    import seatkit.parallel  # noqa: F401
     from seatkit.body import list_poses
 
     list_poses()

@@ -514,7 +514,8 @@ class Designer:
         SeatkitError
             The build's own errors (an unsupported pose, an infeasible support).
         """
-        from seatkit.pipeline import _Timer, build, evaluate_result
+        from seatkit.pipeline import build, evaluate_result
+        from seatkit.stages import StageTimer
 
         ident = Path(recipe["output"]).name
         with self._state:
@@ -540,7 +541,7 @@ class Designer:
                 result.recipe["evaluate"]["baseline"] = None
                 if recipe["evaluate"]["enabled"]:
                     self._check(seq, "evaluate")
-                    evaluate_result(result, self.registry, _Timer(lambda s: self._check(seq, s)))
+                    evaluate_result(result, self.registry, StageTimer(lambda s: self._check(seq, s)))
                 result.recipe = recipe
                 seconds = {"design": designed - start, "evaluate": time.perf_counter() - designed}
             finally:
@@ -583,12 +584,12 @@ class Designer:
                 finally:
                     if seq is not None:
                         self._idle(seq)
-            result.timings["baseline (parallel)"] = base["seconds"]
+            result.timings["baseline (parallel)"] = base.seconds
             result.metrics["baseline_template"] = ev["baseline"]
-            result.metrics["baseline"] = base["metrics"]
-            result.extra["baseline"] = {k: base[k] for k in ("control_mesh", "surface", "contact_pressures")}
-            design.seconds["baseline"] = base["seconds"]
-            design.baseline = base["metrics"]
+            result.metrics["baseline"] = base.metrics
+            result.baseline = base
+            design.seconds["baseline"] = base.seconds
+            design.baseline = base.metrics
             return design.baseline
 
     def files(self, design: Design) -> dict:
@@ -610,10 +611,10 @@ class Designer:
 
     def _write_recipe(self, design: Design) -> None:
         """``recipes/ID/recipe.yaml`` (+ the pose files it names) and ``recipe.zip`` of them."""
-        from seatkit.pipeline import _jsonable
+        from seatkit.io import jsonable
         from seatkit.recipe import looks_like_path
 
-        recipe = _jsonable(copy.deepcopy(design.recipe))
+        recipe = jsonable(copy.deepcopy(design.recipe))
         recipe.pop("output")
         if recipe["pressure"].get("exclude") is None:
             recipe["pressure"].pop("exclude", None)
@@ -659,7 +660,7 @@ class Designer:
     def report(self, design: Design) -> dict:
         """The JSON answer for a design: metrics, timings, file URLs (once written)."""
         from seatkit.evaluate import TABLE_COLUMNS
-        from seatkit.pipeline import _jsonable
+        from seatkit.io import jsonable
 
         r = design.result
         files = None
@@ -668,7 +669,7 @@ class Designer:
             names["recipe_zip"] = "recipe.zip"
             names["recipe_yaml"] = "recipe.yaml"
             files = {role: f"/files/{design.id}/{name}" for role, name in names.items()}
-        return _jsonable(
+        return jsonable(
             {
                 "id": design.id,
                 "seq": design.seq,
@@ -706,7 +707,7 @@ class Designer:
     def view(self, design: Design) -> dict:
         """The meshes the page draws: bodies (with contact pressure), the limit surface and the cage (float32/uint32, base64)."""
         r = design.result
-        contact = r.extra.get("contact_pressures") or [None] * len(r.bodies)
+        contact = r.contact_pressures or [None] * len(r.bodies)
         bodies = [
             self._body_view(body, f.pressure, "contact") if f is not None else self._body_view(body, imp.pressure, "importance")
             for body, imp, f in zip(r.bodies, r.pressures, contact)

@@ -1,0 +1,210 @@
+"""The build's helper processes: standard :mod:`concurrent.futures` pools.
+
+A build is Python driving numpy and scipy on small arrays, so two threads of
+one process mostly wait for each other's GIL (the ``optimize`` refiner took
+0.11 s alone and 0.41 s beside the baseline on a second thread, 2 cores).
+Work that pays for its own hand-off goes to a process instead
+(docs/architecture.md, "Processes of one build"):
+
+- the baseline design (fitted beside our refiners);
+- the exporters whose time goes mostly into importing a big library
+  (``prepare_ahead``: usd-core, plotly, trimesh), which a worker imports
+  while the design is computed and then runs beside the other exporters.
+
+Each is a :class:`Helper`: a one-worker :class:`ProcessPoolExecutor`.
+
+Every pool uses one multiprocessing context on every platform,
+``forkserver`` where the platform has it and ``spawn`` elsewhere: a worker
+never is a ``fork`` of a process whose threads run (the CLI's spinner, the
+PNG writer thread, ``seatkit serve``). The fork server is started once per
+Python process, from a fresh interpreter, and imports :data:`PRELOAD` first,
+so that each worker forked from it starts with numpy, scipy and seatkit's
+stages imported. It starts with the first pool, at the beginning of a build,
+while the build computes the bodies and their pressure.
+
+Errors cross the boundary as they were raised (a
+:class:`~seatkit.errors.SeatkitError` stays one, with the same one-line
+message: it pickles by ``__reduce__``). A worker that dies (out of memory,
+a signal from outside) is one clear :class:`WorkerLost` line, never a
+traceback. Workers run :data:`BACKGROUND_NICE` lower than the build: on two
+cores the build's own stages are the critical path. On Linux a worker ends
+with the build even when the build is killed outright (``kill -9``).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import pickle
+import signal
+import sys
+import threading
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any, Callable, Sequence
+
+from seatkit.errors import SeatkitError
+
+__all__ = ["BACKGROUND_NICE", "PRELOAD", "Helper", "WorkerLost", "pool_context"]
+
+#: Niceness added to the build's helper processes: on two cores three
+#: runnable processes would otherwise slow the build's own stages, which are
+#: the critical path; the helpers have slack (the baseline is done before our
+#: evaluation needs it, the export worker waits for the design).
+BACKGROUND_NICE = 5
+
+#: Modules the fork server imports before it forks any worker: what the
+#: baseline needs (the flat patch, the refiners, the limit surface, the
+#: evaluation). The big exporter libraries are not among them: the export
+#: worker imports those itself, beside the build, so the baseline worker
+#: need not wait for them.
+PRELOAD = (
+    "numpy",
+    "scipy.sparse",
+    "scipy.spatial",
+    "seatkit.model",
+    "seatkit.plugins",
+    "seatkit.evaluate",
+    "seatkit.subdivision",
+    "seatkit.refine",
+    "seatkit.template",
+)
+
+
+class WorkerLost(SeatkitError):
+    """A helper process of the build ended before sending its result."""
+
+
+def pool_context() -> multiprocessing.context.BaseContext:
+    """The one multiprocessing context of seatkit's pools (forkserver, else spawn)."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(list(PRELOAD))
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+#: prctl(2) option: the signal a process gets when its parent dies (Linux).
+_PR_SET_PDEATHSIG = 1
+
+
+def _end_with_parent() -> None:
+    """Have the kernel kill this worker when its parent (the fork server) dies (Linux).
+
+    The fork server ends when the build's process ends, however it ends (it
+    watches a pipe only that process holds); a worker of a build killed with
+    ``kill -9`` would otherwise wait for its next task forever (it holds
+    both ends of its task queue) or finish its work, holding nothing, for
+    nothing. Elsewhere the worker ends when it next reads from the build.
+    """
+    if not sys.platform.startswith("linux"):
+        return
+    parent = os.getppid()
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    except (OSError, AttributeError):  # not glibc/musl
+        return
+    if os.getppid() != parent:  # the parent died before the request was made
+        os._exit(1)
+
+
+def _start_worker(prepare: Sequence[Any]) -> None:
+    """A worker's first step: end with the build, step back for it, then get its exporters ready."""
+    _end_with_parent()
+    try:
+        os.nice(BACKGROUND_NICE)
+    except (AttributeError, OSError):  # no nice() (Windows), or not allowed
+        pass
+    for exporter in prepare:
+        exporter.prepare()
+
+
+class Helper:
+    """One helper process of a build: a one-worker :class:`ProcessPoolExecutor`, started now.
+
+    The worker starts at once, not at the first :meth:`submit`, so that it
+    gets ready (imports, ``prepare()`` of ``exporters``) while the build
+    computes what it will be given. Starting it waits until the fork server
+    has imported :data:`PRELOAD` and forked the worker, so it is asked for on
+    a thread (starting the fork server is a fork+exec, safe beside threads)
+    and the build goes on meanwhile.
+
+    Parameters
+    ----------
+    what : str
+        Names the work in the :class:`WorkerLost` message.
+    exporters : sequence of Exporter
+        Prepared by the worker as it starts (they are pickled to it).
+    """
+
+    def __init__(self, what: str, exporters: Sequence[Any] = ()):
+        self.what = what
+        self._pool = ProcessPoolExecutor(max_workers=1, mp_context=pool_context(), initializer=_start_worker, initargs=(tuple(exporters),))
+        self._jobs: list[Future] = []
+        self._started: list[Future] = []  # the first task: the worker's process id
+        self._start = threading.Thread(target=lambda: self._started.append(self._pool.submit(os.getpid)), name=f"seatkit-{what}-start", daemon=True)
+        self._start.start()
+
+    def submit(self, fn: Callable, *args: Any) -> Future:
+        """Run ``fn(*args)`` in the worker (arguments and value are pickled)."""
+        job = self._pool.submit(_portable_call, fn, *args)
+        self._jobs.append(job)
+        return job
+
+    def result(self, future: Future) -> Any:
+        """A task's value, its error re-raised, or :class:`WorkerLost` if the worker died."""
+        try:
+            return future.result()
+        except BrokenProcessPool:
+            # one clear line, not a traceback: the cause is outside seatkit
+            msg = f"the {self.what} process ended before sending its result (out of memory, or stopped from outside seatkit)"
+            raise WorkerLost(msg) from None
+
+    def pid(self) -> int:
+        """The worker's process id."""
+        self._start.join()
+        return self.result(self._started[0])
+
+    def close(self, *, stop: bool = False) -> None:
+        """End the worker (idempotent); with ``stop``, work it still does is stopped, not waited for.
+
+        A build that failed stops its helpers (``SIGTERM``): their results
+        are no longer wanted.
+        """
+        self._start.join()
+        if stop and any(not job.done() for job in self._jobs):
+            try:
+                os.kill(self.pid(), signal.SIGTERM)
+            except (ProcessLookupError, WorkerLost):
+                pass
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self) -> "Helper":
+        return self
+
+    def __exit__(self, exc_type, *exc) -> None:
+        self.close(stop=exc_type is not None)
+
+
+def _portable_error(exc: BaseException) -> BaseException:
+    """``exc`` if it survives pickling, else the nearest thing that does (same message)."""
+    try:
+        pickle.loads(pickle.dumps(exc))
+        return exc
+    except Exception:  # noqa: BLE001 - any failure to round-trip
+        if isinstance(exc, SeatkitError):
+            return SeatkitError(str(exc))
+        return RuntimeError(f"{type(exc).__name__}: {exc}")
+
+
+def _portable_call(fn: Callable, *args: Any) -> Any:
+    """``fn(*args)`` in a worker, its error made to survive the way back (:func:`_portable_error`)."""
+    try:
+        return fn(*args)
+    except Exception as exc:  # noqa: BLE001 - re-raised in the build, as it was or as near as pickling allows
+        portable = _portable_error(exc)
+        if portable is exc:
+            raise
+        raise portable from None
