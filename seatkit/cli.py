@@ -160,11 +160,11 @@ def build(
     merged = check_recipe(merged, pm.registry, document=document)  # a Recipe: build() takes it as checked
 
     if quiet or as_json:
-        result = run_build(merged, pm=pm, overwrite=overwrite)
+        result = run_build(merged, pm=pm, overwrite=overwrite, processes=True)  # the entry point is guarded (seatkit.workers)
     else:
         console = stderr_console()
         with console.status("building") as status:
-            result = run_build(merged, pm=pm, overwrite=overwrite, progress=lambda s: status.update(f"[bold]{s}[/]"))
+            result = run_build(merged, pm=pm, overwrite=overwrite, processes=True, progress=lambda s: status.update(f"[bold]{s}[/]"))
     summary = {
         "output": result.output,
         "files": result.files,

@@ -55,7 +55,7 @@ __all__ = [
 ]
 
 
-def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool = False, processes: bool = True) -> BuildResult:
+def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool = False, processes: bool | None = None) -> BuildResult:
     """Run one build.
 
     Parameters
@@ -74,12 +74,17 @@ def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool
         written.
     overwrite : bool
         Allow replacing an output folder that seatkit did not write.
-    processes : bool
+    processes : bool, optional
         Fit the baseline and run the exporters that import big libraries in
-        helper processes (:mod:`seatkit.workers`). ``False`` runs everything
-        in this process, in sequence, for callers that already keep every
-        core busy (batch workers) or run builds on threads (``seatkit
-        serve``). The files and results are the same either way.
+        helper processes (:mod:`seatkit.workers`). Multiprocessing imports
+        the caller's main script again in them, so pass ``True`` only from
+        a script whose build runs under ``if __name__ == "__main__":`` (the
+        ``seatkit`` command does). Default: only where nothing would be
+        imported again (the REPL, a notebook, ``python -c``,
+        :func:`seatkit.workers.main_is_import_safe`). ``False`` runs
+        everything in this process, in sequence, for callers that already
+        keep every core busy (batch workers) or run builds on threads
+        (``seatkit serve``). The files and results are the same either way.
     """
     from threadpoolctl import threadpool_limits
 
@@ -88,6 +93,10 @@ def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool
     # Every numerical step works on small dense blocks or sparse matrices:
     # multithreaded BLAS only adds contention (SLSQP became 10-20x slower
     # with OpenBLAS threads spinning on 2 busy cores).
+    if processes is None:
+        from seatkit.workers import main_is_import_safe
+
+        processes = main_is_import_safe()
     with threadpool_limits(limits=1):
         registry = (pm if pm is not None else get_plugin_manager()).registry
         timer = StageTimer(progress)

@@ -27,8 +27,17 @@ Errors cross the boundary as they were raised (a
 message: it pickles by ``__reduce__``). A worker that dies (out of memory,
 a signal from outside) is one clear :class:`WorkerLost` line, never a
 traceback. Workers run :data:`BACKGROUND_NICE` lower than the build: on two
-cores the build's own stages are the critical path. On Linux a worker ends
-with the build even when the build is killed outright (``kill -9``).
+cores the build's own stages are the critical path. A worker ends with the
+build even when the build is killed outright (``kill -9``).
+
+A worker starts without the build's ``fork``, so, as for every
+``forkserver``/``spawn`` process, multiprocessing imports the caller's main
+script in it again (as ``__mp_main__``): a script that builds at import
+time, without ``if __name__ == "__main__":``, would run again there.
+:func:`main_is_import_safe` tells whether the running program is safe that
+way without being asked (the REPL, a notebook, ``python -c``);
+:func:`seatkit.pipeline.build` uses helpers by default only then, and the
+``seatkit`` command, whose entry point is guarded, asks for them.
 """
 
 from __future__ import annotations
@@ -45,7 +54,7 @@ from typing import Any, Callable, Sequence
 
 from seatkit.errors import SeatkitError
 
-__all__ = ["BACKGROUND_NICE", "PRELOAD", "Helper", "WorkerLost", "pool_context"]
+__all__ = ["BACKGROUND_NICE", "PRELOAD", "Helper", "WorkerLost", "main_is_import_safe", "pool_context"]
 
 #: Niceness added to the build's helper processes: on two cores three
 #: runnable processes would otherwise slow the build's own stages, which are
@@ -54,25 +63,40 @@ __all__ = ["BACKGROUND_NICE", "PRELOAD", "Helper", "WorkerLost", "pool_context"]
 BACKGROUND_NICE = 5
 
 #: Modules the fork server imports before it forks any worker: what the
-#: baseline needs (the flat patch, the refiners, the limit surface, the
-#: evaluation). The big exporter libraries are not among them: the export
-#: worker imports those itself, beside the build, so the baseline worker
-#: need not wait for them.
+#: baseline imports (the flat patch and the refiners, the limit surface, the
+#: evaluation and its pressure solve; measured with ``sys.modules`` after a
+#: baseline fit) and nothing more: on two busy cores every import is CPU
+#: the build's own stages want. The big exporter libraries are not among
+#: them: the export worker imports those itself, beside the build, so the
+#: baseline worker need not wait for them.
 PRELOAD = (
     "numpy",
     "scipy.sparse",
     "scipy.spatial",
     "seatkit.model",
-    "seatkit.plugins",
+    "seatkit.pressure",
     "seatkit.evaluate",
     "seatkit.subdivision",
     "seatkit.refine",
-    "seatkit.template",
 )
 
 
 class WorkerLost(SeatkitError):
     """A helper process of the build ended before sending its result."""
+
+
+def main_is_import_safe() -> bool:
+    """Whether a worker can start without running the caller's main script or module again.
+
+    True when ``__main__`` is no file and no module (the REPL, a notebook,
+    ``python -c``): multiprocessing then has nothing to import in the
+    worker. A script or ``python -m`` module is imported again there, which
+    is safe only under a ``__main__`` guard, which cannot be seen from here.
+    """
+    main = sys.modules.get("__main__")
+    if main is None:
+        return True
+    return getattr(main, "__file__", None) is None and getattr(getattr(main, "__spec__", None), "name", None) is None
 
 
 def pool_context() -> multiprocessing.context.BaseContext:
@@ -84,35 +108,29 @@ def pool_context() -> multiprocessing.context.BaseContext:
     return multiprocessing.get_context("spawn")
 
 
-#: prctl(2) option: the signal a process gets when its parent dies (Linux).
-_PR_SET_PDEATHSIG = 1
+def _end_with_the_build() -> None:
+    """End this worker as soon as the build's process ends, however it ends.
 
-
-def _end_with_parent() -> None:
-    """Have the kernel kill this worker when its parent (the fork server) dies (Linux).
-
-    The fork server ends when the build's process ends, however it ends (it
-    watches a pipe only that process holds); a worker of a build killed with
+    ``multiprocessing.parent_process()`` is the process that asked for this
+    worker (the build, not the fork server that forked it); its sentinel
+    becomes ready when that process is gone. A worker of a build killed with
     ``kill -9`` would otherwise wait for its next task forever (it holds
-    both ends of its task queue) or finish its work, holding nothing, for
-    nothing. Elsewhere the worker ends when it next reads from the build.
+    both ends of its task queue) and keep the fork server alive with it.
     """
-    if not sys.platform.startswith("linux"):
+    parent = multiprocessing.parent_process()
+    if parent is None:  # pragma: no cover - not started by multiprocessing
         return
-    parent = os.getppid()
-    try:
-        import ctypes
 
-        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    except (OSError, AttributeError):  # not glibc/musl
-        return
-    if os.getppid() != parent:  # the parent died before the request was made
+    def watch() -> None:
+        parent.join()
         os._exit(1)
+
+    threading.Thread(target=watch, name="seatkit-watch-build", daemon=True).start()
 
 
 def _start_worker(prepare: Sequence[Any]) -> None:
     """A worker's first step: end with the build, step back for it, then get its exporters ready."""
-    _end_with_parent()
+    _end_with_the_build()
     try:
         os.nice(BACKGROUND_NICE)
     except (AttributeError, OSError):  # no nice() (Windows), or not allowed

@@ -117,7 +117,7 @@ def test_kill_9_between_the_two_renames_the_previous_output_is_restored(tmp_path
     killed = _run_cli(
         """
         import os, signal
-        import seatkit.pipeline as pl
+        import seatkit.output as output  # the staging folder's renames (seatkit.output.finish_output)
         class _Os:
             def __getattr__(self, name):
                 return getattr(os, name)
@@ -125,7 +125,7 @@ def test_kill_9_between_the_two_renames_the_previous_output_is_restored(tmp_path
                 if ".staging-" in str(src):  # the second rename: the previous output is already moved away
                     os.kill(os.getpid(), signal.SIGKILL)
                 return os.replace(src, dst)
-        pl.os = _Os()
+        output.os = _Os()
         """,
         out,
     )

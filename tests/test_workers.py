@@ -325,3 +325,26 @@ def test_a_failing_exporter_leaves_no_output_folder_and_no_process(tmp_path, pro
         seatkit.build(recipe, pm=pm, processes=processes)
     assert list(tmp_path.iterdir()) == []  # neither the folder nor its staging folder
     assert _children() == []
+
+
+def test_a_script_without_a_main_guard_builds_once_by_default(tmp_path):
+    # multiprocessing imports the main script again in a forkserver/spawn
+    # worker: by default a script's build stays in its process, so a script
+    # that builds at import time runs once, as it reads
+    import subprocess
+    import sys
+
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "import seatkit\n"
+        "from seatkit.workers import main_is_import_safe\n"
+        "print('building', main_is_import_safe(), flush=True)\n"
+        f"r = seatkit.build({dict(RECIPE)!r}, write=False)\n"
+        "print('baseline', r.metrics['baseline'][0]['supported'], flush=True)\n"
+    )
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == ["building False", "baseline True"]
+    # python -c has no main to import again: helpers by default there
+    code = "from seatkit.workers import main_is_import_safe; print(main_is_import_safe())"
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.strip() == "True"
