@@ -56,7 +56,8 @@ from seatkit.errors import SeatkitError
 
 __all__ = ["BACKGROUND_NICE", "PRELOAD", "Helper", "WorkerLost", "main_is_import_safe", "pool_context"]
 
-#: Niceness added to the build's helper processes: on two cores three
+#: Niceness added to the build's helper processes (the fork server, and so
+#: every worker it forks, :mod:`seatkit.background`): on two cores three
 #: runnable processes would otherwise slow the build's own stages, which are
 #: the critical path; the helpers have slack (the baseline is done before our
 #: evaluation needs it, the export worker waits for the design).
@@ -70,6 +71,7 @@ BACKGROUND_NICE = 5
 #: them: the export worker imports those itself, beside the build, so the
 #: baseline worker need not wait for them.
 PRELOAD = (
+    "seatkit.background",  # first: lowers the fork server's priority (and so its workers')
     "numpy",
     "scipy.sparse",
     "scipy.spatial",
@@ -129,12 +131,10 @@ def _end_with_the_build() -> None:
 
 
 def _start_worker(prepare: Sequence[Any]) -> None:
-    """A worker's first step: end with the build, step back for it, then get its exporters ready."""
+    """A worker's first step: end with the build, then get its exporters ready."""
     _end_with_the_build()
-    try:
-        os.nice(BACKGROUND_NICE)
-    except (AttributeError, OSError):  # no nice() (Windows), or not allowed
-        pass
+    if "forkserver" not in multiprocessing.get_all_start_methods():  # spawned: not forked from the niced fork server
+        import seatkit.background  # noqa: F401
     for exporter in prepare:
         exporter.prepare()
 

@@ -348,3 +348,14 @@ def test_a_script_without_a_main_guard_builds_once_by_default(tmp_path):
     # python -c has no main to import again: helpers by default there
     code = "from seatkit.workers import main_is_import_safe; print(main_is_import_safe())"
     assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.strip() == "True"
+
+
+@pytest.mark.skipif(not hasattr(os, "nice"), reason="POSIX niceness")
+def test_workers_run_below_the_build_and_the_build_keeps_its_priority():
+    from seatkit.workers import BACKGROUND_NICE
+
+    mine = os.nice(0)
+    with Helper("nice") as work:
+        theirs = work.result(work.submit(os.nice, 0))
+    assert os.nice(0) == mine  # importing seatkit.workers does not lower the build
+    assert theirs == min(mine + BACKGROUND_NICE, 19)
