@@ -35,7 +35,7 @@ def main() -> None:
         result = build({"template": args.template}, write=False)
     body = result.bodies[0]
     print(f"template {args.template}: {len(result.bodies)} body, {len(body.vertices)} vertices, {len(body.faces)} triangles;"
-          f" evaluated: {bool(result.metrics.get('ours'))}, baseline: {'baseline' in result.extra}")
+          f" evaluated: {bool(result.metrics.get('ours'))}, baseline: {result.baseline is not None}")
 
     from seatkit.export.report import ReportHtmlExporter, ReportPngExporter
 

@@ -46,7 +46,7 @@ def main() -> None:
 
     recipe = apply_overrides(load_recipe(None)[0], template=args.template, baseline="")
     result = build(recipe, write=False)
-    people = result.extra["contact_pressures"]
+    people = result.contact_pressures
 
     from seatkit.structure import analyse  # scikit-fem is imported here, on first use
 

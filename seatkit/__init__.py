@@ -5,6 +5,7 @@ Public API::
     import seatkit
     result = seatkit.build({"template": "chair"})      # one build, a BuildResult
     seatkit.hookimpl                                     # for plugins
+    seatkit.jsonable(result.metrics)                     # plain JSON data, as report.json writes it
 
 The data types (:mod:`seatkit.model`) and interfaces (:mod:`seatkit.interfaces`)
 are re-exported here; heavy modules are imported on first use so that
@@ -16,6 +17,7 @@ from __future__ import annotations
 import pluggy
 
 from seatkit.errors import SeatkitError
+from seatkit.io import jsonable
 from seatkit.model import Body, BuildResult, ControlMesh, Pose, PressureField, RiggedBody, Surface
 
 __version__ = "0.1.0"
@@ -35,6 +37,7 @@ __all__ = [
     "__version__",
     "build",
     "hookimpl",
+    "jsonable",
 ]
 
 

@@ -198,7 +198,7 @@ def run_item(recipe: dict, disabled: Sequence[str] = ()) -> dict:
 
     start = time.perf_counter()
     try:
-        # one build per core already: no forked baseline process on top
+        # one build per core already: no helper processes on top
         result = build(recipe, pm=get_plugin_manager(disabled=disabled), overwrite=True, processes=False)
     except SeatkitError as e:
         first = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__

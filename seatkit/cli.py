@@ -157,16 +157,16 @@ def build(
         from seatkit.structure.build import enable
 
         enable(merged, material=material, thickness=thickness, size_thickness=size_thickness or None, safety_factor=safety_factor, max_deflection=max_deflection)
-    check_recipe(merged, pm.registry, document=document)
+    merged = check_recipe(merged, pm.registry, document=document)  # a Recipe: build() takes it as checked
 
     if quiet or as_json:
-        result = run_build(merged, pm=pm, overwrite=overwrite)
+        result = run_build(merged, pm=pm, overwrite=overwrite, processes=True)  # the entry point is guarded (seatkit.workers)
     else:
         console = stderr_console()
         with console.status("building") as status:
-            result = run_build(merged, pm=pm, overwrite=overwrite, progress=lambda s: status.update(f"[bold]{s}[/]"))
+            result = run_build(merged, pm=pm, overwrite=overwrite, processes=True, progress=lambda s: status.update(f"[bold]{s}[/]"))
     summary = {
-        "output": result.extra.get("output"),
+        "output": result.output,
         "files": result.files,
         "timings_s": result.timings,
         "control_mesh": {"vertices": len(result.control_mesh.vertices), "faces": len(result.control_mesh.faces)},

@@ -93,5 +93,5 @@ class MissingExtraError(SeatkitError):
 
     def __reduce__(self):
         # rebuilt from its own arguments, so that it survives pickling (a
-        # forked worker of seatkit.parallel, a Dask worker)
+        # helper process of seatkit.workers, a Dask worker)
         return (type(self), (self.package, self.extra, self.first))

@@ -198,9 +198,9 @@ class Exporter(Protocol):
 
     ``prepare_ahead`` says whether :meth:`prepare` is worth running ahead:
     a build runs such exporters in its export worker process, which calls
-    ``prepare()`` while the design is computed (see
-    ``seatkit.pipeline._Exports``); ``export`` then gets a pickled copy of
-    the result. Other exporters run in the build's process, and their
+    ``prepare()`` while the design is computed (:mod:`seatkit.workers`);
+    ``export`` then gets a pickled copy of the result (exporters must
+    pickle). Other exporters run in the build's process, and their
     ``prepare()`` is called just before ``export``.
     """
 

@@ -5,19 +5,47 @@ written to a temporary name in the same folder and renamed into place
 (:func:`os.replace` is atomic on POSIX and Windows). A finished output folder
 records its run in ``.seatkit-run`` (:func:`mark_complete`); the pipeline
 writes a build into a staging folder and moves it onto the target only at
-the end (``seatkit.pipeline._finish_output``), so runs are never mixed.
+the end (:func:`seatkit.output.staging_folder`), so runs are never mixed.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
+import math
 import os
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
+
+import numpy as np
 
 
 RUN_MARKER = ".seatkit-run"
+
+
+def jsonable(value):
+    """``value`` as plain JSON data, the way report.json and design.npz write it.
+
+    Mappings (a Recipe too) become dicts with string keys, tuples and arrays
+    lists, numpy scalars Python numbers, other dataclasses dicts of their fields;
+    non-finite floats become strings (``"inf"``, ``"nan"``: JSON has no
+    such numbers). Anything else is returned as it is.
+    """
+    if isinstance(value, float) and not math.isfinite(value):
+        return str(value)
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        return jsonable(value.item())
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return jsonable({f.name: getattr(value, f.name) for f in dataclasses.fields(value)})
+    return value
 
 
 def _umask_mode() -> int:

@@ -24,6 +24,7 @@ __all__ = [
     "PressureField",
     "ControlMesh",
     "Surface",
+    "Baseline",
     "BuildResult",
 ]
 
@@ -338,14 +339,46 @@ class Surface:
     level: int
 
 
+@dataclass(frozen=True)
+class Baseline:
+    """The baseline design a build compares ours with (default the flat patch, Sit & Relax).
+
+    Attributes
+    ----------
+    template : str
+        The baseline template's registered name.
+    control_mesh : ControlMesh
+        Its cage after the baseline's refiners.
+    surface : Surface
+        Its limit surface.
+    metrics : list of dict
+        The evaluation figures per person (keys of :mod:`seatkit.evaluate`).
+    contact_pressures : list of PressureField or None
+        Each person's contact pressure on its surface (None where it cannot
+        hold the person).
+    seconds : float
+        Wall time of the fit and evaluation.
+    """
+
+    template: str
+    control_mesh: ControlMesh
+    surface: Surface
+    metrics: list
+    contact_pressures: list
+    seconds: float = 0.0
+
+
 @dataclass
 class BuildResult:
     """Everything one build produced.
 
     Attributes
     ----------
-    recipe : dict
-        The validated recipe the build ran (after command-line overrides).
+    recipe : seatkit.recipe.Recipe or mapping
+        The recipe the build ran (after command-line overrides): a
+        :class:`~seatkit.recipe.Recipe` from :func:`seatkit.build`; a plain
+        mapping where a caller assembles a result itself (``seatkit
+        evaluate`` from design.npz).
     bodies : list of Body
         The posed bodies, in seat order.
     pressures : list of PressureField
@@ -362,9 +395,21 @@ class BuildResult:
         Seconds per stage.
     files : dict of str to str
         Output files written, by role.
+    contact_pressures : list of PressureField or None
+        Each person's contact pressure on ``surface`` (set by the evaluation;
+        None for a person the surface cannot hold).
+    baseline : Baseline or None
+        The baseline design, when the evaluation fitted one.
+    output : str or None
+        The output folder, once the files are written.
+    structure : seatkit.structure.analysis.Analysis or None
+        The structural analysis, when the recipe asks for one.
+    shell_thickness_m : float or None
+        The shell thickness the structural analysis chose (the ``shell``
+        exporter uses it), m.
     """
 
-    recipe: dict
+    recipe: Any
     bodies: list
     pressures: list
     initial_mesh: ControlMesh | None = None
@@ -373,5 +418,8 @@ class BuildResult:
     metrics: dict = field(default_factory=dict)
     timings: dict = field(default_factory=dict)
     files: dict = field(default_factory=dict)
-    extra: dict[str, Any] = field(default_factory=dict)
-
+    contact_pressures: list | None = None
+    baseline: Baseline | None = None
+    output: str | None = None
+    structure: Any = None
+    shell_thickness_m: float | None = None

@@ -1,7 +1,7 @@
-"""A build's hold on its output folder, and the clean-up of killed builds.
+"""A build's output folder: its name, its hold on it, staging, and the clean-up of killed builds.
 
 A build writes into a staging folder beside its target (``.X.staging-*``) and
-moves it onto the target at the end (``seatkit.pipeline._finish_output``:
+moves it onto the target at the end (:func:`finish_output`, in :func:`staging_folder`:
 the previous output is first moved into ``.X.old-*/X``, then the staging
 folder onto ``X``, then ``.X.old-*`` is deleted). A build killed on the way
 (``kill -9``, a power cut) leaves one of those folders behind.
@@ -35,11 +35,14 @@ from __future__ import annotations
 
 import contextlib
 import glob
+import hashlib
+import json
 import os
 import shutil
+import tempfile
 import time
 from pathlib import Path
-from typing import Iterator
+from typing import Iterator, Mapping
 
 from seatkit.errors import SeatkitError
 from seatkit.io import RUN_MARKER, is_complete
@@ -211,3 +214,125 @@ def claim_output(target, *, overwrite: bool = False) -> Iterator[list[str]]:
             with contextlib.suppress(OSError):
                 os.unlink(_lock_path(target))
             os.close(fd)
+
+
+def finish_output(staging: Path, target: Path, *, overwrite: bool) -> None:
+    """Move a finished staging folder onto ``target``.
+
+    A previous seatkit run in ``target`` is replaced; a folder with other
+    files is refused unless ``overwrite``.
+    """
+    if target.exists():
+        check_writable(target, overwrite=overwrite)  # checked before the design too (claim_output)
+        trash = Path(tempfile.mkdtemp(prefix=f".{target.name}.old-", dir=target.parent))
+        os.replace(target, trash / target.name)
+        os.replace(staging, target)
+        shutil.rmtree(trash, ignore_errors=True)
+    else:
+        os.replace(staging, target)
+
+
+@contextlib.contextmanager
+def staging_folder(target, *, overwrite: bool = False) -> Iterator[Path]:
+    """A fresh staging folder beside ``target``, moved onto it when the block ends without error.
+
+    On an error the staging folder is deleted and ``target`` is left as it
+    was; an :class:`OSError` (a full disk, a folder made read-only
+    meanwhile) becomes one :class:`OutputError` line naming the folder.
+    """
+    target = Path(target)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.staging-", dir=target.parent))
+    except OSError as e:
+        raise output_error(e, target) from e
+    mask = os.umask(0)
+    os.umask(mask)
+    try:
+        os.chmod(staging, 0o777 & ~mask)  # mkdtemp makes 0700 folders
+        yield staging
+        finish_output(staging, target, overwrite=overwrite)
+    except OSError as e:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise output_error(e, target) from e
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        raise
+
+
+#: Longest default output folder name; longer ones end in a hash of the whole name.
+MAX_DESIGN_NAME = 96
+
+
+def design_name(recipe: Mapping) -> str:
+    """A folder name that tells one design from another: template, then each person.
+
+    Each person is their ``name`` if the recipe gives one, else their pose
+    (a library name, or a pose file's stem, with ``-frameN`` for a BVH),
+    followed by the body when it is not the default (``-default-female``,
+    a body file's stem) and the mass when one is given (``-60kg``); people
+    are joined by ``+`` in seat order::
+
+        chair-upright-sitting
+        chair-reclined-sitting-default-female-60kg
+        bench-upright-sitting+reclined-sitting+crossed-legs-knees
+
+    Other body parameters add a short hash of them, so that two designs
+    for different bodies never share a default folder.
+    """
+    from seatkit.recipe import DEFAULT_BODY_MODEL, looks_like_path
+
+    people = []
+    for entry in recipe["bodies"]:
+        if entry.get("name"):
+            people.append(str(entry["name"]))
+            continue
+        pose = str(entry["pose"])
+        part = Path(pose).stem if looks_like_path(pose) else pose
+        if pose.lower().endswith(".bvh"):
+            part += f"-frame{int(entry.get('frame') or 0)}"
+        params = dict(entry.get("params") or {})
+        model = entry.get("model", DEFAULT_BODY_MODEL)
+        if model == "file":
+            part += "-" + Path(str(params.pop("path", "body"))).stem
+        elif model != DEFAULT_BODY_MODEL:
+            part += f"-{model}"
+        mass = params.pop("mass", None)
+        if isinstance(mass, (int, float)):
+            part += f"-{float(mass):g}kg"
+        if params:
+            part += "-" + hashlib.sha256(json.dumps(params, sort_keys=True, default=str).encode()).hexdigest()[:6]
+        people.append(part)
+    name = f"{recipe['template']}-{'+'.join(people)}"
+    name = "".join(c if c.isalnum() or c in "-_.+" else "-" for c in name).strip("-.") or "design"
+    if len(name) > MAX_DESIGN_NAME:
+        digest = hashlib.sha256(name.encode()).hexdigest()[:8]
+        name = f"{name[: MAX_DESIGN_NAME - 9]}-{digest}"
+    return name
+
+
+def output_target(recipe: Mapping) -> Path:
+    """The output folder of a recipe (default ``seatkit-out/`` + :func:`design_name`)."""
+    return Path(recipe["output"] or Path("seatkit-out") / design_name(recipe))
+
+
+def save_unsupported(error, recipe: Mapping) -> None:
+    """Write what could and could not be supported beside the output folder.
+
+    ``error`` is an :class:`~seatkit.errors.UnsupportedPoseError`. The file
+    is ``<output>-unsupported.json`` (not inside the folder: no design was
+    made, so no output folder is created); its path is appended to the
+    error's message.
+    """
+    from seatkit.io import jsonable, write_text_atomic
+
+    target = output_target(recipe)
+    path = target.parent / f"{target.name}-unsupported.json"
+    data = {
+        "error": str(error),
+        "unsupported_parts": error.parts,
+        "diagnostics": jsonable(error.diagnostics),
+        "recipe": jsonable(dict(recipe)),
+    }
+    write_text_atomic(path, json.dumps(data, indent=1, default=str) + "\n")
+    error.args = (f"{error}; diagnostics saved to {path}",)

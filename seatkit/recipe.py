@@ -27,9 +27,13 @@ Every error names the file, line and key path.
 from __future__ import annotations
 
 import copy
+import hashlib
+import json
 import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from seatkit.constants import (
     DEFAULT_BODY_MASS,
@@ -128,7 +132,7 @@ RECIPE_SCHEMA: dict = {
                 "solver": _NAME,
                 "lambda": _NUMBER_OR_INF,
                 "mu": _ranged("mu"),
-                "exclude": {"type": "array", "items": _NAME},
+                "exclude": {"anyOf": [{"type": "array", "items": _NAME}, {"type": "null"}]},  # null: none
                 "options": _PARAMS,
             },
         },
@@ -145,11 +149,70 @@ RECIPE_SCHEMA: dict = {
                 "support_distance": _ranged("support_distance"),
             },
         },
-        "output": _PATH,
+        "output": {"anyOf": [_PATH, {"type": "null"}]},  # null: the default folder (seatkit.output.output_target)
         "seed": _ranged("seed", "integer"),
         "structure": {"type": "object"},  # checked against seatkit.structure.build.SCHEMA in load_recipe
     },
 }
+
+
+@dataclass(frozen=True, eq=False)
+class Recipe(Mapping):
+    """A validated recipe: what one build runs, every key present, every name checked.
+
+    Made by :func:`check_recipe` (which :func:`seatkit.pipeline.build` calls
+    on a mapping or a file; a Recipe given to ``build`` is used as it is,
+    validated once). Its fields are the recipe's top-level keys, with the
+    defaults of :func:`default_recipe` filled in; it also reads as the
+    mapping it was made from (``recipe["pressure"]["lambda"]``), so
+    components written against the mapping keep working. The fields cannot
+    be reassigned; the sections are the validated plain data (dicts and
+    lists, owned by the recipe: do not edit them). To change a recipe, edit
+    :meth:`to_dict` (or pass it through :func:`apply_overrides`) and check it
+    again. Equal to a mapping with the same keys and values.
+    """
+
+    template: str
+    template_params: dict
+    bodies: list
+    placement: dict
+    pressure: dict
+    refiners: list
+    exporters: list
+    surface_level: int
+    evaluate: dict
+    output: str | None
+    seed: int
+    #: the ``structure`` section (seatkit.structure.build.settings), None when the recipe has none
+    structure: dict | None = None
+
+    @classmethod
+    def from_normalised(cls, data: Mapping) -> "Recipe":
+        """A Recipe of normalised recipe data (:func:`load_recipe`'s), copied; not checked (see :func:`check_recipe`)."""
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            msg = f"recipe: unknown key {unknown[0]!r}; expected one of {', '.join(sorted(names))}"
+            raise RecipeError(msg)
+        return cls(**copy.deepcopy({k: v for k, v in data.items() if k in names}))
+
+    def to_dict(self) -> dict:
+        """The recipe as a new plain dict (a deep copy: edit it freely)."""
+        return copy.deepcopy(dict(self))
+
+    def __getitem__(self, key: str) -> Any:
+        if key not in self._keys():
+            raise KeyError(key)
+        return getattr(self, key)
+
+    def __iter__(self):
+        return iter(self._keys())
+
+    def __len__(self) -> int:
+        return len(self._keys())
+
+    def _keys(self) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(self) if f.name != "structure" or self.structure is not None)
 
 
 def default_recipe() -> dict:
@@ -284,6 +347,14 @@ def load_recipe(source: str | Path | Mapping | None = None) -> tuple[dict, Docum
     return _normalise(doc.data, base_dir), doc
 
 
+def recipe_id(recipe: Mapping) -> str:
+    """A short stable hash of a recipe (identifies a run's inputs)."""
+    if isinstance(recipe, Recipe):
+        recipe = recipe.to_dict()
+    text = json.dumps(recipe, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 def parse_body_spec(spec: str) -> dict:
     """Turn a ``--body`` argument into a recipe body entry's model and params.
 
@@ -328,12 +399,13 @@ def apply_overrides(
     evaluate: bool | None = None,
     baseline: str | None = None,
 ) -> dict:
-    """Return a copy of ``recipe`` with command-line flags applied (flags win).
+    """Return a copy of ``recipe`` (a normalised dict or a :class:`Recipe`) with command-line flags applied (flags win).
 
     ``poses`` and ``bodies`` are in seat order; a single ``--body`` applies
-    to every pose, and vice versa.
+    to every pose, and vice versa. The copy is a plain dict, to check again
+    (:func:`check_recipe`, or :func:`seatkit.pipeline.build` does).
     """
-    r = copy.deepcopy(recipe)
+    r = recipe.to_dict() if isinstance(recipe, Recipe) else copy.deepcopy(recipe)
     if template is not None:
         r["template"] = template
     if poses or bodies:
@@ -384,8 +456,13 @@ def apply_overrides(
     return r
 
 
-def check_recipe(recipe: dict, registry, *, document: Document | None = None) -> None:
-    """Check that every name and file in a recipe exists, before any geometry.
+def check_recipe(recipe: Mapping, registry, *, document: Document | None = None) -> Recipe:
+    """Check that every name and file in a normalised recipe exists, before any geometry.
+
+    Returns
+    -------
+    Recipe
+        The checked recipe (a copy of ``recipe``).
 
     Raises
     ------
@@ -393,6 +470,12 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
         Naming the key (and file and line when the recipe came from a file)
         and the names that exist.
     """
+    _check_names(recipe, registry, document)
+    return recipe if isinstance(recipe, Recipe) else Recipe.from_normalised(recipe)
+
+
+def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
+    """:func:`check_recipe`'s checks."""
 
     def from_document(path) -> bool:
         """Whether the value at ``path`` is the one the file gave (not a flag's)."""

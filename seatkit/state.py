@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from seatkit.errors import InputError
-from seatkit.io import write_bytes_atomic
+from seatkit.io import jsonable, write_bytes_atomic
 from seatkit.model import Body, BuildResult, ControlMesh
 
 FORMAT_VERSION = 1
@@ -29,11 +29,10 @@ _MESH_ARRAYS = tuple(
 
 def save_design(result: BuildResult, path) -> Path:
     """Write ``design.npz`` for a build result (atomically)."""
-    from seatkit.pipeline import _jsonable
     arrays: dict[str, np.ndarray] = {}
     header = {
         "format": FORMAT_VERSION,
-        "recipe": _jsonable(result.recipe),
+        "recipe": jsonable(result.recipe),
         "bodies": [],
         "meshes": {},
     }
@@ -48,7 +47,7 @@ def save_design(result: BuildResult, path) -> Path:
             continue
         for key in _MESH_ARRAYS:
             arrays[f"{role}_{key}"] = np.asarray(getattr(mesh, key))
-        header["meshes"][role] = {"face_labels": list(mesh.face_labels), "meta": _jsonable(mesh.meta)}
+        header["meshes"][role] = {"face_labels": list(mesh.face_labels), "meta": jsonable(mesh.meta)}
     arrays["header"] = np.frombuffer(json.dumps(_without_timings(header), sort_keys=True).encode("utf-8"), dtype=np.uint8)
     # byte-identical for the same inputs and seed: fixed zip timestamps, no timings
     buf = io.BytesIO()

@@ -72,7 +72,7 @@ def _copy_previous(previous: Path, out: Path) -> None:
     shutil.copytree(previous, out)
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="children are forked on Linux only")
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="workers end with a killed build on Linux only")
 def test_kill_9_during_the_export_children_end_and_the_next_build_cleans_up(tmp_path, previous):
     out = tmp_path / "X"
     _copy_previous(previous, out)
@@ -83,10 +83,11 @@ def test_kill_9_during_the_export_children_end_and_the_next_build_cleans_up(tmp_
         """
         import os, signal
         import seatkit.pipeline as pl
-        def run(self, result, directory):
-            print(self.worker._pid if self.worker else "", flush=True)
-            os.kill(os.getpid(), signal.SIGKILL)
-        pl._Exports.run = run
+        def write(result, exporters, registry, timer, *, overwrite, helper=None):
+            with pl.staging_folder(pl.output_target(result.recipe), overwrite=overwrite):
+                print(helper.pid() if helper else "", flush=True)
+                os.kill(os.getpid(), signal.SIGKILL)
+        pl._write = write
         """,
         out,
     )
@@ -116,7 +117,7 @@ def test_kill_9_between_the_two_renames_the_previous_output_is_restored(tmp_path
     killed = _run_cli(
         """
         import os, signal
-        import seatkit.pipeline as pl
+        import seatkit.output as output  # the staging folder's renames (seatkit.output.finish_output)
         class _Os:
             def __getattr__(self, name):
                 return getattr(os, name)
@@ -124,7 +125,7 @@ def test_kill_9_between_the_two_renames_the_previous_output_is_restored(tmp_path
                 if ".staging-" in str(src):  # the second rename: the previous output is already moved away
                     os.kill(os.getpid(), signal.SIGKILL)
                 return os.replace(src, dst)
-        pl.os = _Os()
+        output.os = _Os()
         """,
         out,
     )
@@ -256,7 +257,6 @@ def _build_unprivileged(out: Path, monkeypatch):
     import threadpoolctl  # noqa: F401 - imported before dropping rights
 
     import seatkit.output  # noqa: F401
-    import seatkit.parallel  # noqa: F401
     from seatkit.body import list_poses
 
     list_poses()

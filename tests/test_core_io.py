@@ -35,7 +35,7 @@ def _staged(tmp_path, name, files):
 
 
 def test_output_dir_is_not_mixed(tmp_path):
-    from seatkit.pipeline import _finish_output
+    from seatkit.output import finish_output as _finish_output
 
     d = tmp_path / "run"
     first = _staged(tmp_path, ".a", ["cage.obj", "old-only.txt"])

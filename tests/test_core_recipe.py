@@ -96,3 +96,73 @@ def test_example_recipes_validate_and_name_registered_components():
     for path in examples:
         recipe, doc = load_recipe(path)
         check_recipe(recipe, registry, document=doc)
+
+
+# ------------------------------------------------------------------ the Recipe
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_BODY = st.fixed_dictionaries(
+    {},
+    optional={
+        "pose": st.sampled_from(["upright-sitting", "reclined-sitting"]),
+        "model": st.sampled_from(["default-male", "default-female"]),
+        "params": st.fixed_dictionaries({}, optional={"mass": st.floats(40, 120)}),
+        "frame": st.integers(0, 3),
+    },
+)
+_RECIPE = st.fixed_dictionaries(
+    {},
+    optional={
+        "template": st.sampled_from(["chair", "bench"]),
+        "bodies": st.lists(_BODY, min_size=1, max_size=3),
+        "placement": st.fixed_dictionaries({}, optional={"gap": st.floats(0.0, 1.0)}),
+        "pressure": st.fixed_dictionaries(
+            {},
+            optional={"lambda": st.one_of(st.floats(1e-3, 1.0), st.just("inf")), "mu": st.floats(0.0, 2.0), "exclude": st.lists(st.sampled_from(["Hips", "Head"]), max_size=2)},
+        ),
+        "refiners": st.lists(st.one_of(st.sampled_from(["optimize", "catmull-clark-fit"]), st.fixed_dictionaries({"name": st.just("optimize"), "params": st.just({})})), max_size=2),
+        "exporters": st.lists(st.sampled_from(["usd", "obj", "surface"]), max_size=3, unique=True),
+        "surface_level": st.integers(1, 4),
+        "evaluate": st.fixed_dictionaries({}, optional={"enabled": st.booleans(), "baseline": st.one_of(st.none(), st.just("flat-patch"))}),
+        "output": st.one_of(st.none(), st.just("out/x")),
+        "seed": st.integers(0, 2**32 - 1),
+    },
+)
+
+
+@settings(max_examples=60, deadline=None)
+@given(_RECIPE)
+def test_a_normalised_recipe_is_a_valid_recipe_that_normalises_to_itself(data):
+    # build() validates every mapping it is given, the normalised ones of
+    # load_recipe/apply_overrides too: that must be a no-op on them
+    once, _ = load_recipe(data)
+    twice, _ = load_recipe(once)
+    assert twice == once
+
+
+def test_check_recipe_returns_a_frozen_recipe_that_reads_as_its_mapping():
+    import dataclasses
+    import pickle
+
+    from seatkit.plugins import get_plugin_manager
+    from seatkit.recipe import Recipe, check_recipe, recipe_id
+
+    data = apply_overrides(default_recipe(), template="bench", poses=["upright-sitting", "reclined-sitting"])
+    recipe = check_recipe(data, get_plugin_manager().registry)
+    assert isinstance(recipe, Recipe)
+    assert recipe == data and dict(recipe) == data and recipe.to_dict() == data
+    assert recipe.template == recipe["template"] == "bench" and len(recipe.bodies) == 2
+    assert "structure" not in recipe and recipe.get("structure", {}) == {}
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        recipe.template = "chair"
+    with pytest.raises(KeyError):
+        recipe["nope"]
+    assert pickle.loads(pickle.dumps(recipe)) == recipe
+    assert recipe_id(recipe) == recipe_id(data)
+    # a change goes through a copy, checked again
+    other = apply_overrides(recipe, seed=3)
+    assert isinstance(other, dict) and other["seed"] == 3 and recipe.seed == 0
+    with pytest.raises(RecipeError, match="unknown key 'colour'"):
+        Recipe.from_normalised({**data, "colour": "red"})

@@ -254,7 +254,7 @@ def test_plugin_registers_the_exporters():
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     names = [e.name for e in mod.seatkit_register_exporters()]
-    assert names == ["usd", "usdc", "obj", "surface", "shell", "body-ply", "design", "report-png", "report-html", "structure"]
+    assert names == ["usd", "usdc", "obj", "surface", "shell", "body-ply", "design", "report-png", "report-html", "structure", "report-json"]
 
 
 def test_pressure_colours_match_matplotlib_without_importing_it():

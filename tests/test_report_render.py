@@ -12,7 +12,6 @@ from PIL import Image
 
 from seatkit.picture import raster as rs
 from seatkit.export import report
-from seatkit.parallel import can_fork, forking, forking_allowed
 from test_report_support import evaluated_result, plain_result
 
 # ----------------------------------------------------------------------------- rasteriser
@@ -136,28 +135,21 @@ def test_pressure_png_shows_the_dark_end_of_the_scale_on_the_body(pngs):
     assert _near(img[:, 3 * report.PANEL_WIDTH :], dark, tol=8) > 10  # the colour bar holds the same scale
 
 
-@pytest.mark.skipif(not can_fork(), reason="forked processes on Linux only")
-def test_split_rendering_writes_the_same_files(tmp_path, monkeypatch):
+def test_rendering_writes_every_picture_in_role_order_and_surfaces_a_drawing_error(tmp_path, monkeypatch):
     result = evaluated_result()
-    for name in ("one", "two", "three"):
+    for name in ("one", "two"):
         (tmp_path / name).mkdir()
-    one = report.render_pngs(result, tmp_path / "one", split=False)
-    two = report.render_pngs(result, tmp_path / "two", split=True)
-    assert list(one) == list(two) == list(report.PNG_FILES)  # roles in the same order
-    for role in one:
-        assert one[role].read_bytes() == two[role].read_bytes(), role
-    # split by default only inside a build that allows forking
-    assert forking() is False
-    with forking_allowed(True):
-        assert forking() is True
+    one = report.render_pngs(result, tmp_path / "one")
+    assert list(one) == list(report.PNG_FILES)  # roles in the same order
+    for role, path in one.items():
+        assert path == tmp_path / "one" / report.PNG_FILES[role] and path.stat().st_size > 0, role
 
-    # an error in the child's half surfaces in the parent
     def broken(scene, path, save):
         raise report.InputError("cannot draw the pressure")
 
     monkeypatch.setattr(report, "_pressure_png", broken)
     with pytest.raises(report.InputError, match="cannot draw the pressure"):
-        report.render_pngs(result, tmp_path / "three", split=True)
+        report.render_pngs(result, tmp_path / "two")
 
 
 def test_comparison_only_with_a_baseline(tmp_path):
@@ -178,7 +170,7 @@ def test_contact_scale_reaches_the_peak_of_every_design_it_compares():
 
 def test_comparison_png_scale_covers_both_peaks(pngs):
     res = evaluated_result()
-    peaks = [res.extra["contact_pressures"][0].pressure.max(), res.extra["baseline"]["contact_pressures"][0].pressure.max()]
+    peaks = [res.contact_pressures[0].pressure.max(), res.baseline.contact_pressures[0].pressure.max()]
     scene = report._scene(res)
     assert report.contact_scale(scene.contact, scene.baseline_contact) == pytest.approx(max(peaks))
     # the bar's dark end (the top) is the scale's darkest colour, and it stands for that peak
@@ -298,7 +290,7 @@ def test_html_is_offline_small_and_holds_the_geometry(tmp_path):
     ijk = np.stack([_decode(body[c]) for c in "ijk"], axis=1)
     assert np.array_equal(ijk, res.bodies[0].faces)
     kpa = _decode(body["intensity"])
-    assert np.allclose(kpa, res.extra["contact_pressures"][0].pressure / 1000, atol=1e-3)
+    assert np.allclose(kpa, res.contact_pressures[0].pressure / 1000, atol=1e-3)
     names = [t["name"] for t in fig["data"]]
     assert any("flat-patch" in n for n in names)
     # the table of the paper's quantities, ours and the baseline
@@ -341,7 +333,7 @@ def test_html_body_shows_the_contact_on_the_skin_and_the_view_fits_the_window(tm
     fig = report.figure_dict(res)
     body = fig["data"][0]
     kpa = _decode(body["intensity"])
-    contact = res.extra["contact_pressures"][0].pressure
+    contact = res.contact_pressures[0].pressure
     assert np.all(kpa[contact <= LOADED_PRESSURE] == 0.0) and np.all(kpa[contact > LOADED_PRESSURE] > 0.0)
     skin = "rgb({},{},{})".format(*(int(round(255 * c)) for c in report.BODY_RGB))
     scale = body["colorscale"]

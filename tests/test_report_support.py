@@ -1,8 +1,8 @@
 """Shared builders for the report tests (no tests here).
 
 One flat-patch build, evaluated by the pipeline against the flat-patch
-baseline (``metrics["ours"/"baseline"]``, ``extra["contact_pressures"]``,
-``extra["baseline"]``), cached for the session; :func:`plain_result` is the
+baseline (``metrics["ours"/"baseline"]``, ``contact_pressures``,
+``baseline``), cached for the session; :func:`plain_result` is the
 same build with the evaluation stripped (what ``--no-evaluate`` gives).
 """
 
@@ -23,12 +23,12 @@ def evaluated_result():
     """The flat-patch build with the pipeline's evaluation and baseline."""
     res = copy.copy(_built())
     assert res.metrics.get("ours") and res.metrics.get("baseline"), "the pipeline's evaluation stage did not run"
-    assert "baseline" in res.extra and res.extra.get("contact_pressures")
+    assert res.baseline is not None and res.contact_pressures
     return res
 
 
 def plain_result():
     """The same build without metrics, contact pressure or baseline."""
     res = copy.copy(_built())
-    res.metrics, res.extra = {}, {}
+    res.metrics, res.contact_pressures, res.baseline = {}, None, None
     return res

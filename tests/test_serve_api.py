@@ -99,10 +99,10 @@ def test_a_design_is_the_pipelines_design(client, designer, default_design):
     body = view["bodies"][0]
     pressure = _decode(body["pressure"], "<f4")
     assert body["pressure_kind"] == "contact"
-    np.testing.assert_allclose(pressure, ref.extra["contact_pressures"][0].pressure, rtol=1e-5, atol=1e-3)
+    np.testing.assert_allclose(pressure, ref.contact_pressures[0].pressure, rtol=1e-5, atol=1e-3)
     assert body["max_pressure_pa"] == pytest.approx(pressure.max(), rel=1e-6)
     # the contact forces on the designed surface hold the body: they sum to its weight
-    force = ref.extra["contact_pressures"][0].force.sum(axis=0)
+    force = ref.contact_pressures[0].force.sum(axis=0)
     weight = ref.bodies[0].segment_mass.sum() * 9.81
     np.testing.assert_allclose(force, [0.0, weight, 0.0], atol=1e-6 * weight)
     assert d["files"] is None  # nothing written on the fast path

@@ -24,7 +24,7 @@ def chair():
 
 
 def _run(result, **kw):
-    return analyse(result.control_mesh, result.bodies, result.extra["contact_pressures"], **kw)
+    return analyse(result.control_mesh, result.bodies, result.contact_pressures, **kw)
 
 
 def test_loads_are_the_people_and_the_shell_and_the_floor_carries_them(chair):
@@ -61,7 +61,7 @@ def test_stiffer_material_deflects_less_in_proportion(chair):
 
 def test_size_thickness_is_the_thinnest_that_keeps_both_limits(chair):
     analysis, history = size_thickness(
-        chair.control_mesh, chair.bodies, chair.extra["contact_pressures"], material="pla", safety_factor=20, max_deflection=0.002, **QUICK
+        chair.control_mesh, chair.bodies, chair.contact_pressures, material="pla", safety_factor=20, max_deflection=0.002, **QUICK
     )
     s = analysis.summary
     t = s["thickness_m"]
@@ -75,7 +75,7 @@ def test_size_thickness_is_the_thinnest_that_keeps_both_limits(chair):
 def test_no_floor_contact_is_one_clear_error(chair):
     up = chair.control_mesh.with_vertices(chair.control_mesh.vertices + [0.0, 0.1, 0.0])
     with pytest.raises(StructureError, match="does not meet the floor"):
-        analyse(up, chair.bodies, chair.extra["contact_pressures"], **QUICK)
+        analyse(up, chair.bodies, chair.contact_pressures, **QUICK)
 
 
 @pytest.mark.parametrize("bad", [0, -0.01, float("nan"), float("inf"), "thick"])

@@ -32,6 +32,6 @@ def test_ours_beats_the_flat_patch_as_in_table1(pm, pose):
     assert ours["max_penetration_m"] <= 0.005
     assert ours["max_body_depth_m"] <= 0.005
     # the pressure recomputed on our surface still carries the whole body
-    field = r.extra["contact_pressures"][0]
+    field = r.contact_pressures[0]
     weight = r.bodies[0].segment_mass.sum() * GRAVITY
     assert field.force.sum(axis=0)[1] == pytest.approx(weight, rel=1e-6)

@@ -1,4 +1,4 @@
-"""Built-in seatkit plugin: the exporters (usd, usdc, obj, surface, shell, body-ply, design, report-png, report-html, structure)."""
+"""Built-in seatkit plugin: the exporters (usd, usdc, obj, surface, shell, body-ply, design, report-png, report-html, structure, report-json)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ def seatkit_register_exporters():
     """Register every built-in exporter."""
     from seatkit.export.exporters import builtin_exporters
     from seatkit.export.report import report_exporters
+    from seatkit.export.report_json import ReportJsonExporter
     from seatkit.state import DesignExporter
     from seatkit.structure.build import StructureExporter
 
-    return builtin_exporters() + [DesignExporter()] + report_exporters() + [StructureExporter()]
+    return builtin_exporters() + [DesignExporter()] + report_exporters() + [StructureExporter(), ReportJsonExporter()]

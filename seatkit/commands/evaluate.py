@@ -60,12 +60,12 @@ def register(app: typer.Typer) -> None:
         """
         from seatkit.export.report import person_labels, table_rows
         from seatkit.io import write_text_atomic
-        from seatkit.pipeline import _jsonable
+        from seatkit.io import jsonable
 
         pm = plugin_manager(ctx)
         base = "keep" if baseline is None else (None if baseline.lower() == "none" else baseline)
         result = evaluate_folder(directory, pm=pm, baseline=base, support_distance=support_distance)
-        metrics = _jsonable(result.metrics)
+        metrics = jsonable(result.metrics)
         write_text_atomic(Path(directory) / "evaluation.json", json.dumps(metrics, indent=1) + "\n")
         if as_json:
             click.echo(json.dumps(metrics, indent=1))

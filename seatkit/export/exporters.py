@@ -4,7 +4,7 @@ Each is an :class:`seatkit.interfaces.Exporter`: ``export(result, directory)``
 writes files atomically and returns them by role. Those whose time goes
 mostly into importing a big library (usd-core, trimesh) also have
 ``prepare()``, which imports it: a build calls it in its export worker
-process while the design is being computed (see ``seatkit.pipeline._Exports``).
+process while the design is being computed (the export worker of :mod:`seatkit.workers`).
 
 =========  =====================================================================
 name       files
@@ -152,7 +152,7 @@ class ShellExporter:
         from seatkit.export.meshes import write_shell
 
         # the thickness the structural analysis used or sized, else the recipe's
-        thickness = (result.extra or {}).get("shell_thickness_m") or (result.recipe or {}).get("shell_thickness")
+        thickness = result.shell_thickness_m or (result.recipe or {}).get("shell_thickness")
         thickness = float(thickness or self.thickness)
         return {"shell_stl": write_shell(_surface(result), thickness, Path(directory) / "shell.stl")}
 

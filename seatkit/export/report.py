@@ -27,8 +27,9 @@ What they read from a :class:`~seatkit.model.BuildResult`:
 ``bodies``, ``pressures`` (importance maps), ``control_mesh``, ``surface``,
 ``metrics["ours"]`` / ``metrics["baseline"]`` (lists of per-person dicts
 with the keys of :mod:`seatkit.evaluate`), ``metrics["baseline_template"]``,
-``extra["contact_pressures"]`` (a PressureField per person on our surface) and
-``extra["baseline"]`` (``control_mesh``, ``surface``, ``contact_pressures``).
+``contact_pressures`` (a PressureField per person on our surface) and
+``baseline`` (a :class:`~seatkit.model.Baseline`: ``control_mesh``, ``surface``,
+``contact_pressures``).
 """
 
 from __future__ import annotations
@@ -254,18 +255,17 @@ def _scene(result) -> _Scene:
     if importance is None:
         msg = f"the report needs one importance pressure per body, got {len(result.pressures or [])} for {len(bodies)} bodies"
         raise InputError(msg)
-    extra = result.extra or {}
-    base = extra.get("baseline") or {}
+    base = result.baseline
     metrics = result.metrics or {}
     return _Scene(
         body=body,
         importance=importance,
-        contact=_concat_fields(extra.get("contact_pressures"), sizes),
+        contact=_concat_fields(result.contact_pressures, sizes),
         surface=_surface_mesh(result.surface),
         cage=result.control_mesh if result.control_mesh is not None else result.initial_mesh,
-        baseline_surface=_surface_mesh(base.get("surface")),
-        baseline_contact=_concat_fields(base.get("contact_pressures"), sizes),
-        baseline_cage=base.get("control_mesh"),
+        baseline_surface=_surface_mesh(base.surface if base else None),
+        baseline_contact=_concat_fields(base.contact_pressures if base else None, sizes),
+        baseline_cage=base.control_mesh if base else None,
         baseline_name=str(metrics.get("baseline_template") or "baseline"),
         metrics=metrics,
         surface_level=int(getattr(result.surface, "level", 0) or 0),
@@ -499,24 +499,13 @@ def _comparison_png(scene: _Scene, path: Path, save=_write_png) -> Path:
     return save(_sheet(title, panels, colorbar=bar, table=table_rows(scene.metrics, scene.people), table_head=("ours", scene.baseline_name), columns=2), path)
 
 
-def render_pngs(result, directory, *, split: bool | None = None) -> dict[str, Path]:
+def render_pngs(result, directory) -> dict[str, Path]:
     """Write the report's PNG files into ``directory`` and return them by role.
 
     ``comparison.png`` is written only when the result holds a baseline
     surface; ``cage.png`` and ``surface.png`` only when it holds a cage and a
     surface.
-
-    Parameters
-    ----------
-    split : bool, optional
-        Render the first half of the pictures in a forked child process while
-        this one renders the rest (the pictures are independent; together
-        they are the longest exporter of a build). Default: when the running
-        build allows forked processes (:func:`seatkit.parallel.forking`).
-        The files are the same either way.
     """
-    from seatkit.parallel import Background, forking
-
     directory = Path(directory)
     scene = _scene(result)
     jobs = [("report_pressure_png", _pressure_png)]
@@ -526,17 +515,7 @@ def render_pngs(result, directory, *, split: bool | None = None) -> dict[str, Pa
         jobs.append(("report_surface_png", _surface_png))
         if scene.baseline_surface is not None:
             jobs.append(("report_comparison_png", _comparison_png))
-    split = forking() if split is None else split
-    if not split or len(jobs) < 2:
-        return _render(scene, jobs, directory)
-    half = (len(jobs) + 1) // 2
-    child = Background(_render, scene, jobs[:half], directory, name="report-png", process=True)
-    try:
-        rest = _render(scene, jobs[half:], directory)
-    except BaseException:
-        child.close()
-        raise
-    return {**child.result(), **rest}
+    return _render(scene, jobs, directory)
 
 
 def _render(scene: _Scene, jobs, directory: Path) -> dict[str, Path]:

@@ -561,7 +561,8 @@ class Designer:
 
     def _evaluate(self, design: Design, seq: int | None) -> None:
         """Our evaluation of a design (the caller holds the run lock); the baseline is :meth:`baseline`'s."""
-        from seatkit.pipeline import _Timer, evaluate_result
+        from seatkit.pipeline import evaluate_result
+        from seatkit.stages import StageTimer
 
         result = design.result
         if not design.recipe["evaluate"]["enabled"] or design.evaluated:
@@ -573,7 +574,7 @@ class Designer:
         result.recipe = copy.deepcopy(design.recipe)
         result.recipe["evaluate"]["baseline"] = None
         try:
-            evaluate_result(result, self.registry, _Timer(check))
+            evaluate_result(result, self.registry, StageTimer(check))
         finally:
             result.recipe = design.recipe
         design.seconds["evaluate"] = time.perf_counter() - start
@@ -627,12 +628,12 @@ class Designer:
                 finally:
                     if seq is not None:
                         self._idle(seq)
-            result.timings["baseline (parallel)"] = base["seconds"]
+            result.timings["baseline (parallel)"] = base.seconds
             result.metrics["baseline_template"] = ev["baseline"]
-            result.metrics["baseline"] = base["metrics"]
-            result.extra["baseline"] = {k: base[k] for k in ("control_mesh", "surface", "contact_pressures")}
-            design.seconds["baseline"] = base["seconds"]
-            design.baseline = base["metrics"]
+            result.metrics["baseline"] = base.metrics
+            result.baseline = base
+            design.seconds["baseline"] = base.seconds
+            design.baseline = base.metrics
             return design.baseline
 
     def files(self, design: Design) -> dict:
@@ -655,10 +656,10 @@ class Designer:
 
     def _write_recipe(self, design: Design) -> None:
         """``recipes/ID/recipe.yaml`` (+ the pose files it names) and ``recipe.zip`` of them."""
-        from seatkit.pipeline import _jsonable
+        from seatkit.io import jsonable
         from seatkit.recipe import looks_like_path
 
-        recipe = _jsonable(copy.deepcopy(design.recipe))
+        recipe = jsonable(copy.deepcopy(design.recipe))
         recipe.pop("output")
         if recipe["pressure"].get("exclude") is None:
             recipe["pressure"].pop("exclude", None)
@@ -704,7 +705,7 @@ class Designer:
     def report(self, design: Design) -> dict:
         """The JSON answer for a design: metrics, timings, file URLs (once written)."""
         from seatkit.evaluate import TABLE_COLUMNS
-        from seatkit.pipeline import _jsonable
+        from seatkit.io import jsonable
 
         r = design.result
         files = None
@@ -713,7 +714,7 @@ class Designer:
             names["recipe_zip"] = "recipe.zip"
             names["recipe_yaml"] = "recipe.yaml"
             files = {role: f"/files/{design.id}/{name}" for role, name in names.items()}
-        return _jsonable(
+        return jsonable(
             {
                 "id": design.id,
                 "seq": design.seq,
@@ -752,7 +753,7 @@ class Designer:
     def view(self, design: Design) -> dict:
         """The meshes the page draws: bodies (with contact pressure), the limit surface and the cage (float32/uint32, base64)."""
         r = design.result
-        contact = r.extra.get("contact_pressures") or [None] * len(r.bodies)
+        contact = r.contact_pressures or [None] * len(r.bodies)
         bodies = [
             self._body_view(body, f.pressure, "contact") if f is not None else self._body_view(body, imp.pressure, "importance")
             for body, imp, f in zip(r.bodies, r.pressures, contact)

@@ -24,6 +24,7 @@ import json
 from pathlib import Path
 
 from seatkit.errors import SeatkitError
+from seatkit.io import jsonable
 from seatkit.structure.analysis import (
     DEFAULT_LAYERS,
     DEFAULT_LEVEL,
@@ -118,7 +119,7 @@ def enable(recipe: dict, **flags) -> dict:
 def analyse_result(result, section: dict | None = None) -> Analysis:
     """Analyse (or size) a build result's design with a ``structure`` section's settings."""
     s = settings(section if section is not None else (result.recipe or {}).get("structure"))
-    fields = (result.extra or {}).get("contact_pressures")
+    fields = result.contact_pressures
     if fields is None:
         msg = "the structural analysis needs the evaluation's contact forces: do not switch the evaluation off"
         raise StructureError(msg)
@@ -141,17 +142,10 @@ def analyse_result(result, section: dict | None = None) -> Analysis:
 def run_structure(result) -> Analysis:
     """The build's step: analyse, keep the analysis and its figures in the result, set the shell's thickness."""
     analysis = analyse_result(result)
-    result.extra["structure"] = analysis
-    result.extra["shell_thickness_m"] = analysis.summary["thickness_m"]
-    result.metrics["structure"] = _jsonable(analysis.summary)
+    result.structure = analysis
+    result.shell_thickness_m = analysis.summary["thickness_m"]
+    result.metrics["structure"] = jsonable(analysis.summary)
     return analysis
-
-
-def _jsonable(value):
-    """JSON-ready figures, as report.json writes them (non-finite numbers as strings)."""
-    from seatkit.pipeline import _jsonable as jsonable
-
-    return jsonable(value)
 
 
 def write_structure(analysis: Analysis, directory, *, title: str = "") -> dict[str, Path]:
@@ -160,7 +154,7 @@ def write_structure(analysis: Analysis, directory, *, title: str = "") -> dict[s
     from seatkit.structure.picture import write_stress_png
 
     directory = Path(directory)
-    json_path = write_text_atomic(directory / "structure.json", json.dumps(_jsonable(analysis.summary), indent=1) + "\n")
+    json_path = write_text_atomic(directory / "structure.json", json.dumps(jsonable(analysis.summary), indent=1) + "\n")
     png = write_stress_png(analysis, directory / "structure.png", title=title)
     return {"structure_json": Path(json_path), "structure_png": png}
 
@@ -177,7 +171,7 @@ class StructureExporter:
         """Nothing to prepare: scikit-fem is imported when an analysis runs."""
 
     def export(self, result, directory: Path) -> dict[str, Path]:
-        analysis = (result.extra or {}).get("structure")
+        analysis = result.structure
         if analysis is None:  # listed as an exporter without the build step: analyse now
             analysis = analyse_result(result)
         return write_structure(analysis, directory, title=_title(result))

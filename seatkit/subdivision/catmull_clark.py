@@ -23,6 +23,7 @@ computed in float32 as OpenSubdiv does.
 
 from __future__ import annotations
 
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
@@ -322,6 +323,7 @@ class SubdivisionOperators:
 
 _OPS_CACHE: "OrderedDict[tuple, SubdivisionOperators]" = OrderedDict()
 _OPS_CACHE_SIZE = 64
+_OPS_LOCK = threading.Lock()
 
 
 def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
@@ -351,10 +353,11 @@ def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
         msg = "subdivision level 0 needs an all-quad cage; use level >= 1"
         raise InputError(msg)
     key = (cage.topology_key, level)
-    hit = _OPS_CACHE.get(key)
-    if hit is not None:
-        _OPS_CACHE.move_to_end(key)
-        return hit
+    with _OPS_LOCK:  # seatkit serve designs on threads: no eviction between the lookup and the move
+        hit = _OPS_CACHE.get(key)
+        if hit is not None:
+            _OPS_CACHE.move_to_end(key)
+            return hit
 
     current = cage.base_level()
     steps = []
@@ -377,7 +380,8 @@ def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
         steps=tuple(steps),
         rules=rules,
     )
-    _OPS_CACHE[key] = ops
-    while len(_OPS_CACHE) > _OPS_CACHE_SIZE:
-        _OPS_CACHE.popitem(last=False)
+    with _OPS_LOCK:
+        _OPS_CACHE[key] = ops
+        while len(_OPS_CACHE) > _OPS_CACHE_SIZE:
+            _OPS_CACHE.popitem(last=False)
     return ops

@@ -16,6 +16,7 @@ vertices at once (as many iterations as the largest valence).
 from __future__ import annotations
 
 import hashlib
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -257,14 +258,16 @@ class Cage:
 
     def base_level(self) -> "MeshLevel":
         """Level-0 topology with boundary and crease sharpness applied (cached)."""
-        level = _LEVEL_CACHE.get(self.topology_key)
-        if level is None:
-            level = _build_base_level(self)
+        with _LEVEL_LOCK:  # seatkit serve designs on threads: no eviction between the lookup and the move
+            level = _LEVEL_CACHE.get(self.topology_key)
+            if level is not None:
+                _LEVEL_CACHE.move_to_end(self.topology_key)
+                return level
+        level = _build_base_level(self)
+        with _LEVEL_LOCK:
             _LEVEL_CACHE[self.topology_key] = level
             while len(_LEVEL_CACHE) > _CACHE_SIZE:
                 _LEVEL_CACHE.popitem(last=False)
-        else:
-            _LEVEL_CACHE.move_to_end(self.topology_key)
         return level
 
     def __repr__(self) -> str:
@@ -276,6 +279,7 @@ class Cage:
 
 _CACHE_SIZE = 64
 _LEVEL_CACHE: "OrderedDict[str, MeshLevel]" = OrderedDict()
+_LEVEL_LOCK = threading.Lock()
 
 
 def _sharpness(values, n: int, name: str) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Background work in a forked child process: values, errors, clean-up, and the build's results with and without it."""
+"""The build's helper processes (concurrent.futures pools, seatkit.workers): values, errors, clean-up, and the build's results with and without them."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import json
 import os
 import pickle
 import re
+import signal
 import time
 from pathlib import Path
 
@@ -14,22 +15,39 @@ import pytest
 
 import seatkit
 from seatkit.errors import MissingExtraError, SeatkitError, UnsupportedPoseError
-from seatkit.parallel import Background, can_fork
-
-needs_fork = pytest.mark.skipif(not can_fork(), reason="forked workers run on Linux only")
+from seatkit.workers import Helper, WorkerLost
 
 
-def _all_children() -> set[tuple[int, str]]:
-    """(pid, state) of this process's children, zombies included (Linux /proc)."""
-    me, out = os.getpid(), set()
+def _processes() -> dict[int, tuple[int, str, str]]:
+    """pid -> (parent pid, state, command line) of every process (Linux /proc)."""
+    out = {}
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
             text = stat.read_text()
+            cmd = (stat.parent / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
         except OSError:
             continue
         fields = text[text.rindex(")") + 2 :].split()
-        if int(fields[1]) == me:
-            out.add((int(stat.parent.name), fields[0]))
+        out[int(stat.parent.name)] = (int(fields[1]), fields[0], cmd)
+    return out
+
+
+def _descendants() -> set[tuple[int, str]]:
+    """(pid, state) of this process's descendants, zombies included, but for multiprocessing's servers.
+
+    The fork server and the resource tracker live as long as this process,
+    by design (the workers are forked from the fork server,
+    :mod:`seatkit.workers`); their children are counted.
+    """
+    procs, out, todo = _processes(), set(), [os.getpid()]
+    while todo:
+        parent = todo.pop()
+        for pid, (ppid, state, cmd) in procs.items():
+            if ppid == parent:
+                todo.append(pid)
+                server = parent == os.getpid() and any(f"multiprocessing.{n} import main" in cmd for n in ("forkserver", "resource_tracker"))
+                if not server:  # (the workers forked by the fork server have its command line too)
+                    out.add((pid, state))
     return out
 
 
@@ -38,14 +56,22 @@ _BEFORE: set = set()
 
 @pytest.fixture(autouse=True)
 def _note_children():
-    """Children that other tests of the session left (a Dask cluster...) are not ours."""
+    """Processes that other tests of the session left (a Dask cluster...) are not ours."""
     _BEFORE.clear()
-    _BEFORE.update(pid for pid, _ in _all_children())
+    _BEFORE.update(pid for pid, _ in _descendants())
 
 
-def _children() -> list[tuple[int, str]]:
-    """Children started (and not reaped) since the test began."""
-    return sorted(c for c in _all_children() if c[0] not in _BEFORE)
+def _children(wait: float = 5.0) -> list[tuple[int, str]]:
+    """Processes started (and not reaped) since the test began, after up to ``wait`` s for them to be reaped."""
+    deadline = time.monotonic() + wait
+    while True:
+        left = sorted(c for c in _descendants() if c[0] not in _BEFORE)
+        if not left or time.monotonic() > deadline:
+            return left
+        time.sleep(0.05)
+
+
+needs_proc = pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="counts processes in /proc (Linux)")
 
 
 def _square_pid(x):
@@ -62,39 +88,34 @@ class _Unpicklable(SeatkitError):
         self.hook = lambda: None  # a lambda cannot be pickled
 
 
-@needs_fork
-def test_value_comes_back_from_another_process_and_the_child_is_reaped():
-    work = Background(_square_pid, np.arange(4.0), name="square")
-    value, pid = work.result()
+def _raise_unpicklable(message):
+    raise _Unpicklable(message)
+
+
+@needs_proc
+def test_value_comes_back_from_another_process_and_the_worker_ends():
+    with Helper("square") as work:
+        job = work.submit(_square_pid, np.arange(4.0))
+        value, pid = work.result(job)
+        assert work.result(job)[1] == pid  # asking again gives the same answer
+        assert work.pid() == pid
     np.testing.assert_array_equal(value, np.arange(4.0) ** 2)
     assert pid != os.getpid()
     assert _children() == []
-    assert work.result()[1] == pid  # asking again gives the same answer
 
 
-def test_thread_fallback_gives_the_same_value():
-    work = Background(_square_pid, np.arange(4.0), name="square", process=False)
-    value, pid = work.result()
-    np.testing.assert_array_equal(value, np.arange(4.0) ** 2)
-    assert pid == os.getpid()
-
-
-@pytest.mark.parametrize("process", [True, False])
-def test_a_seatkit_error_keeps_its_type_message_and_attributes(process):
+def test_a_seatkit_error_keeps_its_type_message_and_attributes():
     err = UnsupportedPoseError("the knees cannot be supported", parts=["LeftShin"], diagnostics={"faces": 3})
-    with pytest.raises(UnsupportedPoseError, match="the knees cannot be supported") as info:
-        Background(_raise, err, name="baseline", process=process).result()
+    with Helper("baseline") as work, pytest.raises(UnsupportedPoseError, match="the knees cannot be supported") as info:
+        work.result(work.submit(_raise, err))
+    assert str(info.value) == "the knees cannot be supported"
     assert info.value.parts == ["LeftShin"]
     assert info.value.diagnostics == {"faces": 3}
-    if process and can_fork():
-        assert any("raised in the baseline process" in n for n in info.value.__notes__)
-    assert _children() == []
 
 
-@needs_fork
 def test_an_error_that_cannot_be_pickled_still_arrives_as_a_seatkit_error():
-    with pytest.raises(SeatkitError, match="no picklable error"):
-        Background(_raise, _Unpicklable("no picklable error"), name="x").result()
+    with Helper("x") as work, pytest.raises(SeatkitError, match="no picklable error"):
+        work.result(work.submit(_raise_unpicklable, "no picklable error"))
 
 
 def test_missing_extra_error_survives_pickling():
@@ -103,22 +124,48 @@ def test_missing_extra_error_survives_pickling():
     assert "pip install 'seatkit[batch]'" in str(err)
 
 
-@needs_fork
-def test_a_child_that_dies_is_reported_not_waited_for_forever():
+@needs_proc
+def test_a_worker_that_dies_is_reported_not_waited_for_forever():
     # one clear error (a SeatkitError: the CLI prints one line, no traceback)
-    with pytest.raises(SeatkitError, match="the crash process exited with status 3"):
-        Background(os._exit, 3, name="crash").result()
+    with Helper("crash") as work, pytest.raises(WorkerLost, match="^the crash process ended before sending its result"):
+        work.result(work.submit(os._exit, 3))
     assert _children() == []
 
 
-@needs_fork
-def test_close_stops_and_reaps_a_child_that_is_still_running():
-    work = Background(time.sleep, 30.0, name="sleeper")
-    assert len(_children()) == 1
+@needs_proc
+def test_close_with_stop_ends_a_worker_that_is_still_running():
+    work = Helper("sleeper")
+    work.submit(time.sleep, 30.0)
+    pid = work.pid()
+    assert [p for p, _ in _children(wait=0)] == [pid]  # (running or sleeping: the machine may be busy)
     start = time.perf_counter()
-    work.close()
+    work.close(stop=True)
     assert time.perf_counter() - start < 5.0
     assert _children() == []
+
+
+class _Prepared:
+    """An exporter whose prepare() leaves its process id in a file."""
+
+    name = "prepared"
+    description = "notes where prepare() ran"
+    prepare_ahead = True
+
+    def __init__(self, path):
+        self.path = str(path)
+
+    def prepare(self):
+        Path(self.path).write_text(str(os.getpid()))
+
+    def export(self, result, directory):
+        return {}
+
+
+def test_the_export_worker_prepares_its_exporters_as_it_starts(tmp_path):
+    note = tmp_path / "prepared.txt"
+    with Helper("export", [_Prepared(note)]) as work:
+        pid = work.pid()
+        assert note.read_text() == str(pid) != str(os.getpid())  # before any task was given
 
 
 # ------------------------------------------------------------------ inside a build
@@ -131,14 +178,14 @@ RECIPE = {
 }
 
 
-@needs_fork
-def test_build_gives_the_same_results_with_the_baseline_in_a_process_or_on_a_thread():
+@needs_proc
+def test_build_gives_the_same_results_with_the_baseline_in_a_process_or_in_sequence():
     a = seatkit.build(dict(RECIPE), write=False, processes=True)
     b = seatkit.build(dict(RECIPE), write=False, processes=False)
     assert a.metrics == b.metrics
     assert a.metrics["baseline"][0]["supported"] is True
     for key in ("control_mesh", "surface"):
-        np.testing.assert_array_equal(a.extra["baseline"][key].vertices, b.extra["baseline"][key].vertices)
+        np.testing.assert_array_equal(getattr(a.baseline, key).vertices, getattr(b.baseline, key).vertices)
     assert _children() == []
 
 
@@ -201,29 +248,6 @@ def test_a_failing_refiner_stops_the_baseline_and_leaves_no_process(pm, tmp_path
     assert _children() == []
 
 
-def _echo_inbox(receive, scale):
-    got = receive()
-    return None if got is None else got * scale
-
-
-@pytest.mark.parametrize("process", [True, False])
-def test_inbox_receives_what_the_parent_sends_later(process):
-    work = Background(_echo_inbox, 3.0, name="inbox", process=process, inbox=True)
-    work.send(np.arange(3.0))
-    np.testing.assert_array_equal(work.result(), [0.0, 3.0, 6.0])
-    with pytest.raises(RuntimeError, match="works once"):
-        work.send(1.0)
-    assert _children() == []
-
-
-@pytest.mark.parametrize("process", [True, False])
-def test_inbox_work_that_is_never_sent_anything_ends(process):
-    assert Background(_echo_inbox, 3.0, name="inbox", process=process, inbox=True).result() is None
-    work = Background(_echo_inbox, 3.0, name="inbox", process=process, inbox=True)
-    work.close()
-    assert _children() == []
-
-
 # ----------------------------------------------------------------- the export worker
 
 WRITE = {
@@ -250,10 +274,8 @@ def _same_design_files(a: Path, b: Path) -> None:
             assert da[key].tobytes() == db[key].tobytes(), key
 
 
-@needs_fork
+@needs_proc
 def test_the_export_worker_writes_the_same_files_as_the_main_process(tmp_path):
-    from seatkit.pipeline import _Exports
-
     seatkit.build(dict(WRITE, output=str(tmp_path / "a")), processes=True)
     seatkit.build(dict(WRITE, output=str(tmp_path / "a")), processes=False)  # replaces its own run
     seatkit.build(dict(WRITE, output=str(tmp_path / "b")), processes=False)
@@ -266,9 +288,7 @@ def test_the_export_worker_writes_the_same_files_as_the_main_process(tmp_path):
     from seatkit.plugins import get_plugin_manager
 
     reg = get_plugin_manager().registry
-    exports = _Exports([reg.get("exporter", n) for n in WRITE["exporters"]], processes=True)
-    exports.close()
-    assert exports.ahead == [0, 5]
+    assert [i for i, n in enumerate(WRITE["exporters"]) if reg.get("exporter", n).prepare_ahead] == [0, 5]
     assert _children() == []
 
 
@@ -307,15 +327,35 @@ def test_a_failing_exporter_leaves_no_output_folder_and_no_process(tmp_path, pro
     assert _children() == []
 
 
-@needs_fork
-def test_a_later_child_holding_a_copy_of_the_inbox_pipe_does_not_delay_the_message():
-    work = Background(_echo_inbox, 2.0, name="inbox", inbox=True)
-    sleeper = Background(time.sleep, 10.0, name="sleeper")  # forked with the inbox's write end open
-    try:
-        start = time.perf_counter()
-        work.send(np.ones(3))
-        np.testing.assert_array_equal(work.result(), [2.0, 2.0, 2.0])
-        assert time.perf_counter() - start < 5.0
-    finally:
-        sleeper.close()
-    assert _children() == []
+def test_a_script_without_a_main_guard_builds_once_by_default(tmp_path):
+    # multiprocessing imports the main script again in a forkserver/spawn
+    # worker: by default a script's build stays in its process, so a script
+    # that builds at import time runs once, as it reads
+    import subprocess
+    import sys
+
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "import seatkit\n"
+        "from seatkit.workers import main_is_import_safe\n"
+        "print('building', main_is_import_safe(), flush=True)\n"
+        f"r = seatkit.build({dict(RECIPE)!r}, write=False)\n"
+        "print('baseline', r.metrics['baseline'][0]['supported'], flush=True)\n"
+    )
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == ["building False", "baseline True"]
+    # python -c has no main to import again: helpers by default there
+    code = "from seatkit.workers import main_is_import_safe; print(main_is_import_safe())"
+    assert subprocess.run([sys.executable, "-c", code], capture_output=True, text=True).stdout.strip() == "True"
+
+
+@pytest.mark.skipif(not hasattr(os, "nice"), reason="POSIX niceness")
+def test_workers_run_below_the_build_and_the_build_keeps_its_priority():
+    from seatkit.workers import BACKGROUND_NICE
+
+    mine = os.nice(0)
+    with Helper("nice") as work:
+        theirs = work.result(work.submit(os.nice, 0))
+    assert os.nice(0) == mine  # importing seatkit.workers does not lower the build
+    assert theirs == min(mine + BACKGROUND_NICE, 19)

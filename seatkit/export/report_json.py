@@ -1,0 +1,91 @@
+"""``report.json``: what one build ran and produced, for people and scripts.
+
+The ``report-json`` exporter (registered by the ``seatkit_exporters`` plugin
+like every other exporter) runs last in every writing build, after the
+recipe's exporters, whether or not the recipe lists it: it records the files
+they wrote and the time each stage took, the export stage included. It also
+puts the final time table into ``report.html`` when the build wrote one
+(that page is written before the export stage's time is known). The keys are
+in docs/output.md.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+from pathlib import Path
+
+import numpy as np
+
+from seatkit.io import jsonable, write_text_atomic
+
+__all__ = ["REPORT_EXPORTER", "ReportJsonExporter", "report_data", "versions"]
+
+#: The registered name of the exporter of report.json.
+REPORT_EXPORTER = "report-json"
+
+#: Distributions whose versions report.json records.
+_DISTRIBUTIONS = ("seatkit", "numpy", "scipy", "pluggy", "qpsolvers", "piqp", "usd-core", "trimesh")
+
+
+def versions() -> dict:
+    """Python's version and those of seatkit and the libraries its results depend on."""
+    import importlib.metadata as md
+
+    out = {"python": platform.python_version()}
+    for dist in _DISTRIBUTIONS:
+        try:
+            out[dist] = md.version(dist)
+        except md.PackageNotFoundError:
+            pass
+    return out
+
+
+def report_data(result) -> dict:
+    """report.json's content for a build result whose other files are written (``result.files``)."""
+    from seatkit.recipe import recipe_id
+
+    mesh = result.control_mesh
+    return {
+        "seatkit_run": recipe_id(result.recipe),
+        "recipe": jsonable(result.recipe),
+        "versions": versions(),
+        "timings_s": jsonable(result.timings),
+        "control_mesh": {
+            "vertices": int(len(mesh.vertices)),
+            "faces": int(len(mesh.faces)),
+            "meta": jsonable(mesh.meta),
+        },
+        "pressure": [
+            {
+                "status": pf.status,
+                "solve_seconds": pf.solve_seconds,
+                "max_pressure_pa": float(pf.pressure.max()),
+                "max_joint_moment_nm": float(np.linalg.norm(pf.joint_moment, axis=1).max()),
+            }
+            for pf in result.pressures
+        ],
+        "metrics": jsonable(result.metrics),
+        "files": {k: Path(v).name for k, v in result.files.items()},
+    }
+
+
+class ReportJsonExporter:
+    """``report.json``: the recipe, versions, timings, cage size, pressure figures, metrics and files."""
+
+    name = REPORT_EXPORTER
+    description = "report.json: recipe, versions, time per stage, metrics and the files written (every build writes it, last)"
+
+    prepare_ahead = False
+
+    def prepare(self) -> None:
+        """Nothing to prepare: this exporter imports nothing big."""
+
+    def export(self, result, directory: Path) -> dict[str, Path]:
+        directory = Path(directory)
+        html = directory / "report.html"
+        if "report_html" in result.files and html.exists():
+            from seatkit.export.report import finish_report_html
+
+            finish_report_html(html, result.timings)  # the export stage's time, and the total
+        return {"report": write_text_atomic(directory / "report.json", json.dumps(report_data(result), indent=1) + "\n")}

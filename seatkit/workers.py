@@ -1,0 +1,228 @@
+"""The build's helper processes: standard :mod:`concurrent.futures` pools.
+
+A build is Python driving numpy and scipy on small arrays, so two threads of
+one process mostly wait for each other's GIL (the ``optimize`` refiner took
+0.11 s alone and 0.41 s beside the baseline on a second thread, 2 cores).
+Work that pays for its own hand-off goes to a process instead
+(docs/architecture.md, "Processes of one build"):
+
+- the baseline design (fitted beside our refiners);
+- the exporters whose time goes mostly into importing a big library
+  (``prepare_ahead``: usd-core, plotly, trimesh), which a worker imports
+  while the design is computed and then runs beside the other exporters.
+
+Each is a :class:`Helper`: a one-worker :class:`ProcessPoolExecutor`.
+
+Every pool uses one multiprocessing context on every platform,
+``forkserver`` where the platform has it and ``spawn`` elsewhere: a worker
+never is a ``fork`` of a process whose threads run (the CLI's spinner, the
+PNG writer thread, ``seatkit serve``). The fork server is started once per
+Python process, from a fresh interpreter, and imports :data:`PRELOAD` first,
+so that each worker forked from it starts with numpy, scipy and seatkit's
+stages imported. It starts with the first pool, at the beginning of a build,
+while the build computes the bodies and their pressure.
+
+Errors cross the boundary as they were raised (a
+:class:`~seatkit.errors.SeatkitError` stays one, with the same one-line
+message: it pickles by ``__reduce__``). A worker that dies (out of memory,
+a signal from outside) is one clear :class:`WorkerLost` line, never a
+traceback. Workers run :data:`BACKGROUND_NICE` lower than the build: on two
+cores the build's own stages are the critical path. A worker ends with the
+build even when the build is killed outright (``kill -9``).
+
+A worker starts without the build's ``fork``, so, as for every
+``forkserver``/``spawn`` process, multiprocessing imports the caller's main
+script in it again (as ``__mp_main__``): a script that builds at import
+time, without ``if __name__ == "__main__":``, would run again there.
+:func:`main_is_import_safe` tells whether the running program is safe that
+way without being asked (the REPL, a notebook, ``python -c``);
+:func:`seatkit.pipeline.build` uses helpers by default only then, and the
+``seatkit`` command, whose entry point is guarded, asks for them.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import pickle
+import signal
+import sys
+import threading
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any, Callable, Sequence
+
+from seatkit.errors import SeatkitError
+
+__all__ = ["BACKGROUND_NICE", "PRELOAD", "Helper", "WorkerLost", "main_is_import_safe", "pool_context"]
+
+#: Niceness added to the build's helper processes (the fork server, and so
+#: every worker it forks, :mod:`seatkit.background`): on two cores three
+#: runnable processes would otherwise slow the build's own stages, which are
+#: the critical path; the helpers have slack (the baseline is done before our
+#: evaluation needs it, the export worker waits for the design).
+BACKGROUND_NICE = 5
+
+#: Modules the fork server imports before it forks any worker: what the
+#: baseline imports (the flat patch and the refiners, the limit surface, the
+#: evaluation and its pressure solve; measured with ``sys.modules`` after a
+#: baseline fit) and nothing more: on two busy cores every import is CPU
+#: the build's own stages want. The big exporter libraries are not among
+#: them: the export worker imports those itself, beside the build, so the
+#: baseline worker need not wait for them.
+PRELOAD = (
+    "seatkit.background",  # first: lowers the fork server's priority (and so its workers')
+    "numpy",
+    "scipy.sparse",
+    "scipy.spatial",
+    "seatkit.model",
+    "seatkit.pressure",
+    "seatkit.evaluate",
+    "seatkit.subdivision",
+    "seatkit.refine",
+)
+
+
+class WorkerLost(SeatkitError):
+    """A helper process of the build ended before sending its result."""
+
+
+def main_is_import_safe() -> bool:
+    """Whether a worker can start without running the caller's main script or module again.
+
+    True when ``__main__`` is no file and no module (the REPL, a notebook,
+    ``python -c``): multiprocessing then has nothing to import in the
+    worker. A script or ``python -m`` module is imported again there, which
+    is safe only under a ``__main__`` guard, which cannot be seen from here.
+    """
+    main = sys.modules.get("__main__")
+    if main is None:
+        return True
+    return getattr(main, "__file__", None) is None and getattr(getattr(main, "__spec__", None), "name", None) is None
+
+
+def pool_context() -> multiprocessing.context.BaseContext:
+    """The one multiprocessing context of seatkit's pools (forkserver, else spawn)."""
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(list(PRELOAD))
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+def _end_with_the_build() -> None:
+    """End this worker as soon as the build's process ends, however it ends.
+
+    ``multiprocessing.parent_process()`` is the process that asked for this
+    worker (the build, not the fork server that forked it); its sentinel
+    becomes ready when that process is gone. A worker of a build killed with
+    ``kill -9`` would otherwise wait for its next task forever (it holds
+    both ends of its task queue) and keep the fork server alive with it.
+    """
+    parent = multiprocessing.parent_process()
+    if parent is None:  # pragma: no cover - not started by multiprocessing
+        return
+
+    def watch() -> None:
+        parent.join()
+        os._exit(1)
+
+    threading.Thread(target=watch, name="seatkit-watch-build", daemon=True).start()
+
+
+def _start_worker(prepare: Sequence[Any]) -> None:
+    """A worker's first step: end with the build, then get its exporters ready."""
+    _end_with_the_build()
+    if "forkserver" not in multiprocessing.get_all_start_methods():  # spawned: not forked from the niced fork server
+        import seatkit.background  # noqa: F401
+    for exporter in prepare:
+        exporter.prepare()
+
+
+class Helper:
+    """One helper process of a build: a one-worker :class:`ProcessPoolExecutor`, started now.
+
+    The worker starts at once, not at the first :meth:`submit`, so that it
+    gets ready (imports, ``prepare()`` of ``exporters``) while the build
+    computes what it will be given. Starting it waits until the fork server
+    has imported :data:`PRELOAD` and forked the worker, so it is asked for on
+    a thread (starting the fork server is a fork+exec, safe beside threads)
+    and the build goes on meanwhile.
+
+    Parameters
+    ----------
+    what : str
+        Names the work in the :class:`WorkerLost` message.
+    exporters : sequence of Exporter
+        Prepared by the worker as it starts (they are pickled to it).
+    """
+
+    def __init__(self, what: str, exporters: Sequence[Any] = ()):
+        self.what = what
+        self._pool = ProcessPoolExecutor(max_workers=1, mp_context=pool_context(), initializer=_start_worker, initargs=(tuple(exporters),))
+        self._jobs: list[Future] = []
+        self._started: list[Future] = []  # the first task: the worker's process id
+        self._start = threading.Thread(target=lambda: self._started.append(self._pool.submit(os.getpid)), name=f"seatkit-{what}-start", daemon=True)
+        self._start.start()
+
+    def submit(self, fn: Callable, *args: Any) -> Future:
+        """Run ``fn(*args)`` in the worker (arguments and value are pickled)."""
+        job = self._pool.submit(_portable_call, fn, *args)
+        self._jobs.append(job)
+        return job
+
+    def result(self, future: Future) -> Any:
+        """A task's value, its error re-raised, or :class:`WorkerLost` if the worker died."""
+        try:
+            return future.result()
+        except BrokenProcessPool:
+            # one clear line, not a traceback: the cause is outside seatkit
+            msg = f"the {self.what} process ended before sending its result (out of memory, or stopped from outside seatkit)"
+            raise WorkerLost(msg) from None
+
+    def pid(self) -> int:
+        """The worker's process id."""
+        self._start.join()
+        return self.result(self._started[0])
+
+    def close(self, *, stop: bool = False) -> None:
+        """End the worker (idempotent); with ``stop``, work it still does is stopped, not waited for.
+
+        A build that failed stops its helpers (``SIGTERM``): their results
+        are no longer wanted.
+        """
+        self._start.join()
+        if stop and any(not job.done() for job in self._jobs):
+            try:
+                os.kill(self.pid(), signal.SIGTERM)
+            except (ProcessLookupError, WorkerLost):
+                pass
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+    def __enter__(self) -> "Helper":
+        return self
+
+    def __exit__(self, exc_type, *exc) -> None:
+        self.close(stop=exc_type is not None)
+
+
+def _portable_error(exc: BaseException) -> BaseException:
+    """``exc`` if it survives pickling, else the nearest thing that does (same message)."""
+    try:
+        pickle.loads(pickle.dumps(exc))
+        return exc
+    except Exception:  # noqa: BLE001 - any failure to round-trip
+        if isinstance(exc, SeatkitError):
+            return SeatkitError(str(exc))
+        return RuntimeError(f"{type(exc).__name__}: {exc}")
+
+
+def _portable_call(fn: Callable, *args: Any) -> Any:
+    """``fn(*args)`` in a worker, its error made to survive the way back (:func:`_portable_error`)."""
+    try:
+        return fn(*args)
+    except Exception as exc:  # noqa: BLE001 - re-raised in the build, as it was or as near as pickling allows
+        portable = _portable_error(exc)
+        if portable is exc:
+            raise
+        raise portable from None
