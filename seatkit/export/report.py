@@ -44,7 +44,7 @@ import numpy as np
 from seatkit.errors import InputError
 from seatkit.export import raster as rs
 from seatkit.io import atomic_write, write_text_atomic
-from seatkit.pressure.areas import vertex_normals
+from seatkit.geometry.normals import vertex_normals
 
 __all__ = [
     "PNG_FILES",

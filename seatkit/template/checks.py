@@ -18,6 +18,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from seatkit.errors import UnsupportedPoseError
+from seatkit.geometry.normals import vertex_normals
 from seatkit.model import Body, ControlMesh
 from seatkit.skeleton import PARENTS, SEGMENT_INDEX, SEGMENTS
 from seatkit.template.planes import unit
@@ -32,7 +33,6 @@ __all__ = [
     "check_supportability",
     "cast_parallel",
     "segments_cross_triangles",
-    "vertex_normals",
     "body_vertex_normals",
 ]
 
@@ -247,30 +247,11 @@ def body_tree(body: Body) -> cKDTree:
 def body_vertex_normals(body: Body) -> np.ndarray:
     """(n, 3) float64 area-weighted outward vertex normals of a body."""
 
-    def make(body):
-        V = np.asarray(body.vertices, dtype=np.float64)
-        F = np.asarray(body.faces)
-        fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-        vn = np.zeros_like(V)
-        for i in range(3):
-            np.add.at(vn, F[:, i], fn)
-        return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-12)
-
-    return _cached(body, "vertex_normals", make)
+    return _cached(body, "vertex_normals", lambda b: vertex_normals(b.vertices, b.faces))
 
 
 def _body_triangle_spheres(body: Body) -> tuple[np.ndarray, np.ndarray]:
     return _cached(body, "spheres", lambda b: _triangle_spheres(np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces)))
-
-
-def vertex_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
-    """(v, 3) float64 unit normals of a quad cage (mean of the faces' diagonal-cross normals)."""
-    fn = np.cross(vertices[quads[:, 2]] - vertices[quads[:, 0]], vertices[quads[:, 3]] - vertices[quads[:, 1]])
-    fn = fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
-    vn = np.zeros_like(vertices)
-    for i in range(4):
-        np.add.at(vn, quads[:, i], fn)
-    return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-12)
 
 
 def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, tolerance: float) -> np.ndarray:

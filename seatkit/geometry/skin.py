@@ -42,7 +42,7 @@ import weakref
 import numpy as np
 from scipy.spatial import cKDTree
 
-from seatkit.closest import closest_barycentric, vertex_triangle_rings
+from seatkit.geometry.closest import closest_barycentric, vertex_triangle_rings
 
 __all__ = ["SkinDistance"]
 
