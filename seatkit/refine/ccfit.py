@@ -88,7 +88,7 @@ from seatkit.geometry.skin import SkinDistance
 from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, surface_depth_in_body
 from seatkit.model import Body, ControlMesh, PressureField, Surface
 from seatkit.pressure.contact import supported_vertices
-from seatkit.refine.params import refiner_params
+from seatkit.params import refiner_params
 from seatkit.refine.quality import mesh_edges
 
 __all__ = [

@@ -88,7 +88,7 @@ import scipy.sparse as sp
 
 from seatkit.errors import SolverError
 from seatkit.model import Body, ControlMesh, PressureField
-from seatkit.refine.params import refiner_params
+from seatkit.params import refiner_params
 from seatkit.refine.quality import cage_quality, mesh_edges
 
 __all__ = ["OPTIMIZE_DEFAULTS", "CageEnergy", "optimize_cage", "OptimizeRefiner"]
