@@ -41,7 +41,8 @@ from seatkit.constants import (
     MU_RANGE,
 )
 from seatkit.errors import ParamError, RecipeError
-from seatkit.yamlio import Document, load_yaml, quote, validate
+from seatkit.messages import format_path, quote
+from seatkit.yamlio import Document, load_yaml, validate
 
 DEFAULT_REFINERS = ("optimize", "catmull-clark-fit")
 DEFAULT_EXPORTERS = ("usd", "obj", "surface", "body-ply", "design", "report-png", "report-html")
@@ -412,8 +413,6 @@ def check_recipe(recipe: dict, registry, *, document: Document | None = None) ->
     def fail(path, message):
         if from_document(path):
             raise document.error(path, message)
-        from seatkit.yamlio import format_path
-
         raise RecipeError(f"{format_path(path)}: {message}")
 
     def need(kind, name, path):

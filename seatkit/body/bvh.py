@@ -74,7 +74,8 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from seatkit.errors import InputError, RecipeError
-from seatkit.yamlio import clip, decode_text, quote
+from seatkit.messages import clip, quote
+from seatkit.yamlio import decode_text
 from seatkit.model import Pose, RiggedBody
 from seatkit.resources import data_path
 from seatkit.skeleton import N_SEGMENTS, PARENTS, SEGMENTS, SEGMENT_INDEX

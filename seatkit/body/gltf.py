@@ -44,11 +44,12 @@ from typing import Mapping
 import numpy as np
 
 from seatkit.body.bvh import CHAIN_CHILD, candidate_maps, check_axes, choose_map, facing_rotation
+from seatkit.body.rig import make_rig
 from seatkit.constants import DEFAULT_BODY_MASS
 from seatkit.errors import InputError
 from seatkit.model import RiggedBody
 from seatkit.skeleton import N_SEGMENTS, PARENTS, SEGMENT_INDEX, SEGMENTS
-from seatkit.yamlio import quote
+from seatkit.messages import quote
 
 __all__ = ["load_gltf_body", "load_gltf_rig", "save_gltf_body"]
 
@@ -359,8 +360,6 @@ def load_gltf_body(
         No skinned mesh, non-triangle primitives, NaN vertices, faces out of
         range, vertices without weights, needed joints missing (named).
     """
-    from seatkit.body.rig import make_rig
-
     path = Path(path)
     gltf = _load_document(path)
     skinned = [i for i, n in enumerate(gltf.nodes) if n.mesh is not None and n.skin is not None]
@@ -624,7 +623,7 @@ def _segment_tips(joints: np.ndarray, weights: np.ndarray, vertices: np.ndarray,
     return tips
 
 
-#: The name :func:`seatkit.body.rig.load_rig` imports.
+#: The name :func:`seatkit.body.loading.load_rig` imports.
 load_gltf_rig = load_gltf_body
 
 

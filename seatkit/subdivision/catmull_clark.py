@@ -30,6 +30,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from seatkit.errors import InputError
+from seatkit.model import Surface
+from seatkit.subdivision.limit import limit_masks
 from seatkit.subdivision.topology import (
     RULE_CORNER,
     RULE_CREASE,
@@ -39,7 +41,7 @@ from seatkit.subdivision.topology import (
     decrement_sharpness,
 )
 
-__all__ = ["SubdivisionOperators", "build_operators", "refine_level"]
+__all__ = ["SubdivisionOperators", "build_operators", "limit_surface", "refine_level"]
 
 
 def _fractional_weight(level: MeshLevel, child_vs: np.ndarray, child_es: np.ndarray) -> np.ndarray:
@@ -341,8 +343,6 @@ def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
     -------
     SubdivisionOperators
     """
-    from seatkit.subdivision.limit import limit_masks
-
     if isinstance(level, bool) or int(level) != level or level < 0:
         msg = f"subdivision level must be a non-negative integer, got {level!r}"
         raise InputError(msg)
@@ -381,3 +381,32 @@ def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
     while len(_OPS_CACHE) > _OPS_CACHE_SIZE:
         _OPS_CACHE.popitem(last=False)
     return ops
+
+
+def limit_surface(control_mesh, level: int = 3, *, boundary: str = "edge-and-corner") -> Surface:
+    """The tessellated Catmull-Clark limit surface of a control mesh.
+
+    Parameters
+    ----------
+    control_mesh : seatkit.model.ControlMesh or Cage
+        The cage (its creases and corners are used).
+    level : int
+        Refinement level of the tessellation.
+    boundary : {"edge-and-corner", "edge-only"}
+        Boundary interpolation (for a ControlMesh).
+
+    Returns
+    -------
+    seatkit.model.Surface
+        Limit positions and unit normals of the level-``level`` vertices and
+        the quads joining them.
+    """
+    cage = control_mesh if isinstance(control_mesh, Cage) else Cage.from_control_mesh(control_mesh, boundary=boundary)
+    ops = build_operators(cage, level)
+    P = cage.vertices
+    return Surface(
+        vertices=ops.limit_points(P),
+        normals=ops.limit_normals(P),
+        faces=ops.faces.copy(),
+        level=int(level),
+    )
