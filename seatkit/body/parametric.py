@@ -43,6 +43,7 @@ import numpy as np
 from seatkit.body.anthropometry import body_density
 from seatkit.body.measure import enclosed_volume
 from seatkit.body.rig import default_body_path, load_rig_file, make_rig
+from seatkit.constants import DEFAULT_BODY_MASS
 from seatkit.errors import RecipeError
 from seatkit.resources import data_path
 from seatkit.skeleton import N_SEGMENTS, SEGMENT_INDEX
@@ -52,7 +53,6 @@ __all__ = [
     "STATURE_RANGE",
     "SITTING_RATIO_RANGE",
     "BUTTOCK_KNEE_RATIO_RANGE",
-    "body_density",
     "load_model",
     "make_parametric_body",
     "make_default_body",
@@ -63,7 +63,7 @@ __all__ = [
 #: The default bodies: sex, default stature (m) and default mass (kg) of each. The
 #: masses are about the shipped meshes' own (volume times Contini's density:
 #: 74.6 and 54.8 kg), so that the default bodies keep their shapes.
-DEFAULT_SIZES = {"default-male": ("male", 1.75, 75.0), "default-female": ("female", 1.62, 55.0)}
+DEFAULT_SIZES = {"default-male": ("male", 1.75, DEFAULT_BODY_MASS), "default-female": ("female", 1.62, 55.0)}
 #: Keys a parametric body takes (``--body default-female:height=1.55,mass=50``).
 PARAMETRIC_KEYS = ("mass", "height", "sitting_height", "buttock_knee", "hip_breadth")
 

@@ -16,8 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from seatkit.constants import GRAVITY
 from seatkit.errors import StructureError
-from seatkit.structure.fem import GRAVITY, Elasticity, Solution
+from seatkit.structure.fem import Elasticity, Solution
 from seatkit.structure.loads import SPREAD_RADIUS, contact_loads
 from seatkit.structure.materials import Material, get_material
 from seatkit.structure.mesh import ShellMesh, element_normals, surface_quads9

@@ -32,14 +32,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from seatkit.constants import GRAVITY
 from seatkit.errors import StructureError
 from seatkit.structure.materials import Material
 from seatkit.structure.mesh import ShellMesh
 
-__all__ = ["GRAVITY", "Elasticity", "Solution"]
-
-#: Standard gravity, m/s^2 (the pressure solver's value).
-GRAVITY = 9.81
+__all__ = ["Elasticity", "Solution"]
 
 #: Quadrature order of scikit-fem's tensor Gauss rule: 3 points per direction.
 INTORDER = 4

@@ -23,12 +23,12 @@ computed in float32 as OpenSubdiv does.
 
 from __future__ import annotations
 
-from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 
+from seatkit.cache import LRUCache
 from seatkit.errors import InputError
 from seatkit.model import Surface
 from seatkit.subdivision.limit import limit_masks
@@ -322,8 +322,8 @@ class SubdivisionOperators:
         return out
 
 
-_OPS_CACHE: "OrderedDict[tuple, SubdivisionOperators]" = OrderedDict()
-_OPS_CACHE_SIZE = 64
+#: build_operators' cache: (topology key, level) -> SubdivisionOperators
+_OPS_CACHE = LRUCache(maxsize=64)
 
 
 def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
@@ -350,12 +350,10 @@ def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
     if level == 0 and not np.all(cage.face_sizes == 4):
         msg = "subdivision level 0 needs an all-quad cage; use level >= 1"
         raise InputError(msg)
-    key = (cage.topology_key, level)
-    hit = _OPS_CACHE.get(key)
-    if hit is not None:
-        _OPS_CACHE.move_to_end(key)
-        return hit
+    return _OPS_CACHE.get((cage.topology_key, level), lambda: _make_operators(cage, level))
 
+
+def _make_operators(cage: Cage, level: int) -> SubdivisionOperators:
     current = cage.base_level()
     steps = []
     origin = np.arange(current.n_faces)
@@ -377,9 +375,6 @@ def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
         steps=tuple(steps),
         rules=rules,
     )
-    _OPS_CACHE[key] = ops
-    while len(_OPS_CACHE) > _OPS_CACHE_SIZE:
-        _OPS_CACHE.popitem(last=False)
     return ops
 
 

@@ -16,11 +16,11 @@ vertices at once (as many iterations as the largest valence).
 from __future__ import annotations
 
 import hashlib
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 
+from seatkit.cache import LRUCache
 from seatkit.errors import InputError
 
 __all__ = [
@@ -257,15 +257,7 @@ class Cage:
 
     def base_level(self) -> "MeshLevel":
         """Level-0 topology with boundary and crease sharpness applied (cached)."""
-        level = _LEVEL_CACHE.get(self.topology_key)
-        if level is None:
-            level = _build_base_level(self)
-            _LEVEL_CACHE[self.topology_key] = level
-            while len(_LEVEL_CACHE) > _CACHE_SIZE:
-                _LEVEL_CACHE.popitem(last=False)
-        else:
-            _LEVEL_CACHE.move_to_end(self.topology_key)
-        return level
+        return _LEVEL_CACHE.get(self.topology_key, lambda: _build_base_level(self))
 
     def __repr__(self) -> str:
         return (
@@ -274,8 +266,8 @@ class Cage:
         )
 
 
-_CACHE_SIZE = 64
-_LEVEL_CACHE: "OrderedDict[str, MeshLevel]" = OrderedDict()
+#: Cage.base_level's cache: topology key -> MeshLevel
+_LEVEL_CACHE = LRUCache(maxsize=64)
 
 
 def _sharpness(values, n: int, name: str) -> np.ndarray:

@@ -10,13 +10,12 @@ body (no open3d: its import alone costs about 1.3 s).
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from seatkit.cache import IdentityCache
 from seatkit.errors import UnsupportedPoseError
 from seatkit.geometry.normals import vertex_normals
 from seatkit.model import Body, ControlMesh
@@ -210,20 +209,13 @@ def self_intersecting_faces(vertices: np.ndarray, quads: np.ndarray) -> np.ndarr
     return pairs.reshape(-1, 2).astype(np.int64)
 
 
-_BODY_CACHE: dict = {}
+#: What the checks derive from a body (edges, k-d tree, normals, ...), by body object
+_BODY_CACHE = IdentityCache()
 
 
 def _cached(body: Body, name: str, make):
     """``make(body)``, computed once per body object (bodies are immutable)."""
-    key = id(body)
-    hit = _BODY_CACHE.get(key)
-    if hit is None or hit[0]() is not body:
-        hit = (weakref.ref(body, lambda _ref, k=key: _BODY_CACHE.pop(k, None)), {})
-        _BODY_CACHE[key] = hit
-    data = hit[1]
-    if name not in data:
-        data[name] = make(body)
-    return data[name]
+    return _BODY_CACHE.get((body,), lambda: make(body), tag=name)
 
 
 def body_edges(body: Body) -> np.ndarray:
