@@ -13,7 +13,7 @@ each vertex goes to ``sum_i w_i * G_{j_i} @ IBM_{j_i} @ v`` (``G`` a joint
 node's world matrix). glTF is +Y up, metres, and its assets face +Z, as
 seatkit; the up (hips to head) and left (right hip to left hip) directions
 of the skeleton are checked anyway and the nearest axis-aligned rotation
-applied (see :func:`seatkit.body.bvh.facing_rotation`), and recorded in
+applied (see :func:`seatkit.body.retarget.facing_rotation`), and recorded in
 ``meta["axis_conversion"]``.
 
 Joint names go to the 21 segments through a YAML name map
@@ -43,7 +43,8 @@ from typing import Mapping
 
 import numpy as np
 
-from seatkit.body.bvh import CHAIN_CHILD, candidate_maps, check_axes, choose_map, facing_rotation
+from seatkit.body.name_maps import candidate_maps, choose_map, load_name_map
+from seatkit.body.retarget import CHAIN_CHILD, check_axes, facing_rotation
 from seatkit.body.rig import make_rig
 from seatkit.constants import DEFAULT_BODY_MASS
 from seatkit.errors import InputError
@@ -657,7 +658,6 @@ def save_gltf_body(
     """
     import pygltflib
 
-    from seatkit.body.bvh import load_name_map
     from seatkit.io import write_bytes_atomic
 
     nm = load_name_map(naming)
