@@ -211,24 +211,8 @@ def _float(token: str, path, line: int, what: str) -> float:
     return value
 
 
-def read_bvh(path: str | Path) -> BvhMotion:
-    """Parse a BVH file.
-
-    Parameters
-    ----------
-    path : str or Path
-
-    Returns
-    -------
-    BvhMotion
-
-    Raises
-    ------
-    InputError
-        Unreadable file, malformed hierarchy, or MOTION data that is not
-        numeric or has the wrong number of values (the message gives the line).
-    """
-    path = Path(path)
+def _read_lines(path: Path) -> list[str]:
+    """The lines of a BVH file, with one-line errors for an unreadable or non-UTF-8 file."""
     try:
         data = path.read_bytes()
     except OSError as e:
@@ -238,8 +222,11 @@ def read_bvh(path: str | Path) -> BvhMotion:
         text = decode_text(data, str(path), "BVH file")
     except RecipeError as e:
         raise InputError(str(e)) from None
-    lines = text.splitlines()
-    # tokens of the HIERARCHY section with their (1-based) line numbers
+    return text.splitlines()
+
+
+def _hierarchy_tokens(path: Path, lines: list[str]) -> tuple[list[tuple[str, int]], int]:
+    """The tokens of the HIERARCHY section with their (1-based) lines, and the line of MOTION."""
     tokens: list[tuple[str, int]] = []
     motion_line = None
     joints_seen = 0
@@ -259,131 +246,157 @@ def read_bvh(path: str | Path) -> BvhMotion:
     if motion_line is None:
         msg = f"{path}: no MOTION section"
         raise InputError(msg)
+    return tokens, motion_line
 
-    names: list[str] = []
-    parents: list[int] = []
-    offsets: list[np.ndarray] = []
-    end_sites: list[np.ndarray] = []
-    orders: list[str] = []
-    rot_cols: list[np.ndarray] = []
-    position_columns = np.full(3, -1, dtype=np.int64)
-    n_channels = 0
-    stack: list[int] = []  # open joints; -2 marks an End Site block
-    open_joints: list[int] = []  # the joints of ``stack`` (without End Sites): parents in O(1)
-    i = 1
 
-    def expect(k: int, what: str) -> list[tuple[str, int]]:
-        if i + k > len(tokens):
-            msg = f"{path}:{tokens[-1][1]}: unexpected end of HIERARCHY while reading {what}"
+class _HierarchyParser:
+    """The joints of a HIERARCHY section, read token by token (one method per keyword)."""
+
+    def __init__(self, path: Path, tokens: list[tuple[str, int]]):
+        self.path, self.tokens = path, tokens
+        self.names: list[str] = []
+        self.parents: list[int] = []
+        self.offsets: list[np.ndarray] = []
+        self.end_sites: list[np.ndarray] = []
+        self.orders: list[str] = []
+        self.rot_cols: list[np.ndarray] = []
+        self.position_columns = np.full(3, -1, dtype=np.int64)
+        self.n_channels = 0
+        self.stack: list[int] = []  # open joints; -2 marks an End Site block
+        self.open_joints: list[int] = []  # the joints of ``stack`` (without End Sites): parents in O(1)
+        self.pending: int | None = None  # joint (or -2) whose '{' is expected next
+        self.i = 1
+
+    def parse(self) -> "_HierarchyParser":
+        keywords = {
+            "ROOT": self._joint,
+            "JOINT": self._joint,
+            "END": self._end_site,
+            "{": self._open,
+            "}": self._close,
+            "OFFSET": self._offset,
+            "CHANNELS": self._channels,
+        }
+        while self.i < len(self.tokens):
+            tok, ln = self.tokens[self.i]
+            step = keywords.get(tok.upper())
+            if step is None:
+                msg = f"{self.path}:{ln}: unexpected {quote(tok)} in HIERARCHY"
+                raise InputError(msg)
+            self.i += step(tok.upper(), ln)
+        if self.stack:
+            msg = f"{self.path}: HIERARCHY ends with {len(self.stack)} unclosed '{{'"
             raise InputError(msg)
-        return tokens[i : i + k]
+        if not self.names:
+            msg = f"{self.path}: HIERARCHY has no joints"
+            raise InputError(msg)
+        return self
 
-    pending: int | None = None  # joint (or -2) whose '{' is expected next
-    while i < len(tokens):
-        tok, ln = tokens[i]
-        key = tok.upper()
-        if key in ("ROOT", "JOINT"):
-            (name, _), = expect(2, key)[1:]
-            if key == "JOINT" and not open_joints:
-                msg = f"{path}:{ln}: JOINT {clip(name)} outside any ROOT"
-                raise InputError(msg)
-            if len(names) >= MAX_JOINTS:
-                msg = f"{path}:{ln}: more than {MAX_JOINTS} joints; not a human skeleton seatkit reads"
-                raise InputError(msg)
-            if key == "ROOT" and stack:
-                msg = f"{path}:{ln}: ROOT {clip(name)} inside another joint"
-                raise InputError(msg)
-            parent = open_joints[-1] if key == "JOINT" else -1
-            names.append(name)
-            parents.append(parent)
-            offsets.append(np.zeros(3))
-            end_sites.append(np.full(3, np.nan))
-            orders.append("")
-            rot_cols.append(np.zeros(0, dtype=np.int64))
-            pending = len(names) - 1
-            i += 2
-        elif key == "END":
-            expect(2, "End Site")
-            pending = -2
-            i += 2
-        elif key == "{":
-            if pending is None:
-                msg = f"{path}:{ln}: unexpected '{{'"
-                raise InputError(msg)
-            stack.append(pending)
-            if pending >= 0:
-                open_joints.append(pending)
-            pending = None
-            i += 1
-        elif key == "}":
-            if not stack:
-                msg = f"{path}:{ln}: unbalanced '}}'"
-                raise InputError(msg)
-            if stack.pop() >= 0:
-                open_joints.pop()
-            i += 1
-        elif key == "OFFSET":
-            vals = expect(4, "OFFSET")[1:]
-            xyz = np.array([_float(t, path, n, "OFFSET") for t, n in vals])
-            if not stack:
-                msg = f"{path}:{ln}: OFFSET outside a joint"
-                raise InputError(msg)
-            if np.abs(xyz).max() > MAX_OFFSET:
-                msg = f"{path}:{ln}: OFFSET {clip(' '.join(t for t, _ in vals))}: larger than {MAX_OFFSET:g} file units"
-                raise InputError(msg)
-            if stack[-1] == -2:
-                end_sites[open_joints[-1]] = xyz
-            else:
-                offsets[stack[-1]] = xyz
-            i += 4
-        elif key == "CHANNELS":
-            (count_tok, _), = expect(2, "CHANNELS")[1:]
-            try:
-                count = int(count_tok)
-            except ValueError:
-                count = -1
-            if not 0 <= count <= 6:
-                msg = f"{path}:{ln}: CHANNELS: expected a channel count from 0 to 6, got {quote(count_tok)}"
-                raise InputError(msg) from None
-            chans = [t for t, _ in expect(2 + count, "CHANNELS")[2:]]
-            if not stack or stack[-1] < 0:
-                msg = f"{path}:{ln}: CHANNELS outside a joint"
-                raise InputError(msg)
-            joint = stack[-1]
-            order, cols = "", []
-            for c, chan in enumerate(chans):
-                low = chan.lower()
-                if low in _ROTATION_CHANNELS:
-                    order += _ROTATION_CHANNELS[low]
-                    cols.append(n_channels + c)
-                elif low in _POSITION_CHANNELS:
-                    if joint == 0:  # position channels of other joints are ignored
-                        position_columns[_POSITION_CHANNELS[low]] = n_channels + c
-                else:
-                    msg = f"{path}:{ln}: joint {clip(names[joint])}: unknown channel {quote(chan)}"
-                    raise InputError(msg)
-            if order and len(set(order)) != len(order):
-                msg = f"{path}:{ln}: joint {clip(names[joint])}: repeated rotation channel in {clip(' '.join(chans))}"
-                raise InputError(msg)
-            if order and len(order) != 3:
-                # fewer than three rotation channels: pad with unused axes at zero
-                order += "".join(a for a in "XYZ" if a not in order)
-                cols += [-1] * (3 - len(cols))
-            orders[joint] = order
-            rot_cols[joint] = np.array(cols, dtype=np.int64)
-            n_channels += count
-            i += 2 + count
+    def _expect(self, k: int, what: str) -> list[tuple[str, int]]:
+        if self.i + k > len(self.tokens):
+            msg = f"{self.path}:{self.tokens[-1][1]}: unexpected end of HIERARCHY while reading {what}"
+            raise InputError(msg)
+        return self.tokens[self.i : self.i + k]
+
+    def _joint(self, key: str, ln: int) -> int:
+        (name, _), = self._expect(2, key)[1:]
+        if key == "JOINT" and not self.open_joints:
+            msg = f"{self.path}:{ln}: JOINT {clip(name)} outside any ROOT"
+            raise InputError(msg)
+        if len(self.names) >= MAX_JOINTS:
+            msg = f"{self.path}:{ln}: more than {MAX_JOINTS} joints; not a human skeleton seatkit reads"
+            raise InputError(msg)
+        if key == "ROOT" and self.stack:
+            msg = f"{self.path}:{ln}: ROOT {clip(name)} inside another joint"
+            raise InputError(msg)
+        self.parents.append(self.open_joints[-1] if key == "JOINT" else -1)
+        self.names.append(name)
+        self.offsets.append(np.zeros(3))
+        self.end_sites.append(np.full(3, np.nan))
+        self.orders.append("")
+        self.rot_cols.append(np.zeros(0, dtype=np.int64))
+        self.pending = len(self.names) - 1
+        return 2
+
+    def _end_site(self, key: str, ln: int) -> int:
+        self._expect(2, "End Site")
+        self.pending = -2
+        return 2
+
+    def _open(self, key: str, ln: int) -> int:
+        if self.pending is None:
+            msg = f"{self.path}:{ln}: unexpected '{{'"
+            raise InputError(msg)
+        self.stack.append(self.pending)
+        if self.pending >= 0:
+            self.open_joints.append(self.pending)
+        self.pending = None
+        return 1
+
+    def _close(self, key: str, ln: int) -> int:
+        if not self.stack:
+            msg = f"{self.path}:{ln}: unbalanced '}}'"
+            raise InputError(msg)
+        if self.stack.pop() >= 0:
+            self.open_joints.pop()
+        return 1
+
+    def _offset(self, key: str, ln: int) -> int:
+        vals = self._expect(4, "OFFSET")[1:]
+        xyz = np.array([_float(t, self.path, n, "OFFSET") for t, n in vals])
+        if not self.stack:
+            msg = f"{self.path}:{ln}: OFFSET outside a joint"
+            raise InputError(msg)
+        if np.abs(xyz).max() > MAX_OFFSET:
+            msg = f"{self.path}:{ln}: OFFSET {clip(' '.join(t for t, _ in vals))}: larger than {MAX_OFFSET:g} file units"
+            raise InputError(msg)
+        if self.stack[-1] == -2:
+            self.end_sites[self.open_joints[-1]] = xyz
         else:
-            msg = f"{path}:{ln}: unexpected {quote(tok)} in HIERARCHY"
-            raise InputError(msg)
-    if stack:
-        msg = f"{path}: HIERARCHY ends with {len(stack)} unclosed '{{'"
-        raise InputError(msg)
-    if not names:
-        msg = f"{path}: HIERARCHY has no joints"
-        raise InputError(msg)
+            self.offsets[self.stack[-1]] = xyz
+        return 4
 
-    # MOTION: "Frames: n", "Frame Time: t", then one line of numbers per frame
+    def _channels(self, key: str, ln: int) -> int:
+        (count_tok, _), = self._expect(2, "CHANNELS")[1:]
+        try:
+            count = int(count_tok)
+        except ValueError:
+            count = -1
+        if not 0 <= count <= 6:
+            msg = f"{self.path}:{ln}: CHANNELS: expected a channel count from 0 to 6, got {quote(count_tok)}"
+            raise InputError(msg) from None
+        chans = [t for t, _ in self._expect(2 + count, "CHANNELS")[2:]]
+        if not self.stack or self.stack[-1] < 0:
+            msg = f"{self.path}:{ln}: CHANNELS outside a joint"
+            raise InputError(msg)
+        joint = self.stack[-1]
+        order, cols = "", []
+        for c, chan in enumerate(chans):
+            low = chan.lower()
+            if low in _ROTATION_CHANNELS:
+                order += _ROTATION_CHANNELS[low]
+                cols.append(self.n_channels + c)
+            elif low in _POSITION_CHANNELS:
+                if joint == 0:  # position channels of other joints are ignored
+                    self.position_columns[_POSITION_CHANNELS[low]] = self.n_channels + c
+            else:
+                msg = f"{self.path}:{ln}: joint {clip(self.names[joint])}: unknown channel {quote(chan)}"
+                raise InputError(msg)
+        if order and len(set(order)) != len(order):
+            msg = f"{self.path}:{ln}: joint {clip(self.names[joint])}: repeated rotation channel in {clip(' '.join(chans))}"
+            raise InputError(msg)
+        if order and len(order) != 3:
+            # fewer than three rotation channels: pad with unused axes at zero
+            order += "".join(a for a in "XYZ" if a not in order)
+            cols += [-1] * (3 - len(cols))
+        self.orders[joint] = order
+        self.rot_cols[joint] = np.array(cols, dtype=np.int64)
+        self.n_channels += count
+        return 2 + count
+
+
+def _motion_header(path: Path, lines: list[str], motion_line: int) -> tuple[int, float, int]:
+    """``Frames:`` and ``Frame Time:`` after MOTION, and the index of the line after them."""
     header: dict[str, tuple[str, int]] = {}
     ln = motion_line
     while ln < len(lines) and len(header) < 2:
@@ -406,7 +419,12 @@ def read_bvh(path: str | Path) -> BvhMotion:
         msg = f"{path}:{header['frames'][1]}: Frames: expected a whole number, got {quote(header['frames'][0])}"
         raise InputError(msg) from None
     frame_time = _float(header["frame time"][0], path, header["frame time"][1], "Frame Time")
-    data_lines = [(k + 1, lines[k]) for k in range(ln, len(lines)) if lines[k].strip()]
+    return n_frames, frame_time, ln
+
+
+def _motion_frames(path: Path, lines: list[str], start: int, n_frames: int, n_channels: int) -> np.ndarray:
+    """(n_frames, n_channels) float64: one line of numbers per frame from ``lines[start]`` on."""
+    data_lines = [(k + 1, lines[k]) for k in range(start, len(lines)) if lines[k].strip()]
     if len(data_lines) < n_frames or n_frames < 1:
         msg = f"{path}: MOTION declares {n_frames} frames but has {len(data_lines)} lines of data"
         raise InputError(msg)
@@ -428,17 +446,41 @@ def read_bvh(path: str | Path) -> BvhMotion:
                 if abs(_float(t, path, lineno, f"frame {k}, channel {c + 1}")) > MAX_CHANNEL_VALUE:
                     msg = f"{path}:{lineno}: frame {k}, channel {c + 1}: {clip(t)} is beyond +-{MAX_CHANNEL_VALUE:g}"
                     raise InputError(msg)
-    frames = flat.reshape(n_frames, n_channels)
+    return flat.reshape(n_frames, n_channels)
+
+
+def read_bvh(path: str | Path) -> BvhMotion:
+    """Parse a BVH file.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    BvhMotion
+
+    Raises
+    ------
+    InputError
+        Unreadable file, malformed hierarchy, or MOTION data that is not
+        numeric or has the wrong number of values (the message gives the line).
+    """
+    path = Path(path)
+    lines = _read_lines(path)
+    tokens, motion_line = _hierarchy_tokens(path, lines)
+    joints = _HierarchyParser(path, tokens).parse()
+    n_frames, frame_time, start = _motion_header(path, lines, motion_line)
     return BvhMotion(
         path=str(path),
-        names=tuple(names),
-        parents=np.array(parents, dtype=np.int64),
-        offsets=np.array(offsets),
-        end_sites=np.array(end_sites),
-        rotation_orders=tuple(orders),
-        rotation_columns=tuple(rot_cols),
-        position_columns=position_columns,
-        frames=frames,
+        names=tuple(joints.names),
+        parents=np.array(joints.parents, dtype=np.int64),
+        offsets=np.array(joints.offsets),
+        end_sites=np.array(joints.end_sites),
+        rotation_orders=tuple(joints.orders),
+        rotation_columns=tuple(joints.rot_cols),
+        position_columns=joints.position_columns,
+        frames=_motion_frames(path, lines, start, n_frames, joints.n_channels),
         frame_time=frame_time,
     )
 
