@@ -28,13 +28,36 @@ from typing import Any, Callable, Hashable
 __all__ = ["LRUCache", "IdentityCache"]
 
 
-class LRUCache:
+class _Cache:
+    """The entries (oldest first) and the lock both caches keep."""
+
+    def __init__(self, maxsize: int | None):
+        self.maxsize = maxsize
+        self._data: OrderedDict = OrderedDict()
+        # re-entrant: a weak reference's callback may run (garbage
+        # collection) while this thread holds the lock
+        self._lock = threading.RLock()
+
+    def _store(self, key, entry) -> None:
+        """Store ``entry`` (under the lock) and drop the least recently used beyond ``maxsize``."""
+        self._data[key] = entry
+        while self.maxsize is not None and len(self._data) > self.maxsize:
+            self._data.popitem(last=False)
+
+    def __len__(self) -> int:
+        with self._lock:
+            return len(self._data)
+
+    def clear(self) -> None:
+        with self._lock:
+            self._data.clear()
+
+
+class LRUCache(_Cache):
     """A thread-safe least-recently-used cache of ``maxsize`` values by hashable keys."""
 
     def __init__(self, maxsize: int):
-        self.maxsize = int(maxsize)
-        self._data: OrderedDict = OrderedDict()
-        self._lock = threading.RLock()
+        super().__init__(int(maxsize))
 
     def get(self, key: Hashable, make: Callable[[], Any]) -> Any:
         """The value of ``key``, made by ``make()`` (outside the lock) when it is not cached."""
@@ -47,21 +70,11 @@ class LRUCache:
             if key in self._data:  # another thread stored it meanwhile: everyone gets the same object
                 self._data.move_to_end(key)
                 return self._data[key]
-            self._data[key] = value
-            while len(self._data) > self.maxsize:
-                self._data.popitem(last=False)
+            self._store(key, value)
         return value
 
-    def __len__(self) -> int:
-        with self._lock:
-            return len(self._data)
 
-    def clear(self) -> None:
-        with self._lock:
-            self._data.clear()
-
-
-class IdentityCache:
+class IdentityCache(_Cache):
     """A thread-safe cache of values by the identity of live objects (and a hashable tag).
 
     Parameters
@@ -74,11 +87,7 @@ class IdentityCache:
     """
 
     def __init__(self, maxsize: int | None = None):
-        self.maxsize = maxsize
-        self._data: OrderedDict = OrderedDict()
-        # re-entrant: a weak reference's callback may run (garbage
-        # collection) while this thread holds the lock
-        self._lock = threading.RLock()
+        super().__init__(maxsize)
 
     def get(self, objects: tuple, make: Callable[[], Any], tag: Hashable = None) -> Any:
         """The value for ``objects`` (and ``tag``), made by ``make()`` when it is not cached.
@@ -100,9 +109,7 @@ class IdentityCache:
             hit = self._live(key, objects)
             if hit is not None:
                 return hit[1]
-            self._data[key] = (refs, value)
-            while self.maxsize is not None and len(self._data) > self.maxsize:
-                self._data.popitem(last=False)
+            self._store(key, (refs, value))
         return value
 
     def _live(self, key, objects):
@@ -121,11 +128,3 @@ class IdentityCache:
                     del self._data[key]
 
         return forget
-
-    def __len__(self) -> int:
-        with self._lock:
-            return len(self._data)
-
-    def clear(self) -> None:
-        with self._lock:
-            self._data.clear()
