@@ -17,7 +17,7 @@ from scipy.spatial import cKDTree
 
 from seatkit.cache import IdentityCache
 from seatkit.errors import UnsupportedPoseError
-from seatkit.geometry.normals import vertex_normals
+from seatkit.geometry.normals import vertex_normals as _triangle_normals
 from seatkit.model import Body, ControlMesh
 from seatkit.skeleton import PARENTS, SEGMENT_INDEX, SEGMENTS
 from seatkit.template.planes import unit
@@ -239,7 +239,7 @@ def body_tree(body: Body) -> cKDTree:
 def body_vertex_normals(body: Body) -> np.ndarray:
     """(n, 3) float64 area-weighted outward vertex normals of a body."""
 
-    return _cached(body, "vertex_normals", lambda b: vertex_normals(b.vertices, b.faces))
+    return _cached(body, "vertex_normals", lambda b: _triangle_normals(b.vertices, b.faces))
 
 
 def _body_triangle_spheres(body: Body) -> tuple[np.ndarray, np.ndarray]:
