@@ -75,7 +75,8 @@ def main() -> None:
     from seatkit.errors import SeatkitError
     from seatkit.plugins import get_plugin_manager
     from seatkit.pressure import solve_pressure
-    from seatkit.refine import CatmullClarkFitRefiner, FlatPatchTemplate, OptimizeRefiner, fit_report
+    from seatkit.refine import CatmullClarkFitRefiner, OptimizeRefiner, fit_report
+    from seatkit.template.flat_patch import FlatPatchTemplate
     from seatkit.refine.ccfit import supported_targets
 
     body = pose_rig(load_rig("default-male", mass=75.0), load_pose(args.pose), ground=True)

@@ -3,7 +3,7 @@
 The fork server is the process every helper worker is forked from; a forked
 process keeps its parent's niceness. Lowering it here, before the fork
 server imports anything else (``workers.PRELOAD``), makes those imports and
-every worker run :data:`~seatkit.workers.BACKGROUND_NICE` below the build,
+every worker run :data:`~seatkit.constants.BACKGROUND_NICE` below the build,
 whose own stages are the critical path when two cores are shared. Nothing
 else imports this module.
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import os
 
-from seatkit.workers import BACKGROUND_NICE
+from seatkit.constants import BACKGROUND_NICE
 
 try:
     os.nice(BACKGROUND_NICE)

@@ -44,3 +44,10 @@ FRICTION_TOL = 1e-9  # N: friction pyramid slack allowed
 
 #: Default random seed of a build (RANSAC sampling).
 DEFAULT_SEED = 0
+
+#: Niceness added to the build's helper processes (the fork server, and so
+#: every worker it forks, :mod:`seatkit.background`; used by :mod:`seatkit.workers`): on two cores three
+#: runnable processes would otherwise slow the build's own stages, which are
+#: the critical path; the helpers have slack (the baseline is done before our
+#: evaluation needs it, the export worker waits for the design).
+BACKGROUND_NICE = 5

@@ -13,6 +13,8 @@ Messages name the offending file, field and value::
 
 from __future__ import annotations
 
+from seatkit.messages import format_path
+
 
 class SeatkitError(Exception):
     """Base class of every error seatkit reports to a user."""
@@ -32,14 +34,16 @@ class ParamError(RecipeError):
     """
 
     def __init__(self, path, problem: str):
-        from seatkit.yamlio import format_path
-
         self.path = tuple(path)
         self.problem = problem
         super().__init__(f"{format_path(self.path)}: {problem}")
 
     def __reduce__(self):
         return (type(self), (self.path, self.problem))
+
+
+class StructureError(SeatkitError):
+    """The shell cannot be analysed as asked (bad thickness, no floor contact, ...); ``seatkit.structure.StructureError``."""
 
 
 class InputError(SeatkitError):

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import hashlib
 import json
 import math
 import os
@@ -140,3 +141,16 @@ def is_complete(directory) -> bool:
     if not data.get("complete"):
         return False
     return all((Path(directory) / Path(p).name).exists() for p in data.get("files", {}).values())
+
+
+def _plain(value):
+    # json.dumps' hook for what is not JSON already: a checked Recipe as its
+    # plain sections (Recipe.to_dict), anything else as its text
+    to_dict = getattr(type(value), "to_dict", None)
+    return to_dict(value) if callable(to_dict) else str(value)
+
+
+def recipe_id(recipe) -> str:
+    """A short stable hash of a recipe, a plain mapping or a checked Recipe (identifies a run's inputs)."""
+    text = json.dumps(recipe, sort_keys=True, default=_plain)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]

@@ -11,13 +11,14 @@ can run on any Dask worker.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
 from seatkit.skeleton import N_SEGMENTS, PARENTS
 
 __all__ = [
+    "total_seconds",
     "Pose",
     "RiggedBody",
     "Body",
@@ -423,3 +424,12 @@ class BuildResult:
     output: str | None = None
     structure: Any = None
     shell_thickness_m: float | None = None
+
+
+def total_seconds(timings: Mapping[str, float]) -> float:
+    """A build's wall time from its stage timings.
+
+    Stages marked ``(parallel)`` ran on another process or thread during
+    the others and are left out.
+    """
+    return float(sum(v for k, v in timings.items() if not str(k).endswith("(parallel)")))

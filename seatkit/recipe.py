@@ -27,8 +27,6 @@ Every error names the file, line and key path.
 from __future__ import annotations
 
 import copy
-import hashlib
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, fields
@@ -45,7 +43,9 @@ from seatkit.constants import (
     MU_RANGE,
 )
 from seatkit.errors import ParamError, RecipeError
-from seatkit.yamlio import Document, load_yaml, quote, validate
+from seatkit.io import recipe_id  # noqa: F401  (recipe_id is part of this module's API; it lives beside jsonable)
+from seatkit.messages import format_path, quote
+from seatkit.yamlio import Document, load_yaml, validate
 
 DEFAULT_REFINERS = ("optimize", "catmull-clark-fit")
 DEFAULT_EXPORTERS = ("usd", "obj", "surface", "body-ply", "design", "report-png", "report-html")
@@ -347,14 +347,6 @@ def load_recipe(source: str | Path | Mapping | None = None) -> tuple[dict, Docum
     return _normalise(doc.data, base_dir), doc
 
 
-def recipe_id(recipe: Mapping) -> str:
-    """A short stable hash of a recipe (identifies a run's inputs)."""
-    if isinstance(recipe, Recipe):
-        recipe = recipe.to_dict()
-    text = json.dumps(recipe, sort_keys=True, default=str)
-    return hashlib.sha256(text.encode()).hexdigest()[:16]
-
-
 def parse_body_spec(spec: str) -> dict:
     """Turn a ``--body`` argument into a recipe body entry's model and params.
 
@@ -495,8 +487,6 @@ def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
     def fail(path, message):
         if from_document(path):
             raise document.error(path, message)
-        from seatkit.yamlio import format_path
-
         raise RecipeError(f"{format_path(path)}: {message}")
 
     def need(kind, name, path):

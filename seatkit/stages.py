@@ -15,7 +15,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from seatkit.errors import SeatkitError
-from seatkit.model import Baseline, Body, BuildResult
+from seatkit.model import Baseline, Body, BuildResult, total_seconds
 
 __all__ = [
     "DEFAULT_SEAT_GAP",
@@ -60,15 +60,6 @@ class StageTimer:
             yield
         finally:
             self.timings[name] = self.timings.get(name, 0.0) + time.perf_counter() - start
-
-
-def total_seconds(timings: Mapping[str, float]) -> float:
-    """A build's wall time from its stage timings.
-
-    Stages marked ``(parallel)`` ran on another process or thread during
-    the others and are left out.
-    """
-    return float(sum(v for k, v in timings.items() if not str(k).endswith("(parallel)")))
 
 
 def make_bodies(recipe: Mapping, registry) -> list[Body]:

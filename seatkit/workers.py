@@ -52,16 +52,11 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from typing import Any, Callable, Sequence
 
+from seatkit.constants import BACKGROUND_NICE
 from seatkit.errors import SeatkitError
 
 __all__ = ["BACKGROUND_NICE", "PRELOAD", "Helper", "WorkerLost", "main_is_import_safe", "pool_context"]
 
-#: Niceness added to the build's helper processes (the fork server, and so
-#: every worker it forks, :mod:`seatkit.background`): on two cores three
-#: runnable processes would otherwise slow the build's own stages, which are
-#: the critical path; the helpers have slack (the baseline is done before our
-#: evaluation needs it, the export worker waits for the design).
-BACKGROUND_NICE = 5
 
 #: Modules the fork server imports before it forks any worker: what the
 #: baseline imports (the flat patch and the refiners, the limit surface, the

@@ -31,6 +31,7 @@ from typing import Any, Iterable
 import yaml
 
 from seatkit.errors import RecipeError
+from seatkit.messages import clip, format_path, quote
 
 KeyPath = tuple  # of str and int
 
@@ -59,20 +60,6 @@ if _Loader is not yaml.SafeLoader:
     _Loader = _CSafeLoader
 else:
     _Loader = _SafeLoader
-
-
-def format_path(path: Iterable) -> str:
-    """``("faces", 4, "segment")`` -> ``faces[4].segment``."""
-    out = ""
-    for part in path:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            text = str(part)
-            if not text.isprintable() or len(text) > 60:
-                text = quote(part, 60)  # a key of control characters or a huge key, shown escaped and short
-            out += ("." if out else "") + text
-    return out or "(top level)"
 
 
 @dataclass
@@ -117,23 +104,6 @@ MAX_SCHEMA_ERRORS = 100
 MAX_BYTES = 16 * 1024 * 1024
 #: Longest mapping key, characters (keys are names: segments, joints, options).
 MAX_KEY = 200
-#: Longest quotation of a user's value in a message, characters.
-MAX_QUOTE = 60
-
-
-def clip(text: str, limit: int = MAX_QUOTE) -> str:
-    """``text`` on one line, shortened to about ``limit`` characters for messages."""
-    text = " ".join(str(text).split())
-    if len(text) <= limit:
-        return text
-    return f"{text[: max(limit - 20, 10)]}... ({len(text)} characters)"
-
-
-def quote(value: Any, limit: int = MAX_QUOTE) -> str:
-    """``repr(value)``, shortened to about ``limit`` characters for messages."""
-    return clip(repr(value), limit)
-
-
 def _line_of_offset(text: str | bytes, offset: int) -> int:
     return (text[:offset].count(b"\n" if isinstance(text, bytes) else "\n")) + 1
 

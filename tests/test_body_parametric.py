@@ -11,7 +11,8 @@ import pytest
 
 from seatkit.body import load_pose, load_rig, pose_rig
 from seatkit.body.measure import enclosed_volume, measure_rig
-from seatkit.body.parametric import body_density, make_parametric_body
+from seatkit.body.anthropometry import body_density
+from seatkit.body.parametric import make_parametric_body
 from seatkit.body.presets import PRESETS, make_preset, preset_table
 from seatkit.errors import RecipeError
 from seatkit.plugins import get_plugin_manager

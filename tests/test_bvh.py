@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from seatkit.body.bvh import choose_map, candidate_maps, detect_unit, load_bvh, read_bvh, write_bvh
+from seatkit.body.bvh import detect_unit, load_bvh, read_bvh, write_bvh
+from seatkit.body.name_maps import candidate_maps, choose_map
 from seatkit.body.rig import default_body_path, make_rig
 from seatkit.body.skinning import forward_kinematics, pose_rig
 from seatkit.errors import InputError

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from seatkit.evaluate import SurfaceQuery, closest_point_on_triangles
+from seatkit.geometry.closest import closest_point_on_triangles
+from seatkit.geometry.surface import SurfaceQuery
 from seatkit.model import Surface
 
 
@@ -109,7 +110,7 @@ def test_body_depth_in_surface_on_a_dome():
     """Points under a dome closed by the floor are inside; their depth is their distance to the dome."""
     from types import SimpleNamespace
 
-    from seatkit.evaluate import body_depth_in_surface
+    from seatkit.geometry.surface import body_depth_in_surface
     from seatkit.model import Surface
 
     a, b, h = 0.5, 0.4, 0.3
@@ -130,7 +131,7 @@ def test_body_depth_in_surface_on_a_dome():
     )
     inside = pts[:, 1] < height - 2e-3  # clear of the tessellation's error
     outside = pts[:, 1] > height + 2e-3
-    from seatkit.evaluate import SurfaceQuery
+    from seatkit.geometry.surface import SurfaceQuery
 
     dist, _ = SurfaceQuery(dome).query(pts)
     # the deepest inside point decides; points outside never count

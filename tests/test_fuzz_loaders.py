@@ -17,7 +17,8 @@ from hypothesis import strategies as st
 
 from seatkit.errors import RecipeError
 from seatkit.fuzzing import TARGET_BUILDERS, make_target, run_case
-from seatkit.yamlio import MAX_QUOTE, parse_yaml
+from seatkit.messages import MAX_QUOTE
+from seatkit.yamlio import parse_yaml
 
 #: Examples per loader: the glTF body takes about 0.1 s to load, the rest 0.01 s.
 EXAMPLES = {"gltf": 60, "bvh": 120}

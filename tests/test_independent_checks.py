@@ -11,7 +11,7 @@ import pytest
 
 o3d = pytest.importorskip("open3d")
 
-from seatkit.evaluate import SurfaceQuery  # noqa: E402
+from seatkit.geometry.surface import SurfaceQuery  # noqa: E402
 from seatkit.pipeline import build  # noqa: E402
 
 

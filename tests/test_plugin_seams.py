@@ -450,7 +450,7 @@ def test_docs_option_tables_are_generated_from_the_step_schemas():
     docs = (ROOT / "docs" / "templates.md").read_text()
     for name, step in BUILTIN_STEPS.items():
         block = f"<!-- options of {name} -->\n{options_table(step)}\n<!-- end -->"
-        assert block in docs, f"docs/templates.md: the options table of step {name!r} is not the one its schema gives; run python -m seatkit.template.options docs/templates.md"
+        assert block in docs, f"docs/templates.md: the options table of step {name!r} is not the one its schema gives; run python -m seatkit.template.steps docs/templates.md"
 
 
 # -- fuzz: whatever a template or recipe gives a step, the answer is a located RecipeError or a plan

@@ -9,7 +9,8 @@ from seatkit.constants import GRAVITY
 from seatkit.errors import InfeasibleSupportError, InputError
 from seatkit.model import Body
 from seatkit.pressure import QPPressureSolver, contact_from_surface, solve_pressure
-from seatkit.pressure.areas import mixed_voronoi_areas, vertex_normals
+from seatkit.geometry.normals import vertex_normals
+from seatkit.pressure.areas import mixed_voronoi_areas
 from seatkit.pressure.assembly import subtree_matrix
 from seatkit.pressure.synthetic import capsule, seated_capsule_body
 from seatkit.pressure.weights import DEFAULT_WEIGHT_CAP, local_reaction_weights, tangent_frames

@@ -8,7 +8,7 @@ import pytest
 from seatkit.errors import SolverError
 from seatkit.model import Body, PressureField
 from seatkit.refine.ccfit import CatmullClarkFitRefiner, fit_cage, surface_distances
-from seatkit.refine.flat_patch import flat_patch_cage
+from seatkit.template.flat_patch import flat_patch_cage
 from seatkit.subdivision import Cage, build_operators
 
 

@@ -9,12 +9,12 @@ from seatkit.body import list_poses
 from seatkit.errors import RecipeError, UnsupportedPoseError
 from seatkit.refine import (
     CatmullClarkFitRefiner,
-    FlatPatchTemplate,
     OptimizeRefiner,
     fit_report,
 )
-from seatkit.refine.grid import grid_ring
 from seatkit.skeleton import SEGMENT_INDEX
+from seatkit.template.flat_patch import FlatPatchTemplate
+from seatkit.template.quad_grid import grid_ring
 
 
 def test_flat_patch_shape(seated):

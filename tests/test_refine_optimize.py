@@ -8,7 +8,7 @@ import pytest
 from seatkit.body import list_poses
 from seatkit.errors import RecipeError, SolverError
 from seatkit.model import ControlMesh
-from seatkit.refine.grid import grid_faces, grid_ring
+from seatkit.template.quad_grid import grid_faces, grid_ring
 from seatkit.refine.optimize import (
     OPTIMIZE_DEFAULTS,
     CageEnergy,

@@ -194,7 +194,7 @@ def test_table_rows_name_each_persons_pose_body_and_mass():
 
 
 def test_seatkit_pressure_png_is_the_builds_pressure_png(tmp_path):
-    from seatkit.pressure.field import write_pressure_png
+    from seatkit.export.pressure import write_pressure_png
 
     res = evaluated_result()
     body, field = res.bodies[0], res.pressures[0]
@@ -358,7 +358,7 @@ def test_html_time_table_gets_the_export_stage_and_the_total(tmp_path):
 
 def test_seatkit_pressure_ply_has_the_builds_body_ply_colours(tmp_path):
     from seatkit.export.meshes import pressure_colors
-    from seatkit.pressure.field import write_ply
+    from seatkit.export.pressure import write_ply
 
     res = evaluated_result()
     body, field = res.bodies[0], res.pressures[0]

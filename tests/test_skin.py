@@ -1,11 +1,11 @@
-"""Signed distance to a body's skin (seatkit.skin), checked against brute force and open3d."""
+"""Signed distance to a body's skin (seatkit.geometry.skin), checked against brute force and open3d."""
 
 import numpy as np
 import pytest
 import trimesh
 
-from seatkit.evaluate import closest_point_on_triangles
-from seatkit.skin import SkinDistance
+from seatkit.geometry.closest import closest_point_on_triangles
+from seatkit.geometry.skin import SkinDistance
 
 
 def _brute_distance(vertices, faces, points):

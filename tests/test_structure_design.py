@@ -8,7 +8,7 @@ import pytest
 from typer.testing import CliRunner
 
 from seatkit.structure import MATERIALS, StructureError, analyse, get_material, size_thickness
-from seatkit.structure.fem import GRAVITY
+from seatkit.constants import GRAVITY
 
 #: A coarse mesh keeps these tests quick; the default resolution is tested once.
 QUICK = {"level": 1}

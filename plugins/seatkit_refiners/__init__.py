@@ -23,6 +23,6 @@ def seatkit_register_refiners() -> list:
 @hookimpl
 def seatkit_register_templates() -> list:
     """The ``flat-patch`` baseline template."""
-    from seatkit.refine import FlatPatchTemplate
+    from seatkit.template.flat_patch import FlatPatchTemplate
 
     return [FlatPatchTemplate()]

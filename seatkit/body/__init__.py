@@ -10,7 +10,8 @@
 
 from seatkit.body.anthropometry import com_ratios, segment_mass_fractions, segment_masses
 from seatkit.body.poses import PoseInfo, list_poses, load_pose, load_pose_file
-from seatkit.body.rig import DEFAULT_BODIES, load_rig, make_rig, save_rig
+from seatkit.body.loading import load_rig
+from seatkit.body.rig import DEFAULT_BODIES, make_rig, save_rig
 from seatkit.body.skinning import forward_kinematics, pose_rig
 
 __all__ = [

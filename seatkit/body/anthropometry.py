@@ -53,7 +53,7 @@ import numpy as np
 from seatkit.errors import RecipeError
 from seatkit.skeleton import SEGMENTS
 
-__all__ = ["PLAGENHOEF_1983", "SEXES", "segment_mass_fractions", "com_ratios", "segment_masses"]
+__all__ = ["PLAGENHOEF_1983", "SEXES", "body_density", "segment_mass_fractions", "com_ratios", "segment_masses"]
 
 #: Plagenhoef et al. (1983): per cent of body mass and centre of mass in per
 #: cent of segment length from the proximal end, by sex.
@@ -231,3 +231,7 @@ def segment_masses(mass: float, sex: str = "male") -> np.ndarray:
     masses[int(np.argmax(masses))] += mass - masses.sum()
     return masses
 
+
+def body_density(stature: float, mass: float) -> float:
+    """Whole-body density, kg/m^3: Contini (1972), ``0.69 + 0.9 h / m^(1/3)`` kg/l."""
+    return 1000.0 * (0.69 + 0.9 * stature / mass ** (1.0 / 3.0))

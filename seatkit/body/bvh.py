@@ -6,7 +6,7 @@ Reading
 rotation channels in degrees, position channels on the root) into a
 :class:`BvhMotion`. :func:`load_bvh` turns one frame into a Pose for a rig:
 
-1. **Names.** A name map (YAML, ``seatkit/data/name_maps/``) lists for each of
+1. **Names** (:mod:`seatkit.body.name_maps`). A name map (YAML, ``seatkit/data/name_maps/``) lists for each of
    the 21 segments the BVH joint names that drive it. The built-in
    Perception Neuron, CMU and Mixamo maps are tried and the one that
    recognises most joint names of the file wins (each map also lists the
@@ -15,7 +15,7 @@ rotation channels in degrees, position channels on the root) into a
    user map (a YAML path or a dict) is laid over every built-in one: its
    names come first for the segments it lists (``base: cmu`` picks the
    built-in map it extends; ``base: none`` uses it alone).
-2. **Axes.** The BVH rest skeleton (every channel zero) gives the body's up
+2. **Axes** (:mod:`seatkit.body.retarget`). The BVH rest skeleton (every channel zero) gives the body's up
    direction (hips to head) and left direction (right hip to left hip); the
    nearest axis-aligned rotation ``A`` that takes them to seatkit's +Y up
    and +X left (so the body faces +Z) converts the file's axes. A file that
@@ -62,60 +62,30 @@ back.
 
 from __future__ import annotations
 
-import functools
-
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
-import yaml
 from scipy.spatial.transform import Rotation
 
+from seatkit.body.name_maps import BUILTIN_BVH_MAPS, candidate_maps, choose_map, load_name_map
+from seatkit.body.retarget import CHAIN_CHILD, check_axes, facing_rotation, swing
 from seatkit.errors import InputError, RecipeError
-from seatkit.yamlio import clip, decode_text, quote
+from seatkit.messages import clip, quote
 from seatkit.model import Pose, RiggedBody
-from seatkit.resources import data_path
-from seatkit.skeleton import N_SEGMENTS, PARENTS, SEGMENTS, SEGMENT_INDEX
+from seatkit.skeleton import N_SEGMENTS, PARENTS, SEGMENT_INDEX, SEGMENTS
+from seatkit.yamlio import decode_text
 
 __all__ = [
-    "BUILTIN_BVH_MAPS",
-    "REQUIRED_SEGMENTS",
+    "UNITS",
     "BvhMotion",
-    "NameMap",
-    "load_name_map",
     "read_bvh",
+    "detect_unit",
     "load_bvh",
     "write_bvh",
 ]
-
-#: Built-in BVH name maps, in the order they are tried.
-BUILTIN_BVH_MAPS: tuple[str, ...] = ("perception-neuron", "cmu", "mixamo")
-
-#: Segments a BVH (or glTF skin) must provide; the others (Spine..Spine3,
-#: Neck, Shoulders) may be missing and then follow their parent.
-REQUIRED_SEGMENTS: tuple[str, ...] = (
-    "Hips",
-    "RightUpLeg",
-    "RightLeg",
-    "RightFoot",
-    "LeftUpLeg",
-    "LeftLeg",
-    "LeftFoot",
-    "Head",
-    "RightArm",
-    "RightForeArm",
-    "RightHand",
-    "LeftArm",
-    "LeftForeArm",
-    "LeftHand",
-)
-
-#: The child along the main chain of each segment (-1 for end segments).
-CHAIN_CHILD: np.ndarray = np.array(
-    [7, 2, 3, -1, 5, 6, -1, 8, 9, 10, 11, 12, -1, 14, 15, 16, -1, 18, 19, 20, -1], dtype=np.int64
-)
 
 #: Metres per unit of the units BVH files are written in.
 UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001, "inch": 0.0254}
@@ -124,321 +94,6 @@ _TYPICAL_SKELETON_HEIGHT = 1.5
 
 _ROTATION_CHANNELS = {"xrotation": "X", "yrotation": "Y", "zrotation": "Z"}
 _POSITION_CHANNELS = {"xposition": 0, "yposition": 1, "zposition": 2}
-_EPS = 1e-12
-
-
-# --------------------------------------------------------------------------- name maps
-
-
-def _normalise_name(name: str) -> str:
-    """Joint name for matching: namespace dropped (``mixamorig:Hips``), lower case."""
-    return name.rsplit(":", 1)[-1].strip().lower()
-
-
-@dataclass(frozen=True)
-class NameMap:
-    """Joint names of one convention, per seatkit segment.
-
-    Attributes
-    ----------
-    name : str
-    segments : dict of str to tuple of str
-        Segment name -> accepted joint names, in order of preference.
-    known : tuple of str
-        Extra joint names of this convention that are not mapped.
-    bvh_channel_order : str
-        Euler order (e.g. ``"ZXY"``) :func:`write_bvh` uses (``""``: ZXY).
-    namespaces : tuple of str
-        Name prefixes (``mixamorig`` of ``mixamorig:Hips``) typical of this
-        convention: each joint carrying one counts once more when choosing a
-        map, and :func:`write_bvh` writes the first.
-    source : str
-        File it came from.
-    """
-
-    name: str
-    segments: dict
-    known: tuple = ()
-    bvh_channel_order: str = ""
-    namespaces: tuple = ()
-    source: str = ""
-    description: str = ""
-
-    def resolve(self, names: Sequence[str]) -> tuple[np.ndarray, int]:
-        """Find each segment's joint among ``names``.
-
-        Parameters
-        ----------
-        names : sequence of str
-            Joint names of a file.
-
-        Returns
-        -------
-        index : (21,) int64
-            Index into ``names`` of each segment's joint, -1 where none.
-        score : int
-            How many of ``names`` this map recognises (mapped or known).
-        """
-        lookup: dict[str, int] = {}
-        for i, n in enumerate(names):
-            lookup.setdefault(_normalise_name(n), i)
-        index = np.full(N_SEGMENTS, -1, dtype=np.int64)
-        used: set[int] = set()
-        for seg, aliases in self.segments.items():
-            for alias in aliases:
-                j = lookup.get(_normalise_name(alias))
-                if j is not None and j not in used:
-                    index[SEGMENT_INDEX[seg]] = j
-                    used.add(j)
-                    break
-        recognised = {_normalise_name(a) for aliases in self.segments.values() for a in aliases}
-        recognised |= {_normalise_name(a) for a in self.known}
-        score = sum(1 for key in lookup if key in recognised)
-        spaces = {ns.lower() for ns in self.namespaces}
-        score += sum(1 for n in names if ":" in n and n.rsplit(":", 1)[0].strip().lower() in spaces)
-        return index, score
-
-    def missing(self, index: np.ndarray, required: Sequence[str] = REQUIRED_SEGMENTS) -> list[str]:
-        """Required segments that ``index`` (from :meth:`resolve`) leaves without a joint."""
-        return [s for s in required if index[SEGMENT_INDEX[s]] < 0]
-
-    def overlaid(self, user: "NameMap") -> "NameMap":
-        """This map with ``user``'s names first for the segments it lists."""
-        segments = {k: tuple(v) for k, v in self.segments.items()}
-        for seg, aliases in user.segments.items():
-            segments[seg] = tuple(aliases) + tuple(a for a in segments.get(seg, ()) if a not in aliases)
-        return NameMap(
-            name=f"{user.name}+{self.name}",
-            segments=segments,
-            known=tuple(self.known) + tuple(user.known),
-            bvh_channel_order=user.bvh_channel_order or self.bvh_channel_order,
-            namespaces=tuple(user.namespaces) + tuple(self.namespaces),
-            source=user.source,
-            description=user.description or self.description,
-        )
-
-
-def _name_map_from_dict(data: Any, source: str) -> NameMap:
-    if not isinstance(data, Mapping):
-        msg = f"{source}: a name map must be a mapping with a 'segments' key, got {type(data).__name__}"
-        raise InputError(msg)
-    allowed = {"name", "description", "segments", "known", "bvh_channel_order", "namespaces", "base"}
-    unknown_keys = set(data) - allowed
-    if unknown_keys:
-        msg = (
-            f"{source}: unknown key(s) {', '.join(sorted(map(str, unknown_keys)))}; expected "
-            f"{', '.join(sorted(allowed))}"
-        )
-        raise InputError(msg)
-    raw = data.get("segments")
-    if not isinstance(raw, Mapping):
-        msg = f"{source}: 'segments' must map segment names to lists of joint names"
-        raise InputError(msg)
-    segments: dict[str, tuple[str, ...]] = {}
-    for seg, aliases in raw.items():
-        if seg not in SEGMENT_INDEX:
-            msg = f"{source}: segments.{clip(seg)}: unknown segment; expected one of {', '.join(SEGMENTS)}"
-            raise InputError(msg)
-        if isinstance(aliases, str):
-            aliases = [aliases]
-        if not isinstance(aliases, list) or not all(isinstance(a, str) for a in aliases):
-            msg = f"{source}: segments.{seg}: expected a list of joint names, got {quote(aliases)}"
-            raise InputError(msg)
-        segments[seg] = tuple(aliases)
-    known = data.get("known") or []
-    if not isinstance(known, list) or not all(isinstance(a, str) for a in known):
-        msg = f"{source}: 'known' must be a list of joint names"
-        raise InputError(msg)
-    namespaces = data.get("namespaces") or []
-    if not isinstance(namespaces, list) or not all(isinstance(a, str) for a in namespaces):
-        msg = f"{source}: 'namespaces' must be a list of name prefixes"
-        raise InputError(msg)
-    order = str(data.get("bvh_channel_order", "")).upper()
-    if order and sorted(order) != ["X", "Y", "Z"]:
-        msg = f"{source}: bvh_channel_order: expected a permutation of XYZ, got {quote(order)}"
-        raise InputError(msg)
-    return NameMap(
-        name=str(data.get("name", Path(source).stem)),
-        segments=segments,
-        known=tuple(known),
-        bvh_channel_order=order,
-        namespaces=tuple(namespaces),
-        source=source,
-        description=str(data.get("description", "")),
-    )
-
-
-@functools.lru_cache(maxsize=None)
-def _builtin_name_map(name: str) -> NameMap:
-    """A packaged name map, parsed once per process (every BVH and glTF load asks for them)."""
-    builtin = data_path("name_maps", f"{name}.yaml")
-    return _name_map_from_dict(yaml.load(builtin.read_text(encoding="utf-8"), Loader=_FAST_LOADER), f"{name}.yaml")
-
-
-_FAST_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-
-
-def _read_yaml(path: Path):
-    """A user's name map through seatkit's safe YAML loader (see seatkit.yamlio)."""
-    from seatkit.yamlio import load_yaml
-
-    try:
-        return load_yaml(path, "name map").data
-    except RecipeError as e:
-        raise InputError(str(e)) from None
-
-
-def load_name_map(name_map: str | Path | Mapping) -> NameMap:
-    """Load a name map: a built-in name, a YAML path, or a dict.
-
-    Parameters
-    ----------
-    name_map : str, Path or mapping
-        ``"perception-neuron"``, ``"cmu"``, ``"mixamo"``, ``"gltf-default"``,
-        a path to a YAML file, or the parsed mapping (see
-        ``seatkit/data/name_maps/perception-neuron.yaml`` for the format).
-
-    Returns
-    -------
-    NameMap
-    """
-    if isinstance(name_map, Mapping):
-        return _name_map_from_dict(name_map, "<name map>")
-    text_name = str(name_map)
-    builtin = data_path("name_maps", f"{text_name}.yaml")
-    if "/" not in text_name and not text_name.endswith((".yaml", ".yml")) and builtin.is_file():
-        return _builtin_name_map(text_name)
-    path = Path(name_map)
-    if not path.is_file():
-        names = sorted(p.stem for p in data_path("name_maps").glob("*.yaml"))
-        msg = f"name map {text_name!r}: no such file, and not a built-in map ({', '.join(names)})"
-        raise InputError(msg)
-    return _name_map_from_dict(_read_yaml(path), str(path))
-
-
-def candidate_maps(name_map, builtins: Sequence[str]) -> list[NameMap]:
-    """The maps to try: built-ins, each overlaid with the user's map if given."""
-    if name_map is None:
-        return [load_name_map(b) for b in builtins]
-    if isinstance(name_map, str) and name_map in builtins:
-        return [load_name_map(name_map)]
-    user_raw = name_map
-    base = None
-    if isinstance(name_map, Mapping):
-        base = name_map.get("base")
-    else:
-        path = Path(name_map)
-        if path.is_file():
-            data = _read_yaml(path)
-            if isinstance(data, Mapping):
-                base = data.get("base")
-    user = load_name_map(user_raw)
-    if base is not None and str(base).lower() == "none":
-        return [user]
-    bases = [str(base)] if base is not None else list(builtins)
-    return [load_name_map(b).overlaid(user) for b in bases]
-
-
-def choose_map(names: Sequence[str], maps: Sequence[NameMap]) -> tuple[NameMap, np.ndarray]:
-    """The map recognising most of ``names`` (ties: fewest missing segments, then order)."""
-    best = None
-    for rank, m in enumerate(maps):
-        index, score = m.resolve(names)
-        key = (score, -len(m.missing(index)), -rank)
-        if best is None or key > best[0]:
-            best = (key, m, index)
-    return best[1], best[2]
-
-
-# --------------------------------------------------------------------------- geometry helpers
-
-
-def swing(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """The smallest rotation turning direction ``u`` onto direction ``v``.
-
-    Parameters
-    ----------
-    u, v : (3,) float64
-        Non-zero vectors (a zero one gives the identity).
-
-    Returns
-    -------
-    (3, 3) float64
-    """
-    nu, nv = np.linalg.norm(u), np.linalg.norm(v)
-    if nu < _EPS or nv < _EPS:
-        return np.eye(3)
-    a, b = u / nu, v / nv
-    axis = np.cross(a, b)
-    s, c = np.linalg.norm(axis), float(a @ b)
-    if s < 1e-12:
-        if c > 0:
-            return np.eye(3)
-        # opposite: half turn about any axis perpendicular to a
-        perp = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
-        return Rotation.from_rotvec(np.pi * perp / np.linalg.norm(perp)).as_matrix()
-    return Rotation.from_rotvec(axis / s * np.arctan2(s, c)).as_matrix()
-
-
-def check_axes(left: np.ndarray, up: np.ndarray, extent: float, where: str) -> None:
-    """Refuse a skeleton whose hips have no width or whose head sits on its hips.
-
-    ``left`` (right hip to left hip) and ``up`` (hips to head) must be finite,
-    at least a thousandth of the skeleton's ``extent`` long and not parallel
-    (within 5 degrees): otherwise the body's axes, and every rotation derived
-    from them, are undefined.
-
-    Raises
-    ------
-    InputError
-        Naming ``where`` (the file) and what is degenerate.
-    """
-    left, up = np.asarray(left, dtype=np.float64), np.asarray(up, dtype=np.float64)
-    if not (np.isfinite(left).all() and np.isfinite(up).all() and np.isfinite(extent) and extent > 0):
-        msg = f"{where}: the skeleton's joint positions are not finite"
-        raise InputError(msg)
-    nl, nu = float(np.linalg.norm(left)), float(np.linalg.norm(up))
-    if nl < 1e-3 * extent:
-        msg = f"{where}: degenerate skeleton: the left and right hip joints coincide (the body has no left-right axis)"
-        raise InputError(msg)
-    if nu < 1e-3 * extent:
-        msg = f"{where}: degenerate skeleton: the head joint sits on the hips (the body has no up axis)"
-        raise InputError(msg)
-    if abs(float(left @ up)) > np.cos(np.radians(5.0)) * nl * nu:
-        msg = f"{where}: degenerate skeleton: the hips' left-right axis is parallel to the hips-to-head axis"
-        raise InputError(msg)
-
-
-def facing_rotation(left: np.ndarray, up: np.ndarray, *, snap: bool = True) -> np.ndarray:
-    """Rotation taking a skeleton's left and up directions to seatkit's +X and +Y.
-
-    Parameters
-    ----------
-    left : (3,) float64
-        Right hip to left hip (the body's left), any length.
-    up : (3,) float64
-        Hips to head.
-    snap : bool
-        Round to the nearest axis-aligned rotation (a signed permutation), so
-        that a file whose axes are merely permuted is converted exactly.
-
-    Returns
-    -------
-    A : (3, 3) float64
-        ``A @ up`` is along +Y, ``A @ left`` along +X, the body faces +Z.
-    """
-    u = up / np.linalg.norm(up)
-    lft = left - (left @ u) * u
-    lft = lft / np.linalg.norm(lft)
-    fwd = np.cross(lft, u)
-    A = np.stack([lft, u, fwd])  # rows: where each seatkit axis comes from
-    if snap:
-        snapped = np.zeros((3, 3))
-        cols = np.argmax(np.abs(A), axis=1)
-        snapped[np.arange(3), cols] = np.sign(A[np.arange(3), cols])
-        if len(set(cols.tolist())) == 3 and np.linalg.det(snapped) > 0.5:
-            return snapped
-    return A
 
 
 # --------------------------------------------------------------------------- reading
@@ -556,24 +211,8 @@ def _float(token: str, path, line: int, what: str) -> float:
     return value
 
 
-def read_bvh(path: str | Path) -> BvhMotion:
-    """Parse a BVH file.
-
-    Parameters
-    ----------
-    path : str or Path
-
-    Returns
-    -------
-    BvhMotion
-
-    Raises
-    ------
-    InputError
-        Unreadable file, malformed hierarchy, or MOTION data that is not
-        numeric or has the wrong number of values (the message gives the line).
-    """
-    path = Path(path)
+def _read_lines(path: Path) -> list[str]:
+    """The lines of a BVH file, with one-line errors for an unreadable or non-UTF-8 file."""
     try:
         data = path.read_bytes()
     except OSError as e:
@@ -583,8 +222,11 @@ def read_bvh(path: str | Path) -> BvhMotion:
         text = decode_text(data, str(path), "BVH file")
     except RecipeError as e:
         raise InputError(str(e)) from None
-    lines = text.splitlines()
-    # tokens of the HIERARCHY section with their (1-based) line numbers
+    return text.splitlines()
+
+
+def _hierarchy_tokens(path: Path, lines: list[str]) -> tuple[list[tuple[str, int]], int]:
+    """The tokens of the HIERARCHY section with their (1-based) lines, and the line of MOTION."""
     tokens: list[tuple[str, int]] = []
     motion_line = None
     joints_seen = 0
@@ -604,131 +246,157 @@ def read_bvh(path: str | Path) -> BvhMotion:
     if motion_line is None:
         msg = f"{path}: no MOTION section"
         raise InputError(msg)
+    return tokens, motion_line
 
-    names: list[str] = []
-    parents: list[int] = []
-    offsets: list[np.ndarray] = []
-    end_sites: list[np.ndarray] = []
-    orders: list[str] = []
-    rot_cols: list[np.ndarray] = []
-    position_columns = np.full(3, -1, dtype=np.int64)
-    n_channels = 0
-    stack: list[int] = []  # open joints; -2 marks an End Site block
-    open_joints: list[int] = []  # the joints of ``stack`` (without End Sites): parents in O(1)
-    i = 1
 
-    def expect(k: int, what: str) -> list[tuple[str, int]]:
-        if i + k > len(tokens):
-            msg = f"{path}:{tokens[-1][1]}: unexpected end of HIERARCHY while reading {what}"
+class _HierarchyParser:
+    """The joints of a HIERARCHY section, read token by token (one method per keyword)."""
+
+    def __init__(self, path: Path, tokens: list[tuple[str, int]]):
+        self.path, self.tokens = path, tokens
+        self.names: list[str] = []
+        self.parents: list[int] = []
+        self.offsets: list[np.ndarray] = []
+        self.end_sites: list[np.ndarray] = []
+        self.orders: list[str] = []
+        self.rot_cols: list[np.ndarray] = []
+        self.position_columns = np.full(3, -1, dtype=np.int64)
+        self.n_channels = 0
+        self.stack: list[int] = []  # open joints; -2 marks an End Site block
+        self.open_joints: list[int] = []  # the joints of ``stack`` (without End Sites): parents in O(1)
+        self.pending: int | None = None  # joint (or -2) whose '{' is expected next
+        self.i = 1
+
+    def parse(self) -> "_HierarchyParser":
+        keywords = {
+            "ROOT": self._joint,
+            "JOINT": self._joint,
+            "END": self._end_site,
+            "{": self._open,
+            "}": self._close,
+            "OFFSET": self._offset,
+            "CHANNELS": self._channels,
+        }
+        while self.i < len(self.tokens):
+            tok, ln = self.tokens[self.i]
+            step = keywords.get(tok.upper())
+            if step is None:
+                msg = f"{self.path}:{ln}: unexpected {quote(tok)} in HIERARCHY"
+                raise InputError(msg)
+            self.i += step(tok.upper(), ln)
+        if self.stack:
+            msg = f"{self.path}: HIERARCHY ends with {len(self.stack)} unclosed '{{'"
             raise InputError(msg)
-        return tokens[i : i + k]
+        if not self.names:
+            msg = f"{self.path}: HIERARCHY has no joints"
+            raise InputError(msg)
+        return self
 
-    pending: int | None = None  # joint (or -2) whose '{' is expected next
-    while i < len(tokens):
-        tok, ln = tokens[i]
-        key = tok.upper()
-        if key in ("ROOT", "JOINT"):
-            (name, _), = expect(2, key)[1:]
-            if key == "JOINT" and not open_joints:
-                msg = f"{path}:{ln}: JOINT {clip(name)} outside any ROOT"
-                raise InputError(msg)
-            if len(names) >= MAX_JOINTS:
-                msg = f"{path}:{ln}: more than {MAX_JOINTS} joints; not a human skeleton seatkit reads"
-                raise InputError(msg)
-            if key == "ROOT" and stack:
-                msg = f"{path}:{ln}: ROOT {clip(name)} inside another joint"
-                raise InputError(msg)
-            parent = open_joints[-1] if key == "JOINT" else -1
-            names.append(name)
-            parents.append(parent)
-            offsets.append(np.zeros(3))
-            end_sites.append(np.full(3, np.nan))
-            orders.append("")
-            rot_cols.append(np.zeros(0, dtype=np.int64))
-            pending = len(names) - 1
-            i += 2
-        elif key == "END":
-            expect(2, "End Site")
-            pending = -2
-            i += 2
-        elif key == "{":
-            if pending is None:
-                msg = f"{path}:{ln}: unexpected '{{'"
-                raise InputError(msg)
-            stack.append(pending)
-            if pending >= 0:
-                open_joints.append(pending)
-            pending = None
-            i += 1
-        elif key == "}":
-            if not stack:
-                msg = f"{path}:{ln}: unbalanced '}}'"
-                raise InputError(msg)
-            if stack.pop() >= 0:
-                open_joints.pop()
-            i += 1
-        elif key == "OFFSET":
-            vals = expect(4, "OFFSET")[1:]
-            xyz = np.array([_float(t, path, n, "OFFSET") for t, n in vals])
-            if not stack:
-                msg = f"{path}:{ln}: OFFSET outside a joint"
-                raise InputError(msg)
-            if np.abs(xyz).max() > MAX_OFFSET:
-                msg = f"{path}:{ln}: OFFSET {clip(' '.join(t for t, _ in vals))}: larger than {MAX_OFFSET:g} file units"
-                raise InputError(msg)
-            if stack[-1] == -2:
-                end_sites[open_joints[-1]] = xyz
-            else:
-                offsets[stack[-1]] = xyz
-            i += 4
-        elif key == "CHANNELS":
-            (count_tok, _), = expect(2, "CHANNELS")[1:]
-            try:
-                count = int(count_tok)
-            except ValueError:
-                count = -1
-            if not 0 <= count <= 6:
-                msg = f"{path}:{ln}: CHANNELS: expected a channel count from 0 to 6, got {quote(count_tok)}"
-                raise InputError(msg) from None
-            chans = [t for t, _ in expect(2 + count, "CHANNELS")[2:]]
-            if not stack or stack[-1] < 0:
-                msg = f"{path}:{ln}: CHANNELS outside a joint"
-                raise InputError(msg)
-            joint = stack[-1]
-            order, cols = "", []
-            for c, chan in enumerate(chans):
-                low = chan.lower()
-                if low in _ROTATION_CHANNELS:
-                    order += _ROTATION_CHANNELS[low]
-                    cols.append(n_channels + c)
-                elif low in _POSITION_CHANNELS:
-                    if joint == 0:  # position channels of other joints are ignored
-                        position_columns[_POSITION_CHANNELS[low]] = n_channels + c
-                else:
-                    msg = f"{path}:{ln}: joint {clip(names[joint])}: unknown channel {quote(chan)}"
-                    raise InputError(msg)
-            if order and len(set(order)) != len(order):
-                msg = f"{path}:{ln}: joint {clip(names[joint])}: repeated rotation channel in {clip(' '.join(chans))}"
-                raise InputError(msg)
-            if order and len(order) != 3:
-                # fewer than three rotation channels: pad with unused axes at zero
-                order += "".join(a for a in "XYZ" if a not in order)
-                cols += [-1] * (3 - len(cols))
-            orders[joint] = order
-            rot_cols[joint] = np.array(cols, dtype=np.int64)
-            n_channels += count
-            i += 2 + count
+    def _expect(self, k: int, what: str) -> list[tuple[str, int]]:
+        if self.i + k > len(self.tokens):
+            msg = f"{self.path}:{self.tokens[-1][1]}: unexpected end of HIERARCHY while reading {what}"
+            raise InputError(msg)
+        return self.tokens[self.i : self.i + k]
+
+    def _joint(self, key: str, ln: int) -> int:
+        (name, _), = self._expect(2, key)[1:]
+        if key == "JOINT" and not self.open_joints:
+            msg = f"{self.path}:{ln}: JOINT {clip(name)} outside any ROOT"
+            raise InputError(msg)
+        if len(self.names) >= MAX_JOINTS:
+            msg = f"{self.path}:{ln}: more than {MAX_JOINTS} joints; not a human skeleton seatkit reads"
+            raise InputError(msg)
+        if key == "ROOT" and self.stack:
+            msg = f"{self.path}:{ln}: ROOT {clip(name)} inside another joint"
+            raise InputError(msg)
+        self.parents.append(self.open_joints[-1] if key == "JOINT" else -1)
+        self.names.append(name)
+        self.offsets.append(np.zeros(3))
+        self.end_sites.append(np.full(3, np.nan))
+        self.orders.append("")
+        self.rot_cols.append(np.zeros(0, dtype=np.int64))
+        self.pending = len(self.names) - 1
+        return 2
+
+    def _end_site(self, key: str, ln: int) -> int:
+        self._expect(2, "End Site")
+        self.pending = -2
+        return 2
+
+    def _open(self, key: str, ln: int) -> int:
+        if self.pending is None:
+            msg = f"{self.path}:{ln}: unexpected '{{'"
+            raise InputError(msg)
+        self.stack.append(self.pending)
+        if self.pending >= 0:
+            self.open_joints.append(self.pending)
+        self.pending = None
+        return 1
+
+    def _close(self, key: str, ln: int) -> int:
+        if not self.stack:
+            msg = f"{self.path}:{ln}: unbalanced '}}'"
+            raise InputError(msg)
+        if self.stack.pop() >= 0:
+            self.open_joints.pop()
+        return 1
+
+    def _offset(self, key: str, ln: int) -> int:
+        vals = self._expect(4, "OFFSET")[1:]
+        xyz = np.array([_float(t, self.path, n, "OFFSET") for t, n in vals])
+        if not self.stack:
+            msg = f"{self.path}:{ln}: OFFSET outside a joint"
+            raise InputError(msg)
+        if np.abs(xyz).max() > MAX_OFFSET:
+            msg = f"{self.path}:{ln}: OFFSET {clip(' '.join(t for t, _ in vals))}: larger than {MAX_OFFSET:g} file units"
+            raise InputError(msg)
+        if self.stack[-1] == -2:
+            self.end_sites[self.open_joints[-1]] = xyz
         else:
-            msg = f"{path}:{ln}: unexpected {quote(tok)} in HIERARCHY"
-            raise InputError(msg)
-    if stack:
-        msg = f"{path}: HIERARCHY ends with {len(stack)} unclosed '{{'"
-        raise InputError(msg)
-    if not names:
-        msg = f"{path}: HIERARCHY has no joints"
-        raise InputError(msg)
+            self.offsets[self.stack[-1]] = xyz
+        return 4
 
-    # MOTION: "Frames: n", "Frame Time: t", then one line of numbers per frame
+    def _channels(self, key: str, ln: int) -> int:
+        (count_tok, _), = self._expect(2, "CHANNELS")[1:]
+        try:
+            count = int(count_tok)
+        except ValueError:
+            count = -1
+        if not 0 <= count <= 6:
+            msg = f"{self.path}:{ln}: CHANNELS: expected a channel count from 0 to 6, got {quote(count_tok)}"
+            raise InputError(msg) from None
+        chans = [t for t, _ in self._expect(2 + count, "CHANNELS")[2:]]
+        if not self.stack or self.stack[-1] < 0:
+            msg = f"{self.path}:{ln}: CHANNELS outside a joint"
+            raise InputError(msg)
+        joint = self.stack[-1]
+        order, cols = "", []
+        for c, chan in enumerate(chans):
+            low = chan.lower()
+            if low in _ROTATION_CHANNELS:
+                order += _ROTATION_CHANNELS[low]
+                cols.append(self.n_channels + c)
+            elif low in _POSITION_CHANNELS:
+                if joint == 0:  # position channels of other joints are ignored
+                    self.position_columns[_POSITION_CHANNELS[low]] = self.n_channels + c
+            else:
+                msg = f"{self.path}:{ln}: joint {clip(self.names[joint])}: unknown channel {quote(chan)}"
+                raise InputError(msg)
+        if order and len(set(order)) != len(order):
+            msg = f"{self.path}:{ln}: joint {clip(self.names[joint])}: repeated rotation channel in {clip(' '.join(chans))}"
+            raise InputError(msg)
+        if order and len(order) != 3:
+            # fewer than three rotation channels: pad with unused axes at zero
+            order += "".join(a for a in "XYZ" if a not in order)
+            cols += [-1] * (3 - len(cols))
+        self.orders[joint] = order
+        self.rot_cols[joint] = np.array(cols, dtype=np.int64)
+        self.n_channels += count
+        return 2 + count
+
+
+def _motion_header(path: Path, lines: list[str], motion_line: int) -> tuple[int, float, int]:
+    """``Frames:`` and ``Frame Time:`` after MOTION, and the index of the line after them."""
     header: dict[str, tuple[str, int]] = {}
     ln = motion_line
     while ln < len(lines) and len(header) < 2:
@@ -751,7 +419,12 @@ def read_bvh(path: str | Path) -> BvhMotion:
         msg = f"{path}:{header['frames'][1]}: Frames: expected a whole number, got {quote(header['frames'][0])}"
         raise InputError(msg) from None
     frame_time = _float(header["frame time"][0], path, header["frame time"][1], "Frame Time")
-    data_lines = [(k + 1, lines[k]) for k in range(ln, len(lines)) if lines[k].strip()]
+    return n_frames, frame_time, ln
+
+
+def _motion_frames(path: Path, lines: list[str], start: int, n_frames: int, n_channels: int) -> np.ndarray:
+    """(n_frames, n_channels) float64: one line of numbers per frame from ``lines[start]`` on."""
+    data_lines = [(k + 1, lines[k]) for k in range(start, len(lines)) if lines[k].strip()]
     if len(data_lines) < n_frames or n_frames < 1:
         msg = f"{path}: MOTION declares {n_frames} frames but has {len(data_lines)} lines of data"
         raise InputError(msg)
@@ -773,17 +446,41 @@ def read_bvh(path: str | Path) -> BvhMotion:
                 if abs(_float(t, path, lineno, f"frame {k}, channel {c + 1}")) > MAX_CHANNEL_VALUE:
                     msg = f"{path}:{lineno}: frame {k}, channel {c + 1}: {clip(t)} is beyond +-{MAX_CHANNEL_VALUE:g}"
                     raise InputError(msg)
-    frames = flat.reshape(n_frames, n_channels)
+    return flat.reshape(n_frames, n_channels)
+
+
+def read_bvh(path: str | Path) -> BvhMotion:
+    """Parse a BVH file.
+
+    Parameters
+    ----------
+    path : str or Path
+
+    Returns
+    -------
+    BvhMotion
+
+    Raises
+    ------
+    InputError
+        Unreadable file, malformed hierarchy, or MOTION data that is not
+        numeric or has the wrong number of values (the message gives the line).
+    """
+    path = Path(path)
+    lines = _read_lines(path)
+    tokens, motion_line = _hierarchy_tokens(path, lines)
+    joints = _HierarchyParser(path, tokens).parse()
+    n_frames, frame_time, start = _motion_header(path, lines, motion_line)
     return BvhMotion(
         path=str(path),
-        names=tuple(names),
-        parents=np.array(parents, dtype=np.int64),
-        offsets=np.array(offsets),
-        end_sites=np.array(end_sites),
-        rotation_orders=tuple(orders),
-        rotation_columns=tuple(rot_cols),
-        position_columns=position_columns,
-        frames=frames,
+        names=tuple(joints.names),
+        parents=np.array(joints.parents, dtype=np.int64),
+        offsets=np.array(joints.offsets),
+        end_sites=np.array(joints.end_sites),
+        rotation_orders=tuple(joints.orders),
+        rotation_columns=tuple(joints.rot_cols),
+        position_columns=joints.position_columns,
+        frames=_motion_frames(path, lines, start, n_frames, joints.n_channels),
         frame_time=frame_time,
     )
 

@@ -13,7 +13,7 @@ each vertex goes to ``sum_i w_i * G_{j_i} @ IBM_{j_i} @ v`` (``G`` a joint
 node's world matrix). glTF is +Y up, metres, and its assets face +Z, as
 seatkit; the up (hips to head) and left (right hip to left hip) directions
 of the skeleton are checked anyway and the nearest axis-aligned rotation
-applied (see :func:`seatkit.body.bvh.facing_rotation`), and recorded in
+applied (see :func:`seatkit.body.retarget.facing_rotation`), and recorded in
 ``meta["axis_conversion"]``.
 
 Joint names go to the 21 segments through a YAML name map
@@ -43,12 +43,14 @@ from typing import Mapping
 
 import numpy as np
 
-from seatkit.body.bvh import CHAIN_CHILD, candidate_maps, check_axes, choose_map, facing_rotation
+from seatkit.body.name_maps import candidate_maps, choose_map, load_name_map
+from seatkit.body.retarget import CHAIN_CHILD, check_axes, facing_rotation
+from seatkit.body.rig import make_rig
 from seatkit.constants import DEFAULT_BODY_MASS
 from seatkit.errors import InputError
 from seatkit.model import RiggedBody
 from seatkit.skeleton import N_SEGMENTS, PARENTS, SEGMENT_INDEX, SEGMENTS
-from seatkit.yamlio import quote
+from seatkit.messages import quote
 
 __all__ = ["load_gltf_body", "load_gltf_rig", "save_gltf_body"]
 
@@ -359,8 +361,6 @@ def load_gltf_body(
         No skinned mesh, non-triangle primitives, NaN vertices, faces out of
         range, vertices without weights, needed joints missing (named).
     """
-    from seatkit.body.rig import make_rig
-
     path = Path(path)
     gltf = _load_document(path)
     skinned = [i for i, n in enumerate(gltf.nodes) if n.mesh is not None and n.skin is not None]
@@ -624,7 +624,7 @@ def _segment_tips(joints: np.ndarray, weights: np.ndarray, vertices: np.ndarray,
     return tips
 
 
-#: The name :func:`seatkit.body.rig.load_rig` imports.
+#: The name :func:`seatkit.body.loading.load_rig` imports.
 load_gltf_rig = load_gltf_body
 
 
@@ -658,7 +658,6 @@ def save_gltf_body(
     """
     import pygltflib
 
-    from seatkit.body.bvh import load_name_map
     from seatkit.io import write_bytes_atomic
 
     nm = load_name_map(naming)

@@ -208,7 +208,7 @@ def print_measurements(rig: RiggedBody) -> Measurements:
     """Measure ``rig`` and print one line per measurement (and the density check) on stdout."""
     import click
 
-    from seatkit.body.parametric import body_density
+    from seatkit.body.anthropometry import body_density
 
     m = measure_rig(rig)
     density = body_density(m.stature, m.mass)

@@ -40,7 +40,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from seatkit.body.anthropometry import body_density
 from seatkit.body.measure import enclosed_volume
+from seatkit.body.rig import default_body_path, load_rig_file, make_rig
+from seatkit.constants import DEFAULT_BODY_MASS
 from seatkit.errors import RecipeError
 from seatkit.resources import data_path
 from seatkit.skeleton import N_SEGMENTS, SEGMENT_INDEX
@@ -50,7 +53,6 @@ __all__ = [
     "STATURE_RANGE",
     "SITTING_RATIO_RANGE",
     "BUTTOCK_KNEE_RATIO_RANGE",
-    "body_density",
     "load_model",
     "make_parametric_body",
     "make_default_body",
@@ -61,7 +63,7 @@ __all__ = [
 #: The default bodies: sex, default stature (m) and default mass (kg) of each. The
 #: masses are about the shipped meshes' own (volume times Contini's density:
 #: 74.6 and 54.8 kg), so that the default bodies keep their shapes.
-DEFAULT_SIZES = {"default-male": ("male", 1.75, 75.0), "default-female": ("female", 1.62, 55.0)}
+DEFAULT_SIZES = {"default-male": ("male", 1.75, DEFAULT_BODY_MASS), "default-female": ("female", 1.62, 55.0)}
 #: Keys a parametric body takes (``--body default-female:height=1.55,mass=50``).
 PARAMETRIC_KEYS = ("mass", "height", "sitting_height", "buttock_knee", "hip_breadth")
 
@@ -78,11 +80,6 @@ HIP_BREADTH_RATIO_RANGE = (0.17, 0.30)
 #: Fixed-point steps on the volume index, and the relative volume tolerance.
 _MAX_STEPS = 12
 _VOLUME_TOL = 1e-3
-
-
-def body_density(stature: float, mass: float) -> float:
-    """Whole-body density, kg/m^3: Contini (1972), ``0.69 + 0.9 h / m^(1/3)`` kg/l."""
-    return 1000.0 * (0.69 + 0.9 * stature / mass ** (1.0 / 3.0))
 
 
 @dataclass(frozen=True)
@@ -108,8 +105,6 @@ class _Model:
 @functools.lru_cache(maxsize=None)
 def load_model(sex: str) -> _Model:
     """The parametric model of one sex (``male`` or ``female``), read once per process."""
-    from seatkit.body.rig import default_body_path, load_rig_file
-
     if sex not in ("male", "female"):
         msg = f"unknown sex {sex!r}; expected male or female"
         raise RecipeError(msg)
@@ -276,8 +271,6 @@ def make_parametric_body(
     RiggedBody
         ``meta["parameters"]`` records what was asked and derived.
     """
-    from seatkit.body.rig import make_rig
-
     who = name or f"parametric {sex} body"
     stature, mass = float(stature), float(mass)
     check_parameters(stature, mass, sitting_height, buttock_knee, hip_breadth, who=who)

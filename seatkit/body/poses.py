@@ -37,7 +37,8 @@ from seatkit.errors import InputError, PluginError, RecipeError
 from seatkit.model import Pose
 from seatkit.resources import data_path
 from seatkit.skeleton import N_SEGMENTS, SEGMENT_INDEX, SEGMENTS
-from seatkit.yamlio import clip, compose_yaml, quote, read_text, scalar_value
+from seatkit.messages import clip, quote
+from seatkit.yamlio import compose_yaml, read_text, scalar_value
 
 __all__ = [
     "EULER_ORDER",

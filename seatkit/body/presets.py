@@ -64,7 +64,7 @@ TABLE_ROWS = (
 def survey_table() -> str:
     """The requested (survey) vs built (measured) figures of every preset, as a Markdown table."""
     from seatkit.body.measure import measure_rig
-    from seatkit.body.parametric import body_density
+    from seatkit.body.anthropometry import body_density
 
     table = preset_table()["presets"]
     lines = ["| preset | measurement | survey | built | difference |", "|---|---|---|---|---|"]

@@ -19,7 +19,7 @@ import numpy as np
 
 from seatkit import picture as pic
 from seatkit.picture import draw as pic_draw
-from seatkit.pressure.areas import vertex_normals
+from seatkit.geometry.normals import vertex_normals
 
 __all__ = ["VIEWS", "render_body", "view_axes"]
 

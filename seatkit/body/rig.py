@@ -1,4 +1,7 @@
-"""Rigged bodies: the embedded defaults, seatkit ``.npz`` rig files, and validation.
+"""Rigged bodies: seatkit ``.npz`` rig files, their validation, and the embedded defaults' paths.
+
+A body by name or path (the parametric defaults, rig files, glTF):
+:func:`seatkit.body.loading.load_rig`.
 
 A seatkit rig file is a compressed ``.npz`` holding (float32 storage is fine;
 everything is cast to float64 on load):
@@ -31,7 +34,7 @@ import numpy as np
 
 from seatkit.body.anthropometry import com_ratios, segment_masses
 from seatkit.constants import DEFAULT_BODY_MASS
-from seatkit.errors import InputError, RecipeError
+from seatkit.errors import InputError
 from seatkit.model import RiggedBody
 from seatkit.resources import data_path
 from seatkit.skeleton import N_SEGMENTS
@@ -256,61 +259,3 @@ def save_rig(rig: RiggedBody, path, *, sex: str | None = None) -> Path:
     with atomic_write(path, "wb") as f:
         np.savez_compressed(f, **arrays)
     return path
-
-
-def _load_gltf_rig(path: Path, *, mass: float, params: Mapping[str, Any] | None) -> RiggedBody:
-    """A skinned glTF/GLB body, through :func:`seatkit.body.gltf.load_gltf_rig`."""
-    try:
-        from seatkit.body.gltf import load_gltf_rig
-    except ImportError as e:
-        msg = f"{path}: glTF body import is not available in this installation ({e})"
-        raise InputError(msg) from None
-    return load_gltf_rig(path, mass=mass, **dict(params or {}))
-
-
-def load_rig(body: str | Path = "default-male", *, mass: float | None = None, params: Mapping[str, Any] | None = None) -> RiggedBody:
-    """Load a rigged body by name or path.
-
-    Parameters
-    ----------
-    body : str or Path
-        ``default-male``, ``default-female`` (made by the parametric model at
-        ``mass``, with ``params`` such as ``height``), or a path to a seatkit
-        ``.npz``/``.glb``/``.gltf`` rig (body models of plugins, e.g. ``anny``,
-        are reached through a registry instead:
-        ``registry.get("body_model", name).make_body``).
-    mass : float, optional
-        Total body mass, kg. Default: the model's (75 kg for ``default-male``
-        and rig files, 55 kg for ``default-female``, a preset's own).
-    params : mapping, optional
-        Extra parameters of a glTF rig (``name_map``).
-
-    Returns
-    -------
-    RiggedBody
-
-    Raises
-    ------
-    InputError
-        A rig file that cannot be read or is invalid.
-    RecipeError
-        An unknown body name.
-    """
-    spec = str(body)
-    given = {} if mass is None else {"mass": float(mass)}
-    mass = DEFAULT_BODY_MASS if mass is None else mass
-    if spec in DEFAULT_BODIES:  # the parametric model at this mass (the shipped mesh is its anchor)
-        from seatkit.body.parametric import make_default_body
-
-        return make_default_body(spec, {**given, **dict(params or {})})
-    path = Path(spec)
-    suffix = path.suffix.lower()
-    if suffix in (".glb", ".gltf"):
-        return _load_gltf_rig(path, mass=mass, params=params)
-    if suffix == ".npz" or path.exists():
-        return load_rig_file(path, mass=mass)
-    msg = (
-        f"unknown body {spec!r}: expected a path to a .npz/.glb/.gltf rig or one of {', '.join(sorted(DEFAULT_BODIES))} "
-        "(other body models are found through a plugin manager's registry: registry.get('body_model', name))"
-    )
-    raise RecipeError(msg)

@@ -16,12 +16,11 @@ vertex weights: ``v = sum_s w_s (G_s @ (v0 - joint_s) + p_s)``.
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 import scipy.sparse as sp
 from scipy.spatial.transform import Rotation
 
+from seatkit.cache import IdentityCache
 from seatkit.model import Body, Pose, RiggedBody
 from seatkit.skeleton import N_SEGMENTS, PARENTS
 
@@ -83,21 +82,12 @@ def segment_transforms(rest_joints: np.ndarray, pose: Pose) -> tuple[np.ndarray,
 #: Sparse copies of weight matrices, keyed by id of the dense array (each
 #: vertex touches 1-7 of the 21 segments; a CSR product is single-threaded
 #: and steady, where a dense BLAS product stalls on a loaded machine).
-_SPARSE_WEIGHTS: dict[int, tuple[weakref.ref, sp.csr_matrix]] = {}
+_SPARSE_WEIGHTS = IdentityCache()
 
 
 def _sparse_weights(weights: np.ndarray) -> sp.csr_matrix:
-    key = id(weights)
-    hit = _SPARSE_WEIGHTS.get(key)
-    if hit is not None and hit[0]() is weights:
-        return hit[1]
-    csr = sp.csr_matrix(weights)
-    try:
-        ref = weakref.ref(weights, lambda _, key=key: _SPARSE_WEIGHTS.pop(key, None))
-    except TypeError:  # not weak-referenceable (a view of a temporary): do not cache
-        return csr
-    _SPARSE_WEIGHTS[key] = (ref, csr)
-    return csr
+    # an array that cannot be weakly referenced is not cached
+    return _SPARSE_WEIGHTS.get((weights,), lambda: sp.csr_matrix(weights))
 
 
 def skin_vertices(vertices: np.ndarray, weights: np.ndarray, linear: np.ndarray, offset: np.ndarray) -> np.ndarray:

@@ -15,13 +15,14 @@ def evaluate_folder(directory: Path, *, pm, baseline: str | None = "keep", suppo
 
     Returns the :class:`~seatkit.model.BuildResult` with ``metrics`` filled.
     """
+    from seatkit.constants import DEFAULT_SUPPORT_DISTANCE
     from seatkit.model import BuildResult
     from seatkit.pipeline import evaluate_result, solve_importance
     from seatkit.state import load_design
     from seatkit.subdivision import limit_surface
 
     recipe, bodies, mesh, initial = load_design(Path(directory) / "design.npz")
-    ev = recipe.setdefault("evaluate", {"enabled": True, "baseline": "flat-patch", "support_distance": 0.02})
+    ev = recipe.setdefault("evaluate", {"enabled": True, "baseline": "flat-patch", "support_distance": DEFAULT_SUPPORT_DISTANCE})
     if baseline != "keep":
         ev["baseline"] = baseline
     if support_distance is not None:

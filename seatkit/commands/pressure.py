@@ -14,6 +14,8 @@ from typing import Optional
 import click
 import typer
 
+from seatkit.constants import DEFAULT_BODY_MASS, DEFAULT_LAMBDA, DEFAULT_MU, GRAVITY
+
 
 def register(app: typer.Typer) -> None:
     @app.command()
@@ -25,10 +27,10 @@ def register(app: typer.Typer) -> None:
         ),
         out: Path = typer.Option(..., "--out", "-o", help="Output directory (pressure.npz, pressure.ply, pressure.png)."),
         lam: float = typer.Option(
-            0.013, "--lambda", metavar="LAMBDA",
+            DEFAULT_LAMBDA, "--lambda", metavar="LAMBDA",
             help="Moment/pressure balance of the paper's Eq. 4 (SI units); 'inf' = rigid body.",
         ),
-        mu: float = typer.Option(0.5, "--mu", help="Coulomb friction coefficient."),
+        mu: float = typer.Option(DEFAULT_MU, "--mu", help="Coulomb friction coefficient."),
         solver: str = typer.Option("qp", "--solver", help="Registered pressure solver (see 'seatkit plugins'; default qp)."),
         backend: Optional[str] = typer.Option(
             None, "--backend",
@@ -38,7 +40,7 @@ def register(app: typer.Typer) -> None:
             "default-male", "--body", "-b", metavar="BODY",
             help="default-male, default-female, a .npz/.glb file, or MODEL:key=value,... (a registered body model).",
         ),
-        mass: float = typer.Option(75.0, "--mass", help="Body mass in kg."),
+        mass: float = typer.Option(DEFAULT_BODY_MASS, "--mass", help="Body mass in kg."),
         exclude: Optional[str] = typer.Option(
             None, "--exclude",
             help="Comma-separated regions carrying no load (default: face,hands,abdomen; 'none' for none).",
@@ -50,7 +52,8 @@ def register(app: typer.Typer) -> None:
 
         from seatkit.body import load_pose
         from seatkit.cli import plugin_manager
-        from seatkit.pressure.field import write_npz, write_ply, write_pressure_png
+        from seatkit.export.pressure import write_ply, write_pressure_png
+        from seatkit.pressure.field import write_npz
         from seatkit.recipe import parse_body_spec
         from seatkit.skeleton import SEGMENTS
 
@@ -76,7 +79,7 @@ def register(app: typer.Typer) -> None:
         j = int(np.argmax(moments))
         click.echo(
             f"{posed.name}: {field.params['n_contact']} contact vertices, total reaction "
-            f"{field.force[:, 1].sum():.2f} N (weight {posed.mass * 9.81:.2f} N), max pressure {field.pressure.max():.0f} Pa, "
+            f"{field.force[:, 1].sum():.2f} N (weight {posed.mass * GRAVITY:.2f} N), max pressure {field.pressure.max():.0f} Pa, "
             f"max joint moment {moments[j]:.2f} N m at {SEGMENTS[j + 1]}, {field.params.get('backend', solver)} "
             f"{field.solve_seconds:.3f} s"
         )

@@ -87,7 +87,8 @@ def read_obj_cage(path):
     from seatkit.subdivision import Cage
 
     from seatkit.errors import RecipeError
-    from seatkit.yamlio import clip, decode_text
+    from seatkit.messages import clip
+    from seatkit.yamlio import decode_text
 
     path = Path(path)
     verts, faces, creases, sharp = [], [], [], []

@@ -44,10 +44,10 @@ import numpy as np
 
 from seatkit import picture as pic
 from seatkit.errors import InputError
+from seatkit.geometry.normals import vertex_normals
 from seatkit.io import write_bytes_atomic, write_text_atomic
 from seatkit.picture import draw as pic_draw
 from seatkit.picture import raster as rs
-from seatkit.pressure.areas import vertex_normals
 
 __all__ = [
     "PNG_FILES",
@@ -748,11 +748,11 @@ def timings_html(timings: dict) -> str:
     """The report's "Time per stage" table: every stage and the total.
 
     Stages marked ``(parallel)`` ran beside the others and are not added to
-    the total (:func:`seatkit.pipeline.total_seconds`). The table sits between
+    the total (:func:`seatkit.model.total_seconds`). The table sits between
     markers so that the build can put in the export stage once it has ended
     (:func:`finish_report_html`).
     """
-    from seatkit.pipeline import total_seconds
+    from seatkit.model import total_seconds
 
     if not timings:
         return f"{_TIMINGS_START}{_TIMINGS_END}"

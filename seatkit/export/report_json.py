@@ -43,7 +43,7 @@ def versions() -> dict:
 
 def report_data(result) -> dict:
     """report.json's content for a build result whose other files are written (``result.files``)."""
-    from seatkit.recipe import recipe_id
+    from seatkit.io import recipe_id
 
     mesh = result.control_mesh
     return {

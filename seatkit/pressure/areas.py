@@ -1,4 +1,4 @@
-"""Per-vertex areas and normals of a triangle mesh.
+"""Per-vertex areas of a triangle mesh (its normals: :mod:`seatkit.geometry.normals`).
 
 The paper divides each vertex's reaction by its Voronoi area (Eq. 4) so that
 the result does not depend on mesh resolution. We use the *mixed* Voronoi
@@ -13,55 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["mixed_voronoi_areas", "vertex_normals", "face_normals"]
-
-
-def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Unit normals and areas of the triangles.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float64
-    faces : (m, 3) int64
-        Counter-clockwise seen from outside.
-
-    Returns
-    -------
-    normals : (m, 3) float64
-        Unit outward normals (zero for degenerate triangles).
-    areas : (m,) float64
-        Triangle areas, m^2.
-    """
-    tri = vertices[faces]
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    double_area = np.linalg.norm(cross, axis=1)
-    safe = np.where(double_area > 0, double_area, 1.0)
-    return cross / safe[:, None], 0.5 * double_area
-
-
-def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Area-weighted outward unit vertex normals.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float64
-    faces : (m, 3) int64
-
-    Returns
-    -------
-    normals : (n, 3) float64
-        Unit normals; zero rows for vertices in no (non-degenerate) triangle.
-    """
-    vertices = np.asarray(vertices, dtype=np.float64)
-    faces = np.asarray(faces, dtype=np.int64)
-    tri = vertices[faces]
-    # un-normalised face normal = 2 * area * unit normal: area weighting for free
-    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    summed = np.zeros_like(vertices)
-    for corner in range(3):
-        np.add.at(summed, faces[:, corner], cross)
-    length = np.linalg.norm(summed, axis=1)
-    return summed / np.where(length > 0, length, 1.0)[:, None]
+__all__ = ["mixed_voronoi_areas"]
 
 
 def mixed_voronoi_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:

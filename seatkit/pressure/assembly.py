@@ -49,7 +49,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from seatkit.constants import GRAVITY
-from seatkit.pressure.areas import mixed_voronoi_areas, vertex_normals
+from seatkit.geometry.normals import vertex_normals
+from seatkit.pressure.areas import mixed_voronoi_areas
 from seatkit.pressure.weights import DEFAULT_WEIGHT_CAP, local_reaction_weights, tangent_frames
 from seatkit.skeleton import N_JOINTS, N_SEGMENTS, PARENTS
 

@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-__all__ = ["contact_from_surface", "sample_triangles"]
+from seatkit.model import Body, PressureField
+
+__all__ = ["contact_from_surface", "sample_triangles", "supported_vertices", "SUPPORTED_FRACTION"]
+
+#: A vertex is "supported" when its importance-map pressure is at least this
+#: fraction of the maximum.
+SUPPORTED_FRACTION = 0.01
 
 
 def sample_triangles(vertices: np.ndarray, faces: np.ndarray, spacing: float) -> np.ndarray:
@@ -73,3 +79,20 @@ def contact_from_surface(body, surface, distance: float) -> np.ndarray:
     tree = cKDTree(points, balanced_tree=False, compact_nodes=False)  # much faster queries here
     nearest, _ = tree.query(body.vertices, k=1, distance_upper_bound=distance + slack)
     return np.isfinite(nearest)
+
+
+def supported_vertices(pressure: PressureField, body: Body | None = None, segments=None) -> np.ndarray:
+    """(n,) bool: vertices that carry load in the importance map.
+
+    With ``segments`` (segment indices) and ``body``, only vertices whose
+    dominant skinning segment is one of them: the body parts the design
+    means to support (the paper compares designs on the same parts).
+    """
+    peak = float(pressure.pressure.max()) if pressure.pressure.size else 0.0
+    if peak <= 0:
+        return np.zeros(pressure.pressure.shape, dtype=bool)
+    mask = pressure.pressure >= SUPPORTED_FRACTION * peak
+    if segments is not None and body is not None:
+        owner = np.argmax(body.weights, axis=1)
+        mask &= np.isin(owner, np.asarray(list(segments), dtype=np.int64))
+    return mask

@@ -15,7 +15,7 @@ supported body regions without passing through the body. ICP-like:
    pairing, say, the front of a shin with the seat below the knee would wrap
    the surface around the limb;
 3. penetration is measured from the body side, with the exact distance to
-   the closed skin (:class:`seatkit.skin.SkinDistance`: closest point on the
+   the closed skin (:class:`seatkit.geometry.skin.SkinDistance`: closest point on the
    skin's triangles, inside or outside by the angle-weighted pseudo-normal).
    The probes are the limit points, and in a polishing phase (only when
    needed) also the refined quads' centres, which catch thin body parts
@@ -83,10 +83,13 @@ import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
 from seatkit.errors import SolverError
-from seatkit.model import Body, ControlMesh, PressureField
-from seatkit.refine.params import refiner_params
+from seatkit.geometry.normals import vertex_normals
+from seatkit.geometry.skin import SkinDistance
+from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, surface_depth_in_body
+from seatkit.model import Body, ControlMesh, PressureField, Surface
+from seatkit.pressure.contact import supported_vertices
+from seatkit.params import refiner_params
 from seatkit.refine.quality import mesh_edges
-from seatkit.skin import SkinDistance
 
 __all__ = [
     "CCFIT_DEFAULTS",
@@ -419,7 +422,6 @@ def _fit_once(mesh, bodies, pressures, params) -> ControlMesh:
     # The body side of the fit. Penetration is measured from the body, whose
     # closed skin has a well-defined inside: this stays meaningful where the
     # surface folds or wraps (the surface's own normals do not).
-    from seatkit.pressure.areas import vertex_normals
 
     skin_n = np.concatenate([vertex_normals(bd.vertices, bd.faces) for bd in bodies])
     skins = [SkinDistance.of(bd.vertices, bd.faces) for bd in bodies]
@@ -692,8 +694,6 @@ def _final_depths(mesh: ControlMesh, bodies: Sequence[Body], level: int) -> dict
     surface's) and level 4: a coarser tessellation's chords can read
     deeper than the limit surface.
     """
-    from seatkit.evaluate import body_depth_in_surface
-    from seatkit.model import Surface
     from seatkit.subdivision import Cage, build_operators
 
     cage = Cage.from_control_mesh(mesh)
@@ -766,10 +766,10 @@ def fit_report(
         importance map on the segments the cage supports, to the closest
         point of the tessellated limit surface), ``max_penetration`` (m, how
         deep the limit surface reaches into any body, measured from the
-        closed skin: :func:`seatkit.evaluate.surface_depth_in_body`),
+        closed skin: :func:`seatkit.geometry.surface.surface_depth_in_body`),
         ``max_body_depth`` (m, how deep any body vertex lies inside the
         furniture the surface closes with the floor:
-        :func:`seatkit.evaluate.body_depth_in_surface`),
+        :func:`seatkit.geometry.surface.body_depth_in_surface`),
         ``supported_vertices``.
     """
     from seatkit.subdivision import Cage, build_operators
@@ -780,11 +780,8 @@ def fit_report(
     N = ops.limit_normals(mesh.vertices)
     boundary = _boundary_samples(ops)
     _, dist, signed = surface_distances(X, N, targets.points, boundary=boundary)
-    from seatkit.evaluate import surface_depth_in_body
-    from seatkit.model import Surface
 
     surface = Surface(X, N, ops.faces, level)
-    from seatkit.evaluate import SurfaceQuery, body_depth_in_surface, supported_vertices
 
     query = SurfaceQuery(surface)
     gaps = []

@@ -88,7 +88,7 @@ import scipy.sparse as sp
 
 from seatkit.errors import SolverError
 from seatkit.model import Body, ControlMesh, PressureField
-from seatkit.refine.params import refiner_params
+from seatkit.params import refiner_params
 from seatkit.refine.quality import cage_quality, mesh_edges
 
 __all__ = ["OPTIMIZE_DEFAULTS", "CageEnergy", "optimize_cage", "OptimizeRefiner"]
@@ -780,9 +780,8 @@ def optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None = None) ->
         return _optimize_cage(mesh, params)
 
 
-def _optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None) -> ControlMesh:
-    start = time.perf_counter()
-    p = refiner_params("optimize", OPTIMIZE_DEFAULTS, mesh.meta, params)
+def _checked_cage(mesh: ControlMesh) -> tuple[np.ndarray, np.ndarray]:
+    """The cage's float vertices and quad faces; a SolverError for anything else."""
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     faces = np.asarray(mesh.faces, dtype=np.int64)
     if faces.ndim != 2 or faces.shape[1] != 4:
@@ -791,19 +790,48 @@ def _optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None) -> Contr
     if not np.all(np.isfinite(vertices)):
         msg = "optimize: the cage has non-finite vertex coordinates"
         raise SolverError(msg)
-    n = len(vertices)
+    return vertices, faces
 
-    # normalise: centre at the origin's xz (keep y = 0 as the ground), unit mean edge
-    edges = mesh_edges(faces)
+
+@dataclass
+class _Problem:
+    """What the solver works on, in normalised coordinates (centred in x and z, unit mean edge)."""
+
+    scale: float  # m per normalised unit
+    shift: np.ndarray  # (3,) m, the centre subtracted (y stays: y = 0 is the ground)
+    min_len: float  # the shortest allowed edge, normalised
+    energy: CageEnergy
+    border: _Border
+    ground: np.ndarray  # (n,) bool
+    c_edges: np.ndarray  # (m, 2) the edges with a moving end: length-constrained
+    start_edges: np.ndarray  # (m, 3) those edges at the start
+    on_side: np.ndarray  # (m,) bool: edges along a ground-rectangle side
+    penalty: "_EdgeLengthPenalty"
+    angle_floor: np.ndarray  # (f, 4) rad, 0 where a corner is free
+    angles: "_CornerAnglePenalty"
+    basis_t: sp.csr_matrix
+    z0: np.ndarray
+    bounds: scipy.optimize.Bounds
+
+    def unpack(self, z: np.ndarray) -> np.ndarray:
+        """(n, 3) normalised vertices of the unknowns ``z``."""
+        return (self.border.base + self.border.basis @ z).reshape(-1, 3)
+
+    def slack(self, x: np.ndarray) -> np.ndarray:
+        """Relative slack of |e|^2 >= l^2 on the constrained edges (>= 0: met)."""
+        e = x[self.c_edges[:, 0]] - x[self.c_edges[:, 1]]
+        return np.einsum("ec,ec->e", e, e) / self.min_len**2 - 1.0
+
+
+def _normalised_energy(mesh: ControlMesh, vertices, faces, edges, p) -> tuple[float, np.ndarray, np.ndarray, CageEnergy]:
+    """Scale, shift, the normalised vertices and the cage's energy (weights relative to their peak)."""
     lengths = np.linalg.norm(vertices[edges[:, 0]] - vertices[edges[:, 1]], axis=1)
     scale = float(lengths.mean())
     shift = np.array([vertices[:, 0].mean(), 0.0, vertices[:, 2].mean()])
     x0 = (vertices - shift) / scale
-    min_len = p["min_edge_length"] / scale
-
     weights = np.asarray(mesh.vertex_weights, dtype=np.float64)
     peak = float(weights.max()) if weights.size else 0.0
-    weights = np.clip(weights / peak, 0.0, 1.0) if peak > 0 else np.zeros(n)
+    weights = np.clip(weights / peak, 0.0, 1.0) if peak > 0 else np.zeros(len(vertices))
     energy = CageEnergy.build(
         x0,
         faces,
@@ -812,35 +840,11 @@ def _optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None) -> Contr
         np.asarray(mesh.plane_normals, dtype=np.float64),
         p,
     )
-    ground = np.asarray(mesh.ground, bool)
-    fixed = np.asarray(mesh.fixed, bool)
-    border, z0 = _build_border(
-        x0, ground, fixed, slide=p["slide_border"], scale=scale, gap=min_len * (1.0 + _EDGE_MARGIN)
-    )
-    _check_sides(border, x0, ground, min_len, scale)
+    return scale, shift, x0, energy
 
-    # edge-length inequalities on edges with a moving end
-    moving_edge = border.moving[edges[:, 0]] | border.moving[edges[:, 1]]
-    c_edges = edges[moving_edge]
-    basis = border.basis
-    basis_t = basis.T.tocsr()
-    lower = np.array([-np.inf if b[0] is None else b[0] for b in border.bounds], dtype=np.float64)
-    upper = np.array([np.inf if b[1] is None else b[1] for b in border.bounds], dtype=np.float64)
-    bounds = scipy.optimize.Bounds(lower, upper)
-    z0 = np.clip(z0, lower, upper)
 
-    def unpack(z):
-        return (border.base + basis @ z).reshape(n, 3)
-
-    x_start = unpack(z0)
-    start_edges = x_start[c_edges[:, 0]] - x_start[c_edges[:, 1]]
-    start_lengths = np.linalg.norm(start_edges, axis=1)
-    if np.any(start_lengths <= 1e-9):
-        a, b = c_edges[np.argmin(start_lengths)]
-        msg = f"optimize: the cage has a zero-length edge between vertices {a} and {b}; cannot optimise it"
-        raise SolverError(msg)
-    # edges along a rectangle side (both ends ground, one sliding, one
-    # rectangle coordinate shared): their direction along the side
+def _side_directions(border: _Border, c_edges, start_edges, ground) -> tuple[np.ndarray, np.ndarray]:
+    """Edges along a rectangle side (both ends ground, one sliding, one rectangle coordinate shared) and their direction along it."""
     on_side = border.sliding[c_edges[:, 0]] | border.sliding[c_edges[:, 1]]
     on_side &= ground[c_edges[:, 0]] & ground[c_edges[:, 1]]
     directions = np.zeros((len(c_edges), 3))
@@ -852,33 +856,78 @@ def _optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None) -> Contr
         on_side &= np.abs(local[rows, 1 - along]) <= _RECT_TOL * np.abs(local[rows, along])
         sign = np.sign(local[rows, along])
         directions[:, [0, 2]] = (sign[:, None] * axes[along]) * on_side[:, None]
-    penalty = _EdgeLengthPenalty(c_edges, n, min_len * (1.0 + _EDGE_MARGIN), directions)
-    # corner angles: none below min(its angle in the template, as
-    # cage_quality measures it, and the floor); only corners whose angle can
-    # change (one of their three vertices moves) and whose angle is defined
+    return on_side, directions
+
+
+def _angle_penalty(x0, faces, border: _Border, p) -> tuple[np.ndarray, "_CornerAnglePenalty"]:
+    """Corner angles: none below min(its angle in the template, as cage_quality measures it, and the floor).
+
+    Only corners whose angle can change (one of their three vertices moves)
+    and whose angle is defined get a floor.
+    """
     template_angles, (ea, eb, _, _) = _corner_angles(x0, faces)
     lever = np.sqrt(np.linalg.norm(ea, axis=-1) * np.linalg.norm(eb, axis=-1))
     can_change = border.moving[faces] | border.moving[faces[:, _PREV]] | border.moving[faces[:, _NEXT]]
     can_change &= lever > 1e-9
     angle_floor = np.where(can_change, np.minimum(template_angles, np.radians(p["min_corner_angle_deg"])), 0.0)
-    angles = _CornerAnglePenalty(faces, n, angle_floor * (1.0 + _EDGE_MARGIN), lever)
+    return angle_floor, _CornerAnglePenalty(faces, len(x0), angle_floor * (1.0 + _EDGE_MARGIN), lever)
 
-    def slack(x):
-        """Relative slack of |e|^2 >= l^2 on the constrained edges (>= 0: met)."""
-        e = x[c_edges[:, 0]] - x[c_edges[:, 1]]
-        return np.einsum("ec,ec->e", e, e) / min_len**2 - 1.0
 
-    e_start, _ = energy.value_and_grad(x_start)
-    quality_before = cage_quality(vertices, faces)
-    z, result, iterations, outer = _solve(energy, penalty, angles, unpack, basis_t, z0, bounds, p)
-    x = unpack(z)
-    e_end = energy.terms(x)
-    e_total = float(sum(e_end.values()))
+def _build_problem(mesh: ControlMesh, vertices, faces, p) -> _Problem:
+    """Normalise the cage, build its energy, the border's unknowns and the hard constraints' penalties."""
+    n = len(vertices)
+    edges = mesh_edges(faces)
+    scale, shift, x0, energy = _normalised_energy(mesh, vertices, faces, edges, p)
+    min_len = p["min_edge_length"] / scale
+    ground = np.asarray(mesh.ground, bool)
+    fixed = np.asarray(mesh.fixed, bool)
+    border, z0 = _build_border(
+        x0, ground, fixed, slide=p["slide_border"], scale=scale, gap=min_len * (1.0 + _EDGE_MARGIN)
+    )
+    _check_sides(border, x0, ground, min_len, scale)
+
+    # edge-length inequalities on edges with a moving end
+    moving_edge = border.moving[edges[:, 0]] | border.moving[edges[:, 1]]
+    c_edges = edges[moving_edge]
+    lower = np.array([-np.inf if b[0] is None else b[0] for b in border.bounds], dtype=np.float64)
+    upper = np.array([np.inf if b[1] is None else b[1] for b in border.bounds], dtype=np.float64)
+    z0 = np.clip(z0, lower, upper)
+    x_start = (border.base + border.basis @ z0).reshape(n, 3)
+    start_edges = x_start[c_edges[:, 0]] - x_start[c_edges[:, 1]]
+    start_lengths = np.linalg.norm(start_edges, axis=1)
+    if np.any(start_lengths <= 1e-9):
+        a, b = c_edges[np.argmin(start_lengths)]
+        msg = f"optimize: the cage has a zero-length edge between vertices {a} and {b}; cannot optimise it"
+        raise SolverError(msg)
+    on_side, directions = _side_directions(border, c_edges, start_edges, ground)
+    angle_floor, angles = _angle_penalty(x0, faces, border, p)
+    return _Problem(
+        scale=scale,
+        shift=shift,
+        min_len=min_len,
+        energy=energy,
+        border=border,
+        ground=ground,
+        c_edges=c_edges,
+        start_edges=start_edges,
+        on_side=on_side,
+        penalty=_EdgeLengthPenalty(c_edges, n, min_len * (1.0 + _EDGE_MARGIN), directions),
+        angle_floor=angle_floor,
+        angles=angles,
+        basis_t=border.basis.T.tocsr(),
+        z0=z0,
+        bounds=scipy.optimize.Bounds(lower, upper),
+    )
+
+
+def _check_solution(problem: _Problem, x, faces, e_start: float, e_total: float, result, iterations: int, outer: int, p) -> None:
+    """Refuse a result that diverged or misses a hard constraint (edge lengths, corner angles, side order)."""
     if not np.all(np.isfinite(x)) or not np.isfinite(e_total):
         msg = f"optimize: the solver diverged (non-finite result; L-BFGS-B status {result.status}: {result.message})"
         raise SolverError(msg)
+    c_edges = problem.c_edges
     m = len(c_edges)
-    worst = float(slack(x).min()) if m else 0.0
+    worst = float(problem.slack(x).min()) if m else 0.0
     # relative violation of |e|^2 >= l^2, as a length: |e| >= l (1 - tol)
     if m and worst < -_EDGE_TOL:
         short = float(np.sqrt(max(worst + 1.0, 0.0)) * p["min_edge_length"])
@@ -890,7 +939,8 @@ def _optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None) -> Contr
         )
         raise SolverError(msg)
     # corner angles, relative: alpha >= floor (1 - tol)
-    if angles.size:
+    angle_floor = problem.angle_floor
+    if problem.angles.size:
         alpha = _corner_angles(x, faces)[0]
         ratio = np.where(angle_floor > 0.0, alpha / np.where(angle_floor > 0.0, angle_floor, 1.0), np.inf)
         if ratio.min() < 1.0 - _EDGE_TOL:
@@ -906,26 +956,42 @@ def _optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None) -> Contr
     # sliding vertices keep their order along their side (the side edges'
     # constraints are linear in the signed length; a guard all the same)
     end_edges = x[c_edges[:, 0]] - x[c_edges[:, 1]]
-    reversed_ = on_side & (np.einsum("ec,ec->e", start_edges, end_edges) <= 0.0)
+    reversed_ = problem.on_side & (np.einsum("ec,ec->e", problem.start_edges, end_edges) <= 0.0)
     if reversed_.any():
         a, b = c_edges[np.flatnonzero(reversed_)[0]]
         msg = f"optimize: ground vertices {a} and {b} passed each other on their rectangle side (solver failure)"
         raise SolverError(msg)
-    if e_total > e_start * (1 + 1e-9) and worst >= 0 and (slack(x_start).min() if m else 0.0) >= 0:
+    x_start = problem.unpack(problem.z0)
+    if e_total > e_start * (1 + 1e-9) and worst >= 0 and (problem.slack(x_start).min() if m else 0.0) >= 0:
         msg = (
             f"optimize: the solver diverged: energy rose from {e_start:.6g} to {e_total:.6g} "
             f"(L-BFGS-B status {result.status}: {result.message})"
         )
         raise SolverError(msg)
 
-    out = x * scale + shift
+
+def _optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None) -> ControlMesh:
+    start = time.perf_counter()
+    p = refiner_params("optimize", OPTIMIZE_DEFAULTS, mesh.meta, params)
+    vertices, faces = _checked_cage(mesh)
+    problem = _build_problem(mesh, vertices, faces, p)
+    e_start, _ = problem.energy.value_and_grad(problem.unpack(problem.z0))
+    quality_before = cage_quality(vertices, faces)
+    z, result, iterations, outer = _solve(
+        problem.energy, problem.penalty, problem.angles, problem.unpack, problem.basis_t, problem.z0, problem.bounds, p
+    )
+    x = problem.unpack(z)
+    e_end = problem.energy.terms(x)
+    e_total = float(sum(e_end.values()))
+    _check_solution(problem, x, faces, e_start, e_total, result, iterations, outer, p)
+
+    out = x * problem.scale + problem.shift
     # the ground rows are exact by construction; write them without round-off
-    out[ground, 1] = 0.0
-    quality_after = cage_quality(out, faces)
+    out[problem.ground, 1] = 0.0
     meta = dict(mesh.meta)
     meta["optimize"] = {
         "before": quality_before,
-        "after": quality_after,
+        "after": cage_quality(out, faces),
         "energy_before": float(e_start),
         "energy_after": e_total,
         "terms_after": e_end,

@@ -16,8 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from seatkit.errors import SeatkitError
-from seatkit.structure.fem import GRAVITY, Elasticity, Solution
+from seatkit.constants import GRAVITY
+from seatkit.errors import StructureError
+from seatkit.structure.fem import Elasticity, Solution
 from seatkit.structure.loads import SPREAD_RADIUS, contact_loads
 from seatkit.structure.materials import Material, get_material
 from seatkit.structure.mesh import ShellMesh, element_normals, surface_quads9
@@ -51,10 +52,6 @@ DEFAULT_MAX_DEFLECTION = 0.010
 #: Thicknesses :func:`size_thickness` searches, m, and the step it rounds up to.
 THICKNESS_RANGE = (0.0005, 0.10)
 THICKNESS_STEP = 0.0001
-
-
-class StructureError(SeatkitError):
-    """The shell cannot be analysed as asked (bad thickness, no floor contact, ...)."""
 
 
 @dataclass

@@ -33,13 +33,12 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from seatkit.constants import GRAVITY
+from seatkit.errors import StructureError
 from seatkit.structure.materials import Material
 from seatkit.structure.mesh import ShellMesh
 
-__all__ = ["GRAVITY", "Elasticity", "Solution"]
-
-#: Standard gravity, m/s^2 (the pressure solver's value).
-GRAVITY = 9.81
+__all__ = ["Elasticity", "Solution"]
 
 def _gauss(points: int) -> tuple[np.ndarray, np.ndarray]:
     x, w = np.polynomial.legendre.leggauss(points)
@@ -417,8 +416,6 @@ class Elasticity:
         try:
             lu = sla.splu(Kff, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
         except (MemoryError, SystemError, RuntimeError) as e:  # SuperLU reports a failed allocation as invalid arguments
-            from seatkit.structure.analysis import StructureError
-
             if "singular" in str(e).lower():
                 msg = "a part of the shell is not connected to where it is held: nothing holds it (singular stiffness)"
             else:
@@ -465,8 +462,6 @@ class Elasticity:
     def _check_held(self, held_nodes: np.ndarray) -> None:
         """Refuse a mesh with a connected piece that the held nodes do not fix (it could move freely)."""
         from scipy.sparse.csgraph import connected_components
-
-        from seatkit.structure.analysis import StructureError
 
         el = self.mesh.elements
         n_nodes = len(self.mesh.nodes)

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from seatkit.geometry.normals import vertex_normals
 from seatkit.structure.analysis import Analysis
 
 __all__ = ["face_stress", "write_stress_png"]
@@ -54,15 +55,6 @@ def _sheet_triangles(mesh, sheet: int, flip: bool):
     return nodes.reshape(-1, 3), tris
 
 
-def _normals(vertices, tris):
-    n = np.zeros_like(vertices)
-    fn = np.cross(vertices[tris[:, 1]] - vertices[tris[:, 0]], vertices[tris[:, 2]] - vertices[tris[:, 0]])
-    for k in range(3):
-        np.add.at(n, tris[:, k], fn)
-    length = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.divide(n, length, out=np.zeros_like(n), where=length > 0)
-
-
 def write_stress_png(analysis: Analysis, path, *, title: str = "") -> Path:
     """Write the picture (atomically) and return its path."""
     import matplotlib
@@ -91,7 +83,7 @@ def write_stress_png(analysis: Analysis, path, *, title: str = "") -> Path:
     norm = Normalize(0.0, vmax if vmax > 0 else 1.0)
     rgb = cmap(norm(np.where(bad, 0.0, values)))[:, :3]
     rgb[bad] = FOLDED_RGB
-    normals = _normals(vertices, tris)
+    normals = vertex_normals(vertices, tris)
     fig, axes = plt.subplots(1, len(VIEWS) + 1, figsize=(17.0, 4.9), gridspec_kw={"width_ratios": [1] * len(VIEWS) + [0.06]})
     worst = s.get("max_stress_at_m")
     for ax, (name, (az, el)) in zip(axes, VIEWS.items()):

@@ -14,8 +14,8 @@ See ``docs/subdivision.md`` for the rules and how they follow OpenSubdiv.
 
 from __future__ import annotations
 
-from seatkit.subdivision.catmull_clark import SubdivisionOperators, build_operators, refine_level
-from seatkit.subdivision.limit import limit_masks, limit_surface
+from seatkit.subdivision.catmull_clark import SubdivisionOperators, build_operators, limit_surface, refine_level
+from seatkit.subdivision.limit import limit_masks
 from seatkit.subdivision.topology import BOUNDARY_MODES, SHARPNESS_INFINITE, Cage, MeshLevel
 
 __all__ = [

@@ -23,14 +23,15 @@ computed in float32 as OpenSubdiv does.
 
 from __future__ import annotations
 
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
 
+from seatkit.cache import LRUCache
 from seatkit.errors import InputError
+from seatkit.model import Surface
+from seatkit.subdivision.limit import limit_masks
 from seatkit.subdivision.topology import (
     RULE_CORNER,
     RULE_CREASE,
@@ -40,7 +41,7 @@ from seatkit.subdivision.topology import (
     decrement_sharpness,
 )
 
-__all__ = ["SubdivisionOperators", "build_operators", "refine_level"]
+__all__ = ["SubdivisionOperators", "build_operators", "limit_surface", "refine_level"]
 
 
 def _fractional_weight(level: MeshLevel, child_vs: np.ndarray, child_es: np.ndarray) -> np.ndarray:
@@ -321,9 +322,8 @@ class SubdivisionOperators:
         return out
 
 
-_OPS_CACHE: "OrderedDict[tuple, SubdivisionOperators]" = OrderedDict()
-_OPS_CACHE_SIZE = 64
-_OPS_LOCK = threading.Lock()
+#: build_operators' cache: (topology key, level) -> SubdivisionOperators
+_OPS_CACHE = LRUCache(maxsize=64)
 
 
 def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
@@ -343,8 +343,6 @@ def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
     -------
     SubdivisionOperators
     """
-    from seatkit.subdivision.limit import limit_masks
-
     if isinstance(level, bool) or int(level) != level or level < 0:
         msg = f"subdivision level must be a non-negative integer, got {level!r}"
         raise InputError(msg)
@@ -352,13 +350,10 @@ def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
     if level == 0 and not np.all(cage.face_sizes == 4):
         msg = "subdivision level 0 needs an all-quad cage; use level >= 1"
         raise InputError(msg)
-    key = (cage.topology_key, level)
-    with _OPS_LOCK:  # seatkit serve designs on threads: no eviction between the lookup and the move
-        hit = _OPS_CACHE.get(key)
-        if hit is not None:
-            _OPS_CACHE.move_to_end(key)
-            return hit
+    return _OPS_CACHE.get((cage.topology_key, level), lambda: _make_operators(cage, level))
 
+
+def _make_operators(cage: Cage, level: int) -> SubdivisionOperators:
     current = cage.base_level()
     steps = []
     origin = np.arange(current.n_faces)
@@ -380,8 +375,33 @@ def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
         steps=tuple(steps),
         rules=rules,
     )
-    with _OPS_LOCK:
-        _OPS_CACHE[key] = ops
-        while len(_OPS_CACHE) > _OPS_CACHE_SIZE:
-            _OPS_CACHE.popitem(last=False)
     return ops
+
+
+def limit_surface(control_mesh, level: int = 3, *, boundary: str = "edge-and-corner") -> Surface:
+    """The tessellated Catmull-Clark limit surface of a control mesh.
+
+    Parameters
+    ----------
+    control_mesh : seatkit.model.ControlMesh or Cage
+        The cage (its creases and corners are used).
+    level : int
+        Refinement level of the tessellation.
+    boundary : {"edge-and-corner", "edge-only"}
+        Boundary interpolation (for a ControlMesh).
+
+    Returns
+    -------
+    seatkit.model.Surface
+        Limit positions and unit normals of the level-``level`` vertices and
+        the quads joining them.
+    """
+    cage = control_mesh if isinstance(control_mesh, Cage) else Cage.from_control_mesh(control_mesh, boundary=boundary)
+    ops = build_operators(cage, level)
+    P = cage.vertices
+    return Surface(
+        vertices=ops.limit_points(P),
+        normals=ops.limit_normals(P),
+        faces=ops.faces.copy(),
+        level=int(level),
+    )

@@ -1,4 +1,4 @@
-"""Catmull-Clark limit positions and tangents, and the limit surface.
+"""Catmull-Clark limit positions and tangents (the masks; the limit surface: catmull_clark.limit_surface).
 
 The limit masks are those of ``Sdc::Scheme<CATMARK>::ComputeVertexLimitMask``
 as applied by ``Far::PrimvarRefiner::Limit`` at the last refinement level,
@@ -23,10 +23,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from seatkit.model import Surface
-from seatkit.subdivision.topology import RULE_CORNER, RULE_CREASE, Cage, MeshLevel
+from seatkit.subdivision.topology import RULE_CORNER, RULE_CREASE, MeshLevel
 
-__all__ = ["limit_masks", "limit_surface"]
+__all__ = ["limit_masks"]
 
 
 def limit_masks(level: MeshLevel) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_matrix, np.ndarray]:
@@ -184,34 +183,3 @@ def limit_masks(level: MeshLevel) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_
         return sp.coo_matrix((vals[keep], (rows[keep], cols[keep])), shape=(nv, nv)).tocsr()
 
     return assemble(POS), assemble(T1), assemble(T2), rules
-
-
-def limit_surface(control_mesh, level: int = 3, *, boundary: str = "edge-and-corner") -> Surface:
-    """The tessellated Catmull-Clark limit surface of a control mesh.
-
-    Parameters
-    ----------
-    control_mesh : seatkit.model.ControlMesh or Cage
-        The cage (its creases and corners are used).
-    level : int
-        Refinement level of the tessellation.
-    boundary : {"edge-and-corner", "edge-only"}
-        Boundary interpolation (for a ControlMesh).
-
-    Returns
-    -------
-    seatkit.model.Surface
-        Limit positions and unit normals of the level-``level`` vertices and
-        the quads joining them.
-    """
-    from seatkit.subdivision.catmull_clark import build_operators
-
-    cage = control_mesh if isinstance(control_mesh, Cage) else Cage.from_control_mesh(control_mesh, boundary=boundary)
-    ops = build_operators(cage, level)
-    P = cage.vertices
-    return Surface(
-        vertices=ops.limit_points(P),
-        normals=ops.limit_normals(P),
-        faces=ops.faces.copy(),
-        level=int(level),
-    )

@@ -16,12 +16,11 @@ vertices at once (as many iterations as the largest valence).
 from __future__ import annotations
 
 import hashlib
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
 
+from seatkit.cache import LRUCache
 from seatkit.errors import InputError
 
 __all__ = [
@@ -258,17 +257,7 @@ class Cage:
 
     def base_level(self) -> "MeshLevel":
         """Level-0 topology with boundary and crease sharpness applied (cached)."""
-        with _LEVEL_LOCK:  # seatkit serve designs on threads: no eviction between the lookup and the move
-            level = _LEVEL_CACHE.get(self.topology_key)
-            if level is not None:
-                _LEVEL_CACHE.move_to_end(self.topology_key)
-                return level
-        level = _build_base_level(self)
-        with _LEVEL_LOCK:
-            _LEVEL_CACHE[self.topology_key] = level
-            while len(_LEVEL_CACHE) > _CACHE_SIZE:
-                _LEVEL_CACHE.popitem(last=False)
-        return level
+        return _LEVEL_CACHE.get(self.topology_key, lambda: _build_base_level(self))
 
     def __repr__(self) -> str:
         return (
@@ -277,9 +266,8 @@ class Cage:
         )
 
 
-_CACHE_SIZE = 64
-_LEVEL_CACHE: "OrderedDict[str, MeshLevel]" = OrderedDict()
-_LEVEL_LOCK = threading.Lock()
+#: Cage.base_level's cache: topology key -> MeshLevel
+_LEVEL_CACHE = LRUCache(maxsize=64)
 
 
 def _sharpness(values, n: int, name: str) -> np.ndarray:

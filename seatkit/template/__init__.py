@@ -11,6 +11,7 @@ See ``docs/templates.md``; a plugin's own steps are written against
 
 from seatkit.template.clearance import lift_off_bodies
 from seatkit.template.engine import YamlTemplate, grid_to_mesh, load_template
+from seatkit.template.flat_patch import FLAT_PATCH_DEFAULTS, FlatPatchTemplate, flat_patch_cage
 from seatkit.template.grid import Block, FaceState, FitState, GridMesh
 from seatkit.template.options import Option
 from seatkit.template.schema import PARAMETERS, read_template
@@ -21,6 +22,10 @@ __all__ = [
     "load_template",
     "read_template",
     "grid_to_mesh",
+    # the flat-patch baseline (a SupportTemplate in Python, not YAML)
+    "FlatPatchTemplate",
+    "flat_patch_cage",
+    "FLAT_PATCH_DEFAULTS",
     "lift_off_bodies",
     "PARAMETERS",
     "BUILTIN_STEPS",

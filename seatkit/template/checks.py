@@ -10,14 +10,14 @@ body (no open3d: its import alone costs about 1.3 s).
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from seatkit.cache import IdentityCache
 from seatkit.errors import UnsupportedPoseError
+from seatkit.geometry.normals import vertex_normals as _triangle_normals
 from seatkit.model import Body, ControlMesh
 from seatkit.skeleton import PARENTS, SEGMENT_INDEX, SEGMENTS
 from seatkit.template.planes import unit
@@ -32,7 +32,6 @@ __all__ = [
     "check_supportability",
     "cast_parallel",
     "segments_cross_triangles",
-    "vertex_normals",
     "body_vertex_normals",
 ]
 
@@ -210,20 +209,13 @@ def self_intersecting_faces(vertices: np.ndarray, quads: np.ndarray) -> np.ndarr
     return pairs.reshape(-1, 2).astype(np.int64)
 
 
-_BODY_CACHE: dict = {}
+#: What the checks derive from a body (edges, k-d tree, normals, ...), by body object
+_BODY_CACHE = IdentityCache()
 
 
 def _cached(body: Body, name: str, make):
     """``make(body)``, computed once per body object (bodies are immutable)."""
-    key = id(body)
-    hit = _BODY_CACHE.get(key)
-    if hit is None or hit[0]() is not body:
-        hit = (weakref.ref(body, lambda _ref, k=key: _BODY_CACHE.pop(k, None)), {})
-        _BODY_CACHE[key] = hit
-    data = hit[1]
-    if name not in data:
-        data[name] = make(body)
-    return data[name]
+    return _BODY_CACHE.get((body,), lambda: make(body), tag=name)
 
 
 def body_edges(body: Body) -> np.ndarray:
@@ -247,30 +239,11 @@ def body_tree(body: Body) -> cKDTree:
 def body_vertex_normals(body: Body) -> np.ndarray:
     """(n, 3) float64 area-weighted outward vertex normals of a body."""
 
-    def make(body):
-        V = np.asarray(body.vertices, dtype=np.float64)
-        F = np.asarray(body.faces)
-        fn = np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]])
-        vn = np.zeros_like(V)
-        for i in range(3):
-            np.add.at(vn, F[:, i], fn)
-        return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-12)
-
-    return _cached(body, "vertex_normals", make)
+    return _cached(body, "vertex_normals", lambda b: _triangle_normals(b.vertices, b.faces))
 
 
 def _body_triangle_spheres(body: Body) -> tuple[np.ndarray, np.ndarray]:
     return _cached(body, "spheres", lambda b: _triangle_spheres(np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces)))
-
-
-def vertex_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
-    """(v, 3) float64 unit normals of a quad cage (mean of the faces' diagonal-cross normals)."""
-    fn = np.cross(vertices[quads[:, 2]] - vertices[quads[:, 0]], vertices[quads[:, 3]] - vertices[quads[:, 1]])
-    fn = fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
-    vn = np.zeros_like(vertices)
-    for i in range(4):
-        np.add.at(vn, quads[:, i], fn)
-    return vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-12)
 
 
 def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, tolerance: float) -> np.ndarray:

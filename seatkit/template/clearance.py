@@ -37,7 +37,8 @@ import scipy.sparse as sp
 from scipy.optimize import linprog
 from scipy.spatial import cKDTree
 
-from seatkit.template.checks import _sample_triangles, _triangle_spheres, body_tree, body_vertex_normals, quad_triangles, vertex_normals
+from seatkit.geometry.normals import quad_vertex_normals
+from seatkit.template.checks import _sample_triangles, _triangle_spheres, body_tree, body_vertex_normals, quad_triangles
 
 __all__ = ["ClearanceResult", "lift_off_bodies"]
 
@@ -224,7 +225,7 @@ def lift_off_bodies(
     start = V.copy()
     if floor is not None:
         V[movable, 1] = np.maximum(V[movable, 1], floor)
-    directions = -vertex_normals(V, quads)
+    directions = -quad_vertex_normals(V, quads)
     normals = [body_vertex_normals(b) for b in bodies]
     cost = np.ones(len(V)) if weights is None else np.asarray(weights, dtype=np.float64)
     # move columns: every movable vertex along its direction; a vertex on the

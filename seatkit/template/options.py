@@ -14,7 +14,8 @@ meaning. The same declaration
 * fills in the defaults, so that a step's ``run`` gets every option that has
   a default;
 * generates the option tables of ``docs/templates.md``
-  (:func:`options_table`; a test keeps the docs equal to it).
+  (:func:`options_table`; ``python -m seatkit.template.steps docs/templates.md``
+  rewrites them, and a test keeps the docs equal to it).
 
 Types (``Option.type``):
 
@@ -217,33 +218,3 @@ def _fmt(value) -> str:
     if isinstance(value, float):
         return f"{value:g}"
     return str(value)
-
-
-def update_docs(path) -> bool:
-    """Rewrite every ``<!-- options of NAME -->`` block of a Markdown file from the built-in steps' schemas.
-
-    Returns whether the file changed.
-    """
-    import re
-    from pathlib import Path
-
-    from seatkit.template.steps import BUILTIN_STEPS
-
-    path = Path(path)
-    text = path.read_text()
-
-    def table(m):
-        name = m.group(1)
-        return f"<!-- options of {name} -->\n{options_table(BUILTIN_STEPS[name])}\n<!-- end -->"
-
-    new = re.sub(r"<!-- options of ([\w-]+) -->\n.*?\n<!-- end -->", table, text, flags=re.S)
-    if new != text:
-        path.write_text(new)
-    return new != text
-
-
-if __name__ == "__main__":  # python -m seatkit.template.options docs/templates.md
-    import sys
-
-    for arg in sys.argv[1:]:
-        print(f"{arg}: {'updated' if update_docs(arg) else 'up to date'}")

@@ -17,7 +17,8 @@ from typing import Any, Mapping
 from seatkit.errors import ParamError, RecipeError
 from seatkit.template.options import did_you_mean
 from seatkit.skeleton import SEGMENT_INDEX, SEGMENTS
-from seatkit.yamlio import Document, load_yaml, parse_yaml, quote, validate
+from seatkit.messages import quote
+from seatkit.yamlio import Document, load_yaml, parse_yaml, validate
 
 __all__ = [
     "PARAMETERS",

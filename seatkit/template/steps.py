@@ -21,7 +21,7 @@ from seatkit.template.border import add_border
 from seatkit.template.checks import check_supportability
 from seatkit.template.clearance import lift_off_bodies
 from seatkit.template.grid import FitState, GridMesh
-from seatkit.template.options import Option
+from seatkit.template.options import Option, options_table
 from seatkit.template.planes import fit_support_plane
 from seatkit.template.pose_rule import PoseRuleStep
 from seatkit.template.special_cases import add_armrests, fit_outer_face, merge_crossed_legs
@@ -488,3 +488,31 @@ def builtin_steps() -> list:
 
 #: The built-in steps by name.
 BUILTIN_STEPS: dict = {s.name: s for s in builtin_steps()}
+
+
+def update_docs(path) -> bool:
+    """Rewrite every ``<!-- options of NAME -->`` block of a Markdown file from the built-in steps' schemas.
+
+    Returns whether the file changed.
+    """
+    import re
+    from pathlib import Path
+
+    path = Path(path)
+    text = path.read_text()
+
+    def table(m):
+        name = m.group(1)
+        return f"<!-- options of {name} -->\n{options_table(BUILTIN_STEPS[name])}\n<!-- end -->"
+
+    new = re.sub(r"<!-- options of ([\w-]+) -->\n.*?\n<!-- end -->", table, text, flags=re.S)
+    if new != text:
+        path.write_text(new)
+    return new != text
+
+
+if __name__ == "__main__":  # python -m seatkit.template.steps docs/templates.md
+    import sys
+
+    for arg in sys.argv[1:]:
+        print(f"{arg}: {'updated' if update_docs(arg) else 'up to date'}")

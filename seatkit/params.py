@@ -1,4 +1,4 @@
-"""Parameter handling shared by the refiners.
+"""Parameter handling shared by the refiners and the flat-patch template.
 
 Each refiner declares its defaults as a dict; a template's ``refiners:``
 section or a recipe overrides them by key. Unknown keys are user mistakes

@@ -16,7 +16,9 @@ flat patch serving as the control mesh").
 
 It is a :class:`~seatkit.interfaces.SupportTemplate` written in Python (a
 flat grid needs no plane fitting, so it does not go through the YAML
-template engine).
+template engine); it lives beside the YAML templates' engine and is
+registered, with the refiners it is compared with, by the built-in plugin
+``seatkit_refiners``.
 """
 
 from __future__ import annotations
@@ -28,9 +30,9 @@ import numpy as np
 
 from seatkit.errors import RecipeError, UnsupportedPoseError
 from seatkit.model import Body, ControlMesh, PressureField
-from seatkit.refine.grid import grid_faces, grid_ring
-from seatkit.refine.params import merge_params
+from seatkit.params import merge_params
 from seatkit.skeleton import SEGMENT_INDEX, SEGMENTS
+from seatkit.template.quad_grid import grid_faces, grid_ring
 
 __all__ = ["FLAT_PATCH_DEFAULTS", "CHAIR_SEGMENTS", "flat_patch_cage", "FlatPatchTemplate"]
 

@@ -3,7 +3,7 @@
 :func:`closest_barycentric` is Ericson's closest-point-on-triangle by
 regions (Real-Time Collision Detection 5.1.5), from two dot products per
 point and triangle (the other four follow from per-triangle constants, which
-:class:`seatkit.skin.SkinDistance` keeps); :func:`closest_point_on_triangles`
+:class:`seatkit.geometry.skin.SkinDistance` keeps); :func:`closest_point_on_triangles`
 is the same for explicit corners. :func:`vertex_triangle_rings` lists the
 triangles around each vertex, the candidates both queries search.
 """

@@ -36,19 +36,17 @@ the two.
 
 from __future__ import annotations
 
-import threading
-import weakref
-
 import numpy as np
 from scipy.spatial import cKDTree
 
-from seatkit.closest import closest_barycentric, vertex_triangle_rings
+from seatkit.cache import IdentityCache
+from seatkit.geometry.closest import closest_barycentric, vertex_triangle_rings
 
 __all__ = ["SkinDistance"]
 
-#: SkinDistance.of's cache: (id(vertices), id(faces)) -> (ref, ref, SkinDistance)
-_CACHE: dict = {}
-_CACHE_LOCK = threading.Lock()
+#: SkinDistance.of's cache: the last few meshes by the identity of their arrays
+#: (a SkinDistance refers to its vertex array, hence the bound)
+_CACHE = IdentityCache(maxsize=8)
 
 
 class SkinDistance:
@@ -134,21 +132,7 @@ class SkinDistance:
         references, so a new array at a recycled address is not mistaken
         for an old one) and holds the last few meshes.
         """
-        key = (id(vertices), id(faces))
-        with _CACHE_LOCK:  # the baseline may run on a second thread
-            hit = _CACHE.get(key)
-            if hit is not None and hit[0]() is vertices and hit[1]() is faces:
-                return hit[2]
-        skin = cls(vertices, faces)
-        try:
-            refs = (weakref.ref(vertices), weakref.ref(faces))
-        except TypeError:  # not weak-referenceable (a list): no caching
-            return skin
-        with _CACHE_LOCK:
-            while len(_CACHE) >= 8:
-                _CACHE.pop(next(iter(_CACHE)))
-            _CACHE[key] = (*refs, skin)
-        return skin
+        return _CACHE.get((vertices, faces), lambda: cls(vertices, faces), tag=cls)
 
     def query(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Depth below the skin, closest skin point and outward direction.
