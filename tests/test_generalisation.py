@@ -222,6 +222,20 @@ def test_optional_steps_are_dropped_last_and_rule_refusals_are_final(upright):
     assert never.calls == 8 and err.value.diagnostics["fit_attempts"] == 8
 
 
+def test_fit_attempts_is_bounded_so_a_refusal_cannot_retry_for_hours(chair):
+    """fit_attempts is at most 20 (60 starts of the chair), not the 20,000 of every other count."""
+    from seatkit.errors import ParamError, RecipeError
+    from seatkit.template.schema import PARAMETER_MAXIMA, parameter_problem
+
+    assert parameter_problem("fit_attempts", 20) is None
+    assert parameter_problem("fit_attempts", 21) == "expected a whole number from 1 to 20 (count), got 21"
+    assert parameter_problem("ransac_iterations", 20_000) is None and PARAMETER_MAXIMA["count"] == 20_000
+    with pytest.raises(ParamError, match=r"fit_attempts.*from 1 to 20 \(count\), got 20000"):
+        chair.check_params({"fit_attempts": 20000})
+    with pytest.raises(RecipeError, match=r"parameters.fit_attempts"):
+        load_template(text=STOOL.replace("parameters:\n", "parameters:\n  fit_attempts: 500\n", 1))
+
+
 def test_crossed_legs_whose_merged_seat_the_raised_calf_crosses_build_on_separate_leg_faces(rigs, chair):
     """crossed-legs-038 of the benchmark's draw on the female body: the merged thigh row is crossed by the raised calf.
 
