@@ -2,9 +2,9 @@
 
 The chair's grid runs from the feet up the legs, under the pelvis and up the
 back, with the legs side by side in front of the trunk (paper Sec. 5). The
-rule measures, on the posed skeleton only (joints and bone tips, no skin, no
-pressure), the four things that grid cannot follow (paper Sec. 6 and
-docs/templates.md, "The pose rule"):
+rule measures, on the posed skeleton (joints and bone tips) and, for the
+hands, the skin and the pressure's importance (no fitting), the things that
+grid cannot follow (paper Sec. 6 and docs/templates.md, "The pose rule"):
 
 - **lying on the side**: the body's left-right axis (hips and shoulders)
   tilted more than ``max_roll_deg`` from horizontal: the columns would stack;
@@ -17,12 +17,12 @@ docs/templates.md, "The pose rule"):
 - **kneeling**: the same, with the knee within ``kneel_height`` of the
   floor and the thigh more than 45 deg below level: the body rests on the shins, which the chair's leg rows cannot
   reach from below;
-- **a hand hanging beside or below the seat** (sitting: the trunk within
-  60 deg of vertical, the thighs within 45 deg of level): a wrist less than
-  ``hand_clearance`` above the hip joints and more than
-  ``hand_side_margin`` outside them, or more than ``max_hand_drop`` below
-  them: the seat's side walls and front reach the ground there and would
-  cut the arm;
+- **a loaded part resting on a hand** (given the pressure's importance):
+  more than ``max_load_on_hands`` of the load of a thigh, a shank or the
+  pelvis (its important vertices, weighted) has a hand or forearm straight
+  below it: the chair's surface under that part would have to pass through
+  the hand. Hands hanging beside the seat, on the thighs or in the lap are
+  not refused: the fit repairs the faces they meet (docs/templates.md);
 - **standing on its own feet**: both thighs more than 45 deg below level and
   the centre of mass above the soles' footprint: the body needs no support
   and leans on nothing the chair could give.
@@ -53,10 +53,14 @@ DEFAULT_RULE = {
     "max_thigh_turn_deg": 50.0,
     "max_shank_back_deg": 25.0,
     "kneel_height": 0.2,
-    "hand_clearance": 0.05,
-    "hand_side_margin": 0.04,
-    "max_hand_drop": 0.08,
+    "max_load_on_hands": 0.2,
 }
+
+#: A vertex is important at this share of the peak importance (the template parameter ``important_threshold``).
+IMPORTANT = 0.05
+#: The parts a chair holds from below, whose load must not rest on a hand.
+_HELD_FROM_BELOW = ("Hips", "RightUpLeg", "LeftUpLeg", "RightLeg", "LeftLeg")
+_HAND_PARTS = ("RightHand", "LeftHand", "RightForeArm", "LeftForeArm")
 
 _UP = np.array([0.0, 1.0, 0.0])
 
@@ -92,7 +96,7 @@ def _horizontal(v: np.ndarray) -> np.ndarray:
     return v - _UP * (v @ _UP)
 
 
-def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdict:
+def assess_pose(body: Body, rule: Mapping[str, Any] | None = None, importance: np.ndarray | None = None) -> PoseVerdict:
     """Apply the pose rule to a posed body (grounded: its lowest vertex at y = 0).
 
     Parameters
@@ -100,6 +104,9 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
     body : Body
     rule : mapping, optional
         Thresholds overriding :data:`DEFAULT_RULE` (degrees, metres).
+    importance : (n,) float64, optional
+        The pressure's per-vertex importance (:class:`seatkit.model.PressureField`);
+        without it, the load-on-a-hand test is skipped.
     """
     r = {**DEFAULT_RULE, **dict(rule or {})}
     j, tips = body.joints, body.tips
@@ -155,35 +162,26 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
                 f"{r['max_shank_back_deg']:.0f}): a seat under the thigh would cut through the calf"
             )
             parts += [side + "Leg", side + "UpLeg"]
-    # hands hanging beside or below the seat (sitting only: standing and lying bodies have no seat beside the hands)
+    # where the hands are, for the record; the load resting on them, when the pressure is given
     hips_c = 0.5 * (j[S["LeftUpLeg"]] + j[S["RightUpLeg"]])
     half = 0.5 * float(np.linalg.norm(j[S["LeftUpLeg"]] - j[S["RightUpLeg"]]))
     hip_axis = _unit(j[S["LeftUpLeg"]] - j[S["RightUpLeg"]])
     trunk_tilt = float(np.degrees(np.arccos(np.clip(trunk @ _UP, -1.0, 1.0))))
-    thigh_level = min(
-        abs(float(np.degrees(np.arcsin(np.clip(_unit(j[S[sd + "Leg"]] - j[S[sd + "UpLeg"]]) @ _UP, -1.0, 1.0))))) for sd in ("Right", "Left")
-    )
-    sitting = trunk_tilt < 60.0 and thigh_level < 45.0
-    measures.update({"trunk_tilt_deg": trunk_tilt, "sitting": sitting, "hands": {}})
+    measures.update({"trunk_tilt_deg": trunk_tilt, "hands": {}})
     for side in ("Right", "Left"):
         wrist = j[S[side + "Hand"]]
-        rise, out = float(wrist[1] - hips_c[1]), abs(float((wrist - hips_c) @ hip_axis)) - half
-        measures["hands"][side] = {"above_hips_m": rise, "outside_hips_m": out}
-        if not sitting:
-            continue
-        name = side.lower()
-        if rise < r["hand_clearance"] and out > r["hand_side_margin"]:
-            reasons.append(
-                f"the {name} hand hangs beside the seat ({100 * rise:.0f} cm above the hip joints, {100 * out:.0f} cm outside them): "
-                "the chair's side wall reaches the ground there and would cut the arm; rest it on the thigh or an armrest"
-            )
-            parts += [side + "ForeArm", side + "Hand"]
-        elif rise < -r["max_hand_drop"]:
-            reasons.append(
-                f"the {name} hand hangs {100 * -rise:.0f} cm below the hip joints (at most {100 * r['max_hand_drop']:.0f}): "
-                "the seat's front reaches the ground under it and would cut the arm"
-            )
-            parts += [side + "ForeArm", side + "Hand"]
+        measures["hands"][side] = {"above_hips_m": float(wrist[1] - hips_c[1]), "outside_hips_m": abs(float((wrist - hips_c) @ hip_axis)) - half}
+    if importance is not None:
+        on_hands = load_on_hands(body, np.asarray(importance, dtype=np.float64))
+        measures["load_on_hands"] = on_hands
+        for part, (share, hand) in on_hands.items():
+            if share > r["max_load_on_hands"]:
+                reasons.append(
+                    f"the {_NAMES[part]} rests on the {_NAMES[hand]} ({100 * share:.0f}% of its load has the hand straight below it, "
+                    f"at most {100 * r['max_load_on_hands']:.0f}%): the chair's surface under it would pass through the hand; "
+                    "move the hand beside the leg, onto the thigh or onto an armrest"
+                )
+                parts += [part, hand]
     # standing on its own feet: both thighs pointing down and the centre of
     # mass above the soles' footprint (along the facing direction), so the
     # body needs no support (standing-leaning-back has its centre of mass
@@ -205,11 +203,49 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
     return PoseVerdict(not reasons, reasons, sorted(set(parts)), measures)
 
 
+_NAMES = {
+    "Hips": "pelvis", "RightUpLeg": "right thigh", "LeftUpLeg": "left thigh", "RightLeg": "right calf", "LeftLeg": "left calf",
+    "RightHand": "right hand", "LeftHand": "left hand", "RightForeArm": "right forearm", "LeftForeArm": "left forearm",
+}
+
+
+def load_on_hands(body: Body, importance: np.ndarray, threshold: float = IMPORTANT) -> dict:
+    """{part: (share, hand part)} of the parts a chair holds from below whose load has a hand straight below it.
+
+    For each of :data:`_HELD_FROM_BELOW`, its important vertices (importance
+    at least ``threshold`` of the peak) each cast a ray straight down to the
+    floor (the paper's "shortest line to the ground" under a seat); the share
+    is the importance of those whose first body crossing is a hand or a
+    forearm, over the part's whole importance. Parts with no important
+    vertex or no such share are left out.
+    """
+    from seatkit.template.checks import cast_parallel
+
+    seg = segment_of_vertex(body)
+    V = np.asarray(body.vertices, dtype=np.float64)
+    F = np.asarray(body.faces)
+    hands = [S[h] for h in _HAND_PARTS]
+    peak = float(importance.max()) if len(importance) else 0.0
+    out = {}
+    for part in _HELD_FROM_BELOW:
+        iv = np.flatnonzero((importance >= threshold * peak) & (seg == S[part])) if peak > 0 else np.zeros(0, np.int64)
+        if len(iv) == 0:
+            continue
+        _, tri = cast_parallel(body, V[iv] - 2e-3 * _UP, -_UP, np.maximum(V[iv, 1], 1e-6))
+        hit_seg = seg[F[np.where(tri >= 0, tri, 0), 0]]
+        on = (tri >= 0) & np.isin(hit_seg, hands)
+        if on.any():
+            w = importance[iv]
+            hand = int(np.bincount(hit_seg[on], weights=w[on]).argmax())
+            out[part] = (float(w[on].sum() / w.sum()), next(h for h in _HAND_PARTS if S[h] == hand))
+    return out
+
+
 class PoseRuleStep:
     """Refuse, before any fitting, the poses the template's grid cannot follow (:func:`assess_pose`)."""
 
     name = "pose-rule"
-    description = "refuse poses the grid cannot follow (lying on the side, sitting sideways, feet under the body, kneeling, standing upright), from the skeleton, before fitting"
+    description = "refuse poses the grid cannot follow (lying on the side, sitting sideways, feet under the body, kneeling, standing upright, a thigh or calf resting on a hand), from the skeleton and the pressure, before fitting"
     stage = "blocks"
     requires = ()
     options = {
@@ -217,9 +253,7 @@ class PoseRuleStep:
         "max_thigh_turn_deg": Option("number", "largest turn of a thigh from straight ahead towards the line across the shoulders, seen from above", DEFAULT_RULE["max_thigh_turn_deg"], "deg", 0.0, 180.0),
         "max_shank_back_deg": Option("number", "largest swing of a shank behind the vertical through its knee", DEFAULT_RULE["max_shank_back_deg"], "deg", 0.0, 180.0),
         "kneel_height": Option("number", "a knee this close to the floor with its shank swung back is kneeling", DEFAULT_RULE["kneel_height"], "m", 0.0, 2.0),
-        "hand_clearance": Option("number", "sitting, a wrist less than this above the hip joints and outside them hangs beside the seat", DEFAULT_RULE["hand_clearance"], "m", 0.0, 1.0),
-        "hand_side_margin": Option("number", "how far outside the hip joints such a wrist must be", DEFAULT_RULE["hand_side_margin"], "m", 0.0, 1.0),
-        "max_hand_drop": Option("number", "sitting, a wrist more than this below the hip joints hangs below the seat", DEFAULT_RULE["max_hand_drop"], "m", 0.0, 2.0),
+        "max_load_on_hands": Option("number", "largest share of a thigh's, calf's or the pelvis's load that may have a hand or forearm straight below it", DEFAULT_RULE["max_load_on_hands"], "1", 0.0, 1.0),
     }
 
     def run(self, state, *, options: Mapping[str, Any]) -> None:
@@ -228,7 +262,7 @@ class PoseRuleStep:
         rule = {k: float(v) for k, v in options.items()}
         verdicts = []
         for block in state.blocks:
-            v = assess_pose(block.body, rule)
+            v = assess_pose(block.body, rule, block.importance)
             verdicts.append({"person": block.person, "supportable": v.supportable, "reasons": v.reasons, **v.measures})
             state.meta["pose_rule"] = verdicts
             if not v.supportable:
