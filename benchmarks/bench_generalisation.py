@@ -72,7 +72,6 @@ def reason_kind(message: str) -> str:
         (r"sitting sideways", "sitting sideways"),
         (r"kneeling", "kneeling"),
         (r"feet under the body", "feet under the body"),
-        (r"rests on the (right|left) (hand|forearm)", "a thigh or calf resting on a hand"),
         (r"crosses the body", "cage crosses the body"),
         (r"intersects itself", "cage intersects itself"),
         (r"cannot support .*important vertices", "occluded support"),
@@ -118,7 +117,7 @@ def run_task(task):
     template = _STATE["template"]
     body = pose_rig(_STATE["rigs"][body_name], drawn.pose)
     pressure = solve_pressure(body)
-    verdict = assess_pose(body, template_rule(template), pressure.importance)
+    verdict = assess_pose(body, template_rule(template))
     out = {"pose": drawn.name, "family": family, "body": body_name, "rule_ok": verdict.supportable, "rule_reasons": verdict.reasons, "fits": []}
     fit_seeds = list(seeds)
     if table1 and verdict.supportable:
@@ -298,7 +297,7 @@ def _draw_cages(args, rig) -> None:
             for i in range(FAMILIES.index(family), 4 * args.poses, len(FAMILIES)):
                 drawn = draw_pose(np.random.default_rng([args.draw_seed, i]), family, f"{family}-{i:03d}")
                 body = pose_rig(rig, drawn.pose)
-                if assess_pose(body, template_rule(chair), solve_pressure(body).importance).supportable:
+                if assess_pose(body, template_rule(chair)).supportable:
                     break
             mesh = chair.fit([body], [solve_pressure(body)], seed=0)
             path = args.cages / f"chair-{family}.png"

@@ -57,10 +57,7 @@ def _check(ctx, pose: str, body_name: str, template_name: str, frame) -> None:
     if rule is None:
         click.echo(f"{pose}: template {template_name!r} declares no pose rule; only a build can tell (seatkit build --pose {pose})")
         return
-    from seatkit.pressure.qp import solve_pressure
-
-    # the load-on-a-hand test needs the pressure (the template's fit uses the same)
-    verdict = assess_pose(posed, rule, solve_pressure(posed).importance)
+    verdict = assess_pose(posed, rule)
     if verdict.supportable:
         click.echo(f"{pose}: supportable by the {template_name} template (on {posed.name.split(':')[0] or body_name})")
         return

@@ -2,9 +2,9 @@
 
 The chair's grid runs from the feet up the legs, under the pelvis and up the
 back, with the legs side by side in front of the trunk (paper Sec. 5). The
-rule measures, on the posed skeleton (joints and bone tips) and, for the
-hands, the skin and the pressure's importance (no fitting), the things that
-grid cannot follow (paper Sec. 6 and docs/templates.md, "The pose rule"):
+rule measures, on the posed skeleton only (joints and bone tips, no skin, no
+pressure), the things that grid cannot follow (paper Sec. 6 and
+docs/templates.md, "The pose rule"):
 
 - **lying on the side**: the body's left-right axis (hips and shoulders)
   tilted more than ``max_roll_deg`` from horizontal: the columns would stack;
@@ -17,12 +17,9 @@ grid cannot follow (paper Sec. 6 and docs/templates.md, "The pose rule"):
 - **kneeling**: the same, with the knee within ``kneel_height`` of the
   floor and the thigh more than 45 deg below level: the body rests on the shins, which the chair's leg rows cannot
   reach from below;
-- **a loaded part resting on a hand** (given the pressure's importance):
-  more than ``max_load_on_hands`` of the load of a thigh, a shank or the
-  pelvis (its important vertices, weighted) has a hand or forearm straight
-  below it: the chair's surface under that part would have to pass through
-  the hand. Hands hanging beside the seat, on the thighs or in the lap are
-  not refused: the fit repairs the faces they meet (docs/templates.md);
+- hands are not refused: hanging beside the seat, on the thighs, beside or
+  behind a calf, the chair is built around them (the fit repairs the faces
+  an arm meets; docs/templates.md, "The pose rule");
 - **standing on its own feet**: both thighs more than 45 deg below level and
   the centre of mass above the soles' footprint: the body needs no support
   and leans on nothing the chair could give.
@@ -53,14 +50,7 @@ DEFAULT_RULE = {
     "max_thigh_turn_deg": 50.0,
     "max_shank_back_deg": 25.0,
     "kneel_height": 0.2,
-    "max_load_on_hands": 0.2,
 }
-
-#: A vertex is important at this share of the peak importance (the template parameter ``important_threshold``).
-IMPORTANT = 0.05
-#: The parts a chair holds from below, whose load must not rest on a hand.
-_HELD_FROM_BELOW = ("Hips", "RightUpLeg", "LeftUpLeg", "RightLeg", "LeftLeg")
-_HAND_PARTS = ("RightHand", "LeftHand", "RightForeArm", "LeftForeArm")
 
 _UP = np.array([0.0, 1.0, 0.0])
 
@@ -96,7 +86,7 @@ def _horizontal(v: np.ndarray) -> np.ndarray:
     return v - _UP * (v @ _UP)
 
 
-def assess_pose(body: Body, rule: Mapping[str, Any] | None = None, importance: np.ndarray | None = None) -> PoseVerdict:
+def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdict:
     """Apply the pose rule to a posed body (grounded: its lowest vertex at y = 0).
 
     Parameters
@@ -104,9 +94,6 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None, importance: n
     body : Body
     rule : mapping, optional
         Thresholds overriding :data:`DEFAULT_RULE` (degrees, metres).
-    importance : (n,) float64, optional
-        The pressure's per-vertex importance (:class:`seatkit.model.PressureField`);
-        without it, the load-on-a-hand test is skipped.
     """
     r = {**DEFAULT_RULE, **dict(rule or {})}
     j, tips = body.joints, body.tips
@@ -162,7 +149,7 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None, importance: n
                 f"{r['max_shank_back_deg']:.0f}): a seat under the thigh would cut through the calf"
             )
             parts += [side + "Leg", side + "UpLeg"]
-    # where the hands are, for the record; the load resting on them, when the pressure is given
+    # where the hands are, for the record (no limit: see the module docstring)
     hips_c = 0.5 * (j[S["LeftUpLeg"]] + j[S["RightUpLeg"]])
     half = 0.5 * float(np.linalg.norm(j[S["LeftUpLeg"]] - j[S["RightUpLeg"]]))
     hip_axis = _unit(j[S["LeftUpLeg"]] - j[S["RightUpLeg"]])
@@ -171,17 +158,6 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None, importance: n
     for side in ("Right", "Left"):
         wrist = j[S[side + "Hand"]]
         measures["hands"][side] = {"above_hips_m": float(wrist[1] - hips_c[1]), "outside_hips_m": abs(float((wrist - hips_c) @ hip_axis)) - half}
-    if importance is not None:
-        on_hands = load_on_hands(body, np.asarray(importance, dtype=np.float64))
-        measures["load_on_hands"] = on_hands
-        for part, (share, hand) in on_hands.items():
-            if share > r["max_load_on_hands"]:
-                reasons.append(
-                    f"the {_NAMES[part]} rests on the {_NAMES[hand]} ({100 * share:.0f}% of its load has the hand straight below it, "
-                    f"at most {100 * r['max_load_on_hands']:.0f}%): the chair's surface under it would pass through the hand; "
-                    "move the hand beside the leg, onto the thigh or onto an armrest"
-                )
-                parts += [part, hand]
     # standing on its own feet: both thighs pointing down and the centre of
     # mass above the soles' footprint (along the facing direction), so the
     # body needs no support (standing-leaning-back has its centre of mass
@@ -203,49 +179,11 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None, importance: n
     return PoseVerdict(not reasons, reasons, sorted(set(parts)), measures)
 
 
-_NAMES = {
-    "Hips": "pelvis", "RightUpLeg": "right thigh", "LeftUpLeg": "left thigh", "RightLeg": "right calf", "LeftLeg": "left calf",
-    "RightHand": "right hand", "LeftHand": "left hand", "RightForeArm": "right forearm", "LeftForeArm": "left forearm",
-}
-
-
-def load_on_hands(body: Body, importance: np.ndarray, threshold: float = IMPORTANT) -> dict:
-    """{part: (share, hand part)} of the parts a chair holds from below whose load has a hand straight below it.
-
-    For each of :data:`_HELD_FROM_BELOW`, its important vertices (importance
-    at least ``threshold`` of the peak) each cast a ray straight down to the
-    floor (the paper's "shortest line to the ground" under a seat); the share
-    is the importance of those whose first body crossing is a hand or a
-    forearm, over the part's whole importance. Parts with no important
-    vertex or no such share are left out.
-    """
-    from seatkit.template.checks import cast_parallel
-
-    seg = segment_of_vertex(body)
-    V = np.asarray(body.vertices, dtype=np.float64)
-    F = np.asarray(body.faces)
-    hands = [S[h] for h in _HAND_PARTS]
-    peak = float(importance.max()) if len(importance) else 0.0
-    out = {}
-    for part in _HELD_FROM_BELOW:
-        iv = np.flatnonzero((importance >= threshold * peak) & (seg == S[part])) if peak > 0 else np.zeros(0, np.int64)
-        if len(iv) == 0:
-            continue
-        _, tri = cast_parallel(body, V[iv] - 2e-3 * _UP, -_UP, np.maximum(V[iv, 1], 1e-6))
-        hit_seg = seg[F[np.where(tri >= 0, tri, 0), 0]]
-        on = (tri >= 0) & np.isin(hit_seg, hands)
-        if on.any():
-            w = importance[iv]
-            hand = int(np.bincount(hit_seg[on], weights=w[on]).argmax())
-            out[part] = (float(w[on].sum() / w.sum()), next(h for h in _HAND_PARTS if S[h] == hand))
-    return out
-
-
 class PoseRuleStep:
     """Refuse, before any fitting, the poses the template's grid cannot follow (:func:`assess_pose`)."""
 
     name = "pose-rule"
-    description = "refuse poses the grid cannot follow (lying on the side, sitting sideways, feet under the body, kneeling, standing upright, a thigh or calf resting on a hand), from the skeleton and the pressure, before fitting"
+    description = "refuse poses the grid cannot follow (lying on the side, sitting sideways, feet under the body, kneeling, standing upright), from the skeleton, before fitting"
     stage = "blocks"
     requires = ()
     options = {
@@ -253,7 +191,6 @@ class PoseRuleStep:
         "max_thigh_turn_deg": Option("number", "largest turn of a thigh from straight ahead towards the line across the shoulders, seen from above", DEFAULT_RULE["max_thigh_turn_deg"], "deg", 0.0, 180.0),
         "max_shank_back_deg": Option("number", "largest swing of a shank behind the vertical through its knee", DEFAULT_RULE["max_shank_back_deg"], "deg", 0.0, 180.0),
         "kneel_height": Option("number", "a knee this close to the floor with its shank swung back is kneeling", DEFAULT_RULE["kneel_height"], "m", 0.0, 2.0),
-        "max_load_on_hands": Option("number", "largest share of a thigh's, calf's or the pelvis's load that may have a hand or forearm straight below it", DEFAULT_RULE["max_load_on_hands"], "1", 0.0, 1.0),
     }
 
     def run(self, state, *, options: Mapping[str, Any]) -> None:
@@ -262,7 +199,7 @@ class PoseRuleStep:
         rule = {k: float(v) for k, v in options.items()}
         verdicts = []
         for block in state.blocks:
-            v = assess_pose(block.body, rule, block.importance)
+            v = assess_pose(block.body, rule)
             verdicts.append({"person": block.person, "supportable": v.supportable, "reasons": v.reasons, **v.measures})
             state.meta["pose_rule"] = verdicts
             if not v.supportable:
