@@ -225,7 +225,7 @@ def test_optional_steps_are_dropped_last_and_rule_refusals_are_final(upright):
 
 
 def test_fit_attempts_is_bounded_so_a_refusal_cannot_retry_for_hours(chair):
-    """fit_attempts is at most 20 (60 starts of the chair), not the 20,000 of every other count."""
+    """fit_attempts is at most 20 (80 starts of the chair), not the 20,000 of every other count."""
     from seatkit.errors import ParamError, RecipeError
     from seatkit.template.schema import PARAMETER_MAXIMA, parameter_problem
 
