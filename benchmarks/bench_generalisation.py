@@ -72,8 +72,6 @@ def reason_kind(message: str) -> str:
         (r"sitting sideways", "sitting sideways"),
         (r"kneeling", "kneeling"),
         (r"feet under the body", "feet under the body"),
-        (r"hangs beside the seat", "hand beside the seat"),
-        (r"below the hip joints", "hand below the seat"),
         (r"crosses the body", "cage crosses the body"),
         (r"intersects itself", "cage intersects itself"),
         (r"cannot support .*important vertices", "occluded support"),
@@ -118,9 +116,9 @@ def run_task(task):
     drawn = draw_pose(np.random.default_rng([draw_seed, index]), family, f"{family}-{index:03d}")
     template = _STATE["template"]
     body = pose_rig(_STATE["rigs"][body_name], drawn.pose)
+    pressure = solve_pressure(body)
     verdict = assess_pose(body, template_rule(template))
     out = {"pose": drawn.name, "family": family, "body": body_name, "rule_ok": verdict.supportable, "rule_reasons": verdict.reasons, "fits": []}
-    pressure = solve_pressure(body)
     fit_seeds = list(seeds)
     if table1 and verdict.supportable:
         # the full build's own template fit (seed ``seeds[0]``) counts as that seed's fit

@@ -35,6 +35,9 @@ __all__ = ["YamlTemplate", "load_template", "grid_to_mesh"]
 #: Entropy of the fallback RANSAC streams (the same for every seed).
 _FALLBACK = 0x5EA7
 
+#: Repairs of the faces the final check names, per start, before the start is refused.
+_REPAIR_ROUNDS = 2
+
 
 class YamlTemplate:
     """A support template declared in YAML.
@@ -195,9 +198,18 @@ class YamlTemplate:
             state.grid = join_blocks(state)
         state.meta["faces"] = _face_report(state)
         state.meta["supported_segments"] = _supported_segments(state)
-        mesh = grid_to_mesh(state.grid, meta=state.meta)
-        check_cage(mesh, bodies, tolerance=p["max_penetration"] + 1e-3)
-        return mesh
+        repairs = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and hasattr(step, "repair")]
+        for round_ in range(_REPAIR_ROUNDS + 1):
+            mesh = grid_to_mesh(state.grid, meta=state.meta)
+            try:
+                check_cage(mesh, bodies, tolerance=p["max_penetration"] + 1e-3)
+                return mesh
+            except UnsupportedPoseError as e:
+                # repair the faces the check names (docs/templates.md, "Seed-independent success")
+                faces = e.diagnostics.get("crossing_faces")
+                if faces is None or round_ == _REPAIR_ROUNDS or not any(step.repair(state, faces, options=o) for step, o in repairs):
+                    raise
+        raise AssertionError("unreachable")
 
     def _block(self, person: int, body: Body, pressure: PressureField) -> Block:
         faces = {key: FaceState(spec, spec.segments) for key, spec in self.spec.faces.items()}

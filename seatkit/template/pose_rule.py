@@ -3,7 +3,7 @@
 The chair's grid runs from the feet up the legs, under the pelvis and up the
 back, with the legs side by side in front of the trunk (paper Sec. 5). The
 rule measures, on the posed skeleton only (joints and bone tips, no skin, no
-pressure), the four things that grid cannot follow (paper Sec. 6 and
+pressure), the things that grid cannot follow (paper Sec. 6 and
 docs/templates.md, "The pose rule"):
 
 - **lying on the side**: the body's left-right axis (hips and shoulders)
@@ -17,12 +17,9 @@ docs/templates.md, "The pose rule"):
 - **kneeling**: the same, with the knee within ``kneel_height`` of the
   floor and the thigh more than 45 deg below level: the body rests on the shins, which the chair's leg rows cannot
   reach from below;
-- **a hand hanging beside or below the seat** (sitting: the trunk within
-  60 deg of vertical, the thighs within 45 deg of level): a wrist less than
-  ``hand_clearance`` above the hip joints and more than
-  ``hand_side_margin`` outside them, or more than ``max_hand_drop`` below
-  them: the seat's side walls and front reach the ground there and would
-  cut the arm;
+- hands are not refused: hanging beside the seat, on the thighs, beside or
+  behind a calf, the chair is built around them (the fit repairs the faces
+  an arm meets; docs/templates.md, "The pose rule");
 - **standing on its own feet**: both thighs more than 45 deg below level and
   the centre of mass above the soles' footprint: the body needs no support
   and leans on nothing the chair could give.
@@ -53,9 +50,6 @@ DEFAULT_RULE = {
     "max_thigh_turn_deg": 50.0,
     "max_shank_back_deg": 25.0,
     "kneel_height": 0.2,
-    "hand_clearance": 0.05,
-    "hand_side_margin": 0.04,
-    "max_hand_drop": 0.08,
 }
 
 _UP = np.array([0.0, 1.0, 0.0])
@@ -155,35 +149,15 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
                 f"{r['max_shank_back_deg']:.0f}): a seat under the thigh would cut through the calf"
             )
             parts += [side + "Leg", side + "UpLeg"]
-    # hands hanging beside or below the seat (sitting only: standing and lying bodies have no seat beside the hands)
+    # where the hands are, for the record (no limit: see the module docstring)
     hips_c = 0.5 * (j[S["LeftUpLeg"]] + j[S["RightUpLeg"]])
     half = 0.5 * float(np.linalg.norm(j[S["LeftUpLeg"]] - j[S["RightUpLeg"]]))
     hip_axis = _unit(j[S["LeftUpLeg"]] - j[S["RightUpLeg"]])
     trunk_tilt = float(np.degrees(np.arccos(np.clip(trunk @ _UP, -1.0, 1.0))))
-    thigh_level = min(
-        abs(float(np.degrees(np.arcsin(np.clip(_unit(j[S[sd + "Leg"]] - j[S[sd + "UpLeg"]]) @ _UP, -1.0, 1.0))))) for sd in ("Right", "Left")
-    )
-    sitting = trunk_tilt < 60.0 and thigh_level < 45.0
-    measures.update({"trunk_tilt_deg": trunk_tilt, "sitting": sitting, "hands": {}})
+    measures.update({"trunk_tilt_deg": trunk_tilt, "hands": {}})
     for side in ("Right", "Left"):
         wrist = j[S[side + "Hand"]]
-        rise, out = float(wrist[1] - hips_c[1]), abs(float((wrist - hips_c) @ hip_axis)) - half
-        measures["hands"][side] = {"above_hips_m": rise, "outside_hips_m": out}
-        if not sitting:
-            continue
-        name = side.lower()
-        if rise < r["hand_clearance"] and out > r["hand_side_margin"]:
-            reasons.append(
-                f"the {name} hand hangs beside the seat ({100 * rise:.0f} cm above the hip joints, {100 * out:.0f} cm outside them): "
-                "the chair's side wall reaches the ground there and would cut the arm; rest it on the thigh or an armrest"
-            )
-            parts += [side + "ForeArm", side + "Hand"]
-        elif rise < -r["max_hand_drop"]:
-            reasons.append(
-                f"the {name} hand hangs {100 * -rise:.0f} cm below the hip joints (at most {100 * r['max_hand_drop']:.0f}): "
-                "the seat's front reaches the ground under it and would cut the arm"
-            )
-            parts += [side + "ForeArm", side + "Hand"]
+        measures["hands"][side] = {"above_hips_m": float(wrist[1] - hips_c[1]), "outside_hips_m": abs(float((wrist - hips_c) @ hip_axis)) - half}
     # standing on its own feet: both thighs pointing down and the centre of
     # mass above the soles' footprint (along the facing direction), so the
     # body needs no support (standing-leaning-back has its centre of mass
@@ -217,9 +191,6 @@ class PoseRuleStep:
         "max_thigh_turn_deg": Option("number", "largest turn of a thigh from straight ahead towards the line across the shoulders, seen from above", DEFAULT_RULE["max_thigh_turn_deg"], "deg", 0.0, 180.0),
         "max_shank_back_deg": Option("number", "largest swing of a shank behind the vertical through its knee", DEFAULT_RULE["max_shank_back_deg"], "deg", 0.0, 180.0),
         "kneel_height": Option("number", "a knee this close to the floor with its shank swung back is kneeling", DEFAULT_RULE["kneel_height"], "m", 0.0, 2.0),
-        "hand_clearance": Option("number", "sitting, a wrist less than this above the hip joints and outside them hangs beside the seat", DEFAULT_RULE["hand_clearance"], "m", 0.0, 1.0),
-        "hand_side_margin": Option("number", "how far outside the hip joints such a wrist must be", DEFAULT_RULE["hand_side_margin"], "m", 0.0, 1.0),
-        "max_hand_drop": Option("number", "sitting, a wrist more than this below the hip joints hangs below the seat", DEFAULT_RULE["max_hand_drop"], "m", 0.0, 2.0),
     }
 
     def run(self, state, *, options: Mapping[str, Any]) -> None:

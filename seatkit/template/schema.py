@@ -57,23 +57,37 @@ PARAMETERS: dict[str, tuple[float, str, str]] = {
 #: geometry meaningful (a support distance of a kilometre is not).
 PARAMETER_MAXIMA: dict[str, float] = {"count": 20_000, "m": 1.0, "deg": 180.0, "1": 100.0}
 
+#: Tighter maxima of single parameters. ``fit_attempts`` multiplies the
+#: template stage's worst case (a refused pose runs every start, (1 +
+#: optional steps) x fit_attempts of them, about 0.3-0.6 s each on the
+#: chair): 20 bounds a refusal of the chair at 80 starts, well under a
+#: minute, where 20,000 would be hours (docs/templates.md, "Seed-independent
+#: success").
+PARAMETER_LIMITS: dict[str, float] = {"fit_attempts": 20}
+
+
+def parameter_maximum(key: str) -> float:
+    """The largest value parameter ``key`` may take."""
+    return PARAMETER_LIMITS.get(key, PARAMETER_MAXIMA[PARAMETERS[key][1]])
+
 #: Most people a template may seat.
 MAX_PEOPLE = 64
 
 
-def _parameter_schema(unit: str) -> dict:
+def _parameter_schema(key: str, unit: str) -> dict:
     kind = "integer" if unit == "count" else "number"
-    return {"type": kind, "minimum": 1 if unit == "count" else 0, "maximum": PARAMETER_MAXIMA[unit]}
+    return {"type": kind, "minimum": 1 if unit == "count" else 0, "maximum": parameter_maximum(key)}
 
 
 def parameter_problem(key: str, value: Any) -> str | None:
     """What is wrong with ``value`` for parameter ``key`` (None if nothing).
 
     Counts are whole numbers (``2.5`` and ``1.0e+12`` are refused, not
-    truncated), the rest finite numbers from 0 to :data:`PARAMETER_MAXIMA`.
+    truncated), the rest finite numbers from 0 to :data:`PARAMETER_MAXIMA`
+    (or the parameter's own :data:`PARAMETER_LIMITS`).
     """
     unit = PARAMETERS[key][1]
-    hi = PARAMETER_MAXIMA[unit]
+    hi = parameter_maximum(key)
     if unit == "count":
         if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= hi:
             return f"expected a whole number from 1 to {int(hi)} ({unit}), got {quote(value)}"
@@ -117,7 +131,7 @@ TEMPLATE_SCHEMA: dict = {
         "parameters": {
             "type": "object",
             "additionalProperties": False,
-            "properties": {k: _parameter_schema(u) for k, (_, u, _) in PARAMETERS.items()},
+            "properties": {k: _parameter_schema(k, u) for k, (_, u, _) in PARAMETERS.items()},
         },
         "columns": {"type": "array", "items": _NAME, "minItems": 1, "uniqueItems": True},
         "rows": {

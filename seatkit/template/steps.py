@@ -419,13 +419,31 @@ def grid_quads(shape: tuple[int, int]) -> np.ndarray:
     return np.stack([ids[:-1, :-1], ids[:-1, 1:], ids[1:, 1:], ids[1:, :-1]], axis=-1).reshape(-1, 4)
 
 
-def lift_grid(state: FitState, options: Mapping[str, Any]) -> None:
-    """Lift the joined grid off the bodies (:func:`seatkit.template.clearance.lift_off_bodies`)."""
+#: ``facing`` of the first lift: only skin turned towards a face counts
+#: (a border wall folded over the feet is left alone).
+_FACING = -0.1
+#: ``facing`` of a repair: every body vertex over a named face counts,
+#: whichever way its skin turns (a dot product never exceeds 1).
+_FACING_ANY = 1.01
+
+
+def lift_grid(state: FitState, options: Mapping[str, Any], *, faces=None) -> dict:
+    """Lift the joined grid off the bodies (:func:`seatkit.template.clearance.lift_off_bodies`).
+
+    With ``faces`` (indices into :func:`grid_quads`), a repair: only the
+    vertices of those faces move, and every body vertex over them counts,
+    whichever way its skin turns (see :meth:`ClearanceStep.repair`).
+    Returns what was done (also kept in ``state.meta``).
+    """
     grid = state.grid
     p = state.params
     quads = grid_quads(grid.shape)
     V = grid.vertices.reshape(-1, 3)
     movable = ~grid.ground.ravel()
+    if faces is not None:
+        named = np.zeros(len(V), bool)
+        named[quads[np.asarray(faces, dtype=np.int64)].ravel()] = True
+        movable &= named
     res = lift_off_bodies(
         V,
         quads,
@@ -433,18 +451,25 @@ def lift_grid(state: FitState, options: Mapping[str, Any]) -> None:
         movable,
         target=-float(options.get("sink", 0.5 * p["max_penetration"])),
         depth=float(options.get("depth", 0.08)),
+        facing=_FACING if faces is None else _FACING_ANY,
         max_move=float(options.get("max_move", 0.3)),
         floor=-float(options.get("below_ground", 0.03)),
         rounds=int(options.get("rounds", 2)),
     )
     grid.vertices = res.vertices.reshape(grid.vertices.shape)
-    state.meta["clearance"] = {
+    report = {
         "moved_vertices": int((res.moves > 1e-6).sum()),
         "max_move": float(res.moves.max()),
         "constraints": res.rows,
         "rounds": res.rounds,
         "feasible": res.feasible,
     }
+    if faces is None:
+        state.meta["clearance"] = report
+    else:
+        report["faces"] = [str(grid.label.ravel()[i]) for i in faces]
+        state.meta.setdefault("repairs", []).append(report)
+    return report
 
 
 class ClearanceStep:
@@ -460,12 +485,28 @@ class ClearanceStep:
         "max_move": Option("number", "largest move of one vertex", 0.3, "m", 0.0, 2.0),
         "below_ground": Option("number", "deepest a vertex may end below the ground (y = 0)", 0.03, "m", 0.0, 1.0),
         "rounds": Option("count", "linear programmes solved, each re-linearised at the moved cage", 2, "", 1, 20),
+        "repair": Option("bool", "when the final check finds faces crossing a body, lift those faces again counting all the skin over them, then check again", True),
     }
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
         if state.grid is None:
             state.grid = join_blocks(state)
         lift_grid(state, options)
+
+    def repair(self, state: FitState, faces, *, options: Mapping[str, Any]) -> bool:
+        """Lift the faces the final check found crossing a body, counting all the skin over them.
+
+        The first lift counts only skin turned towards a face; where a face
+        meets a body part from the side (the calf's flank in the fold of a
+        raised knee, under the seat's front edge; an arm beside a wall) the
+        final check names it. The repair moves only those faces' vertices
+        (not the ground ring), with every body vertex over them, up to
+        ``depth`` below, required above them. The engine checks the cage
+        again; returns whether any vertex moved.
+        """
+        if not options.get("repair", True) or state.grid is None:
+            return False
+        return lift_grid(state, options, faces=faces)["moved_vertices"] > 0
 
 
 def builtin_steps() -> list:
