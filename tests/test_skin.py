@@ -134,3 +134,33 @@ def test_degenerate_triangles_and_stray_vertices_do_not_poison_answers():
     assert np.allclose(depth[:-1], clean, atol=1e-12)
     # the point by the stray vertices is answered from the skin, not from them
     assert depth[-1] < -0.005
+
+
+def test_points_in_open_space_under_a_self_touching_body_are_outside():
+    # crossed legs: each thigh's skin runs inside the other; below the crotch
+    # the nearest skin is buried skin facing up, whose side calls the open
+    # space under the body "inside" (40 cm deep, as the flat-patch baseline
+    # saw it)
+    from seatkit.pipeline import make_bodies
+    from seatkit.plugins import get_plugin_manager
+    from seatkit.recipe import load_recipe
+
+    registry = get_plugin_manager(autoload=False).registry
+    recipe, _ = load_recipe({"template": "chair", "bodies": [{"model": "default-male", "pose": "crossed-legs-ankles"}]})
+    body = make_bodies(recipe, registry)[0]
+    skin = SkinDistance(body.vertices, body.faces)
+    x, y, z = np.meshgrid(np.linspace(-0.06, 0.06, 7), np.linspace(0.0, 0.3, 16), np.linspace(0.0, 0.12, 7), indexing="ij")
+    column = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    points = np.vstack([[[-0.01303357, 0.01531762, 0.06865703]], column])
+    assert skin.winding_numbers(points[:1])[0] == pytest.approx(0.0, abs=1e-6)
+    depth, closest, out = skin.query(points)
+    # the side: inside only where the winding number says so
+    called_inside = np.flatnonzero(depth > 0)
+    assert np.all(skin.winding_numbers(points[called_inside]) > 0.5)
+    # the distance is still the one to the closest skin found, and the way out leads away from it
+    assert depth[0] == pytest.approx(-np.linalg.norm(points[0] - closest[0]))
+    assert depth[0] < -0.1
+    assert np.allclose(out[0], (points[0] - closest[0]) / np.linalg.norm(points[0] - closest[0]))
+    # far outside the skin's box, and in the open space between the box and the body: outside
+    assert np.all(skin._in_open_space(np.array([[0.0, -1.0, 0.0], [5.0, 5.0, 5.0], points[0]])))
+    assert not np.any(skin._in_open_space(body.vertices[::50]))  # the skin's own cells are never open

@@ -99,3 +99,14 @@ def test_topology_and_self_intersection_checks():
     # inconsistent winding is reported
     flipped = quads[:, ::-1]
     assert topology_problems(np.vstack([quads[:2], flipped[2:]]), 9)
+
+
+def test_a_long_bad_step_option_is_quoted_short():
+    # a fuzzed template gave a 5135-character message: the value was echoed whole
+    from seatkit.template.options import Option, _check_value
+
+    option = Option("number", "share of a segment's importance that may be occluded", 0.2, "1", 0.0, 1.0)
+    _, problem, _ = _check_value(option, "a" * 5000, {})
+    assert problem.startswith("expected a number from 0 to 1, got 'aaa")
+    assert len(problem) < 200
+    assert _check_value(option, 2.5, {})[1] == "expected a number from 0 to 1, got 2.5"

@@ -25,7 +25,12 @@ fit's time. Where the posed
 skin intersects itself (a hand sunk into a thigh), "inside" is the union of
 the parts and no local test is exact; the nearest feature's side is used
 there too, and :meth:`SkinDistance.max_depth` confirms inside points by
-their winding numbers. Vertices no face uses are ignored; the mesh is
+their winding numbers. The nearest feature can then be buried skin (below
+crossed legs, a thigh's skin inside the other thigh, facing up): a point
+the nearest feature calls inside is called outside when a coarse grid
+finds it in open space, connected to infinity without crossing the skin
+(its winding number is 0); without that, points 40 cm under such a body
+got a depth of +40 cm. Vertices no face uses are ignored; the mesh is
 expected to share vertices between its faces (a glTF body with split
 normals should be welded first).
 
@@ -37,6 +42,7 @@ the two.
 from __future__ import annotations
 
 import numpy as np
+from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from seatkit.cache import IdentityCache
@@ -65,6 +71,8 @@ class SkinDistance:
     EXACT_WITHIN = 0.015
     #: Nearest skin vertices whose triangles are candidates for the closest point.
     CANDIDATE_VERTICES = 2
+    #: Cell of the open-space grid that settles the side of points away from the skin, m.
+    OPEN_SPACE_CELL = 0.015
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
         v = np.asarray(vertices, dtype=np.float64)
@@ -122,6 +130,7 @@ class SkinDistance:
         self._d00 = np.einsum("ij,ij->i", self._ab, self._ab)
         self._d01 = np.einsum("ij,ij->i", self._ab, self._ac)
         self._d11 = np.einsum("ij,ij->i", self._ac, self._ac)
+        self._open = None  # (origin, cell, open-space mask), built on first use
 
     @classmethod
     def of(cls, vertices: np.ndarray, faces: np.ndarray) -> "SkinDistance":
@@ -168,7 +177,53 @@ class SkinDistance:
         if exact.size:
             d, q, n = self._exact(points[exact], candidates[exact])
             depth[exact], closest[exact], normal[exact] = d, q, n
+        # the nearest feature's side is wrong where it is buried skin (a
+        # thigh's skin inside the crossed other thigh faces that thigh): a
+        # point the open space connects to infinity is outside whatever it
+        # says
+        inside = np.flatnonzero(depth > 0.0)
+        if inside.size:
+            free = inside[self._in_open_space(points[inside])]
+            depth[free], normal[free] = -depth[free], -normal[free]
         return depth, closest, normal
+
+    def _in_open_space(self, points: np.ndarray) -> np.ndarray:
+        """(k,) bool: points certainly outside the body (winding number 0).
+
+        A grid of :attr:`OPEN_SPACE_CELL` cells over the skin's bounding box
+        (one empty layer around it) marks every cell a triangle touches
+        (samples at most a cell apart on each triangle, so that every point
+        of it is less than a cell from one, their cells dilated by one
+        cell: conservative); the unmarked cells connected to
+        the outer layer through faces are open space, where the winding
+        number is 0 (it changes only across the skin). Built on first use.
+        """
+        if self._open is None:
+            h = self.OPEN_SPACE_CELL
+            v, f = self.vertices, self.faces
+            origin = self.bounds[0] - 2.0 * h
+            shape = np.ceil((self.bounds[1] - origin) / h).astype(int) + 3
+            corners = v[f]  # (m, 3, 3)
+            longest = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max(axis=1)
+            steps = np.maximum(np.ceil(longest / h).astype(int), 1)
+            marked = np.zeros(shape, bool)
+            for n in np.unique(steps):
+                i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
+                keep = i + j <= n
+                bary = np.stack([n - i[keep] - j[keep], i[keep], j[keep]], axis=1) / n  # (s, 3)
+                samples = np.einsum("sc,mci->msi", bary, corners[steps == n]).reshape(-1, 3)
+                cells = np.floor((samples - origin) / h).astype(int)
+                marked[cells[:, 0], cells[:, 1], cells[:, 2]] = True
+            marked = ndimage.binary_dilation(marked, structure=np.ones((3, 3, 3), bool))
+            labels, _ = ndimage.label(~marked)  # face-connected components of the unmarked cells
+            self._open = (origin, h, labels == labels[0, 0, 0])
+        origin, h, open_space = self._open
+        cells = np.floor((points - origin) / h).astype(int)
+        within = np.all((cells >= 0) & (cells < open_space.shape), axis=1)
+        out = ~within
+        c = cells[within]
+        out[within] = open_space[c[:, 0], c[:, 1], c[:, 2]]
+        return out
 
     def _exact(self, points: np.ndarray, near: np.ndarray):
         cand = self.rings[near].reshape(len(points), -1)

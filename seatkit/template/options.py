@@ -41,6 +41,7 @@ from dataclasses import dataclass
 from typing import Any, Callable, Mapping, Sequence
 
 from seatkit.skeleton import SEGMENTS
+from seatkit.yamlio import quote
 
 __all__ = ["Option", "OPTION_TYPES", "check_step_options", "did_you_mean", "options_table"]
 
@@ -117,27 +118,27 @@ def _check_value(opt: Option, value: Any, names: Mapping[str, Sequence[str]]) ->
     t = opt.type
     if t in ("number", "count"):
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(float(value)):
-            return value, f"expected {opt.expected()}, got {value!r}", None
+            return value, f"expected {opt.expected()}, got {quote(value)}", None
         if t == "count" and float(value) != int(value):
-            return value, f"expected {opt.expected()}, got {value!r}", None
+            return value, f"expected {opt.expected()}, got {quote(value)}", None
         if (opt.minimum is not None and value < opt.minimum) or (opt.maximum is not None and value > opt.maximum):
-            return value, f"expected {opt.expected()}, got {value!r}", None
+            return value, f"expected {opt.expected()}, got {quote(value)}", None
         return (int(value) if t == "count" else float(value)), None, None
     if t == "bool":
         if not isinstance(value, bool):
-            return value, f"expected true or false, got {value!r}", None
+            return value, f"expected true or false, got {quote(value)}", None
         return value, None, None
     if t == "choice":
         if value not in opt.choices:
-            return value, f"expected one of {', '.join(opt.choices)}, got {value!r}{did_you_mean(value, opt.choices)}", None
+            return value, f"expected one of {', '.join(opt.choices)}, got {quote(value)}{did_you_mean(value, opt.choices)}", None
         return value, None, None
     allowed = list(names[t])
     if not isinstance(value, list) or not value:
-        return value, f"expected {opt.expected()} (a non-empty list), got {value!r}", None
+        return value, f"expected {opt.expected()} (a non-empty list), got {quote(value)}", None
     for j, v in enumerate(value):
         if v not in allowed:
             hint = did_you_mean(v, allowed) if isinstance(v, str) else ""
-            return value, f"unknown {t[:-1]} {v!r}; expected one of {', '.join(allowed)}{hint}", j
+            return value, f"unknown {t[:-1]} {quote(v)}; expected one of {', '.join(allowed)}{hint}", j
     return list(value), None, None
 
 
