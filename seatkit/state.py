@@ -48,7 +48,7 @@ def save_design(result: BuildResult, path) -> Path:
         for key in _MESH_ARRAYS:
             arrays[f"{role}_{key}"] = np.asarray(getattr(mesh, key))
         header["meshes"][role] = {"face_labels": list(mesh.face_labels), "meta": jsonable(mesh.meta)}
-    arrays["header"] = np.frombuffer(json.dumps(_without_timings(header), sort_keys=True).encode("utf-8"), dtype=np.uint8)
+    arrays["header"] = np.frombuffer(json.dumps(without_timings(header), sort_keys=True).encode("utf-8"), dtype=np.uint8)
     # byte-identical for the same inputs and seed: fixed zip timestamps, no timings
     buf = io.BytesIO()
     with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_DEFLATED) as zf:
@@ -61,12 +61,12 @@ def save_design(result: BuildResult, path) -> Path:
     return write_bytes_atomic(path, buf.getvalue())
 
 
-def _without_timings(value):
+def without_timings(value):
     """``value`` without the ``seconds`` entries (wall times differ run to run)."""
     if isinstance(value, dict):
-        return {k: _without_timings(v) for k, v in value.items() if k != "seconds"}
+        return {k: without_timings(v) for k, v in value.items() if k != "seconds"}
     if isinstance(value, list):
-        return [_without_timings(v) for v in value]
+        return [without_timings(v) for v in value]
     return value
 
 

@@ -22,16 +22,9 @@ import sys
 import zipfile
 from pathlib import Path
 
+from seatkit.state import without_timings
+
 _TIMES = re.compile(r"<!-- seatkit:timings -->.*?<!-- /seatkit:timings -->", re.S)
-
-
-def _without_seconds(value):
-    """``value`` without its ``seconds`` entries (the refiners' wall times in the cage's meta)."""
-    if isinstance(value, dict):
-        return {k: _without_seconds(v) for k, v in value.items() if k != "seconds"}
-    if isinstance(value, list):
-        return [_without_seconds(v) for v in value]
-    return value
 
 
 def _report_json(data: bytes):
@@ -39,7 +32,7 @@ def _report_json(data: bytes):
     report.pop("timings_s", None)
     for p in report.get("pressure", []):
         p.pop("solve_seconds", None)
-    return _without_seconds(report)
+    return without_timings(report)
 
 
 def _report_html(data: bytes) -> str:
