@@ -104,6 +104,29 @@ def test_a_vertex_is_drawn_in_the_colour_of_its_value_on_the_bar(tmp_path):
     assert np.abs(img[strip_top, strip_x] - scale.rgb([2000.0], 0, 2000)[0] * 255).max() <= 6.0
 
 
+def test_categories_are_drawn_in_their_own_colours_and_named_in_the_legend(tmp_path):
+    """Per-vertex colours (regions): each half of a grid facing the camera is its colour times the
+    headlight's shade, and the legend beside the view shows each colour's swatch."""
+    v, f = _grid(11, 11, -0.5, 0.5, 0.0, 1.0, 0.0)
+    red, blue = (0.84, 0.15, 0.16), (0.12, 0.47, 0.71)
+    colours = np.where((v[:, 0] < 0)[:, None], red, blue)
+    out = render_body(SimpleNamespace(vertices=v, faces=f), tmp_path / "regions.png", colors=colours,
+                      legend=[("left", red), ("right", blue)], views=("front",), show_ground=False, dpi=100, panel_size=4)
+    img, top, frame = _read(out, v, 400)
+    shade = rs.AMBIENT + rs.DIFFUSE * abs(rs.LIGHT_DIRECTION[2])
+    for point, colour in (((-0.3, 0.5, 0.0), red), ((0.3, 0.5, 0.0), blue)):
+        (x, y), = frame.project(np.array([point]))[0]
+        assert np.abs(img[top + int(y), int(x)] - np.array(colour) * 255 * shade).max() <= 3.0
+    legend = img[:, 400:]
+    for colour in (red, blue):  # an unshaded swatch of each colour
+        assert (np.abs(legend - np.round(np.array(colour) * 255)).max(axis=2) <= 1).sum() >= 100
+    with pytest.raises(ValueError, match="not both"):
+        render_body(SimpleNamespace(vertices=v, faces=f), tmp_path / "x.png", colors=colours, scalars=v[:, 0])
+    with pytest.raises(ValueError, match="colors must be"):
+        render_body(SimpleNamespace(vertices=v, faces=f), tmp_path / "x.png", colors=colours[:3])
+    assert not (tmp_path / "x.png").exists()
+
+
 def test_the_nearer_part_hides_the_farther_in_either_drawing_order(tmp_path):
     near_v, near_f = _grid(2, 2, -0.1, 0.3, 0.2, 0.6, 0.2)
     far_v, far_f = _grid(2, 2, -0.3, 0.1, 0.0, 0.4, 0.0)

@@ -91,6 +91,8 @@ def render_body(
     panel_size: float = 4.0,
     dpi: int = 110,
     base_color=(0.82, 0.70, 0.60),
+    colors=None,
+    legend=None,
 ) -> Path:
     """Draw a mesh from one or more views into a PNG.
 
@@ -127,6 +129,12 @@ def render_body(
     dpi : int
     base_color : RGB tuple
         Colour of the mesh without scalars.
+    colors : (n, 3) array_like, optional
+        Per-vertex RGB in [0, 1], for categories (regions, segments) that
+        have no order and so no colour bar; not with ``scalars``.
+    legend : sequence of (str, RGB), optional
+        Names of the colours, drawn right of the views in place of a
+        colour bar.
 
     Returns
     -------
@@ -140,6 +148,14 @@ def render_body(
     rotations = [view_axes(view) for view in views]  # refuses an unknown view before any work
     values = scale = None
     lo = hi = 0.0
+    if colors is not None:
+        if scalars is not None:
+            msg = "give scalars (a colour scale) or colors (per-vertex RGB), not both"
+            raise ValueError(msg)
+        base = np.asarray(colors, dtype=np.float64)
+        if base.shape != vertices.shape:
+            msg = f"colors must be ({len(vertices)}, 3), got {base.shape}"
+            raise ValueError(msg)
     if scalars is not None:
         values = np.asarray(scalars, dtype=np.float64)
         if values.shape != (len(vertices),):
@@ -165,7 +181,8 @@ def render_body(
     height += SCALE_BAND
     frames = [replace(f, height=height) for f in frames]
     normals = vertex_normals(vertices, faces)
-    base = np.broadcast_to(np.asarray(base_color, dtype=np.float64), vertices.shape)
+    if colors is None:
+        base = np.broadcast_to(np.asarray(base_color, dtype=np.float64), vertices.shape)
     text = pic.font(13)
     panels = []
     for view, frame in zip(views, frames):
@@ -186,6 +203,8 @@ def render_body(
         pic_draw.draw_scale_bar(image, frame, colour=SCALE_BAR_RGB, font=text)
         panels.append((image, _caption(view)))
     bar = pic.colour_bar(height, scale, lo, hi, scalar_label) if scale is not None else None
+    if legend is not None:
+        bar = pic.legend(height, legend, title=scalar_label)
     sheet = pic.sheet(title or "", panels, colorbar=bar)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

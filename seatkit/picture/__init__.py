@@ -11,7 +11,7 @@ surface is drawn with it: the report's pictures, ``seatkit body``,
 - :mod:`.colour`: colour scales as data (the report's pressure scale,
   ``magma_r``, ``viridis``) and round tick values;
 - :mod:`.sheet`: the house style: captioned panels in a grid, a title, a
-  colour bar with ticks in units, a table, PNG bytes;
+  colour bar with ticks in units, a legend of named colours, a table, PNG bytes;
 - :mod:`.draw`: lines over a picture (a cage's edges with hidden lines
   removed, a skeleton, a ground line, a scale bar).
 """
@@ -20,7 +20,7 @@ from __future__ import annotations
 
 from seatkit.picture.colour import PRESSURE_SCALE, ColourScale, colour_scale, nice_ticks
 from seatkit.picture.raster import Frame, Raster, composite, fit_frame, fit_frames, light_vertices, rasterize, to_uint8, view_rotation
-from seatkit.picture.sheet import BACKGROUND, TEXT, colour_bar, font, png_bytes, sheet, to_pil
+from seatkit.picture.sheet import BACKGROUND, TEXT, colour_bar, font, legend, png_bytes, sheet, to_pil
 
 __all__ = [
     "BACKGROUND",
@@ -35,6 +35,7 @@ __all__ = [
     "fit_frame",
     "fit_frames",
     "font",
+    "legend",
     "light_vertices",
     "nice_ticks",
     "png_bytes",

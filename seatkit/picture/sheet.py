@@ -17,7 +17,7 @@ import numpy as np
 from seatkit.picture.colour import ColourScale, nice_ticks
 from seatkit.picture.raster import to_uint8
 
-__all__ = ["BACKGROUND", "TEXT", "colour_bar", "font", "png_bytes", "sheet", "to_pil"]
+__all__ = ["BACKGROUND", "TEXT", "colour_bar", "font", "legend", "png_bytes", "sheet", "to_pil"]
 
 #: Background of every picture, RGB in [0, 1].
 BACKGROUND = np.array([0.965, 0.965, 0.975])
@@ -78,6 +78,35 @@ def colour_bar(height: int, scale: ColourScale, low: float, high: float, label: 
         y = bottom - ((tick - lo) / (hi - lo)) * (bottom - top) if hi > lo else bottom
         draw.line([(tick_x, y), (tick_x + 4, y)], fill=TEXT)
         draw.text((tick_x + 7, y - 7), f"{tick:g}", fill=TEXT, font=text)
+    return img
+
+
+def legend(height: int, entries, *, title: str = "", background=BACKGROUND):
+    """A column of colour swatches and their names (PIL image), for categories that have no order.
+
+    Parameters
+    ----------
+    height : int
+        Pixels (as high as the views beside it, or more if the entries need it).
+    entries : sequence of (str, RGB)
+        Names and colours in [0, 1], top to bottom.
+    title : str
+        Written above the swatches.
+    """
+    from PIL import Image, ImageDraw
+
+    text = font(13)
+    swatch, row = 14, 22
+    top = BAR_MARGIN + (row if title else 0)
+    need_w = max([text.getlength(title) + 8] + [BAR_STRIP_LEFT + swatch + 8 + text.getlength(name) + 4 for name, _ in entries])
+    img = Image.new("RGB", (max(BAR_WIDTH, math.ceil(need_w)), max(height, top + row * len(entries) + BAR_MARGIN)), _background_bytes(background))
+    draw = ImageDraw.Draw(img)
+    if title:
+        draw.text((4, 6), title, fill=TEXT, font=text)
+    for i, (name, rgb) in enumerate(entries):
+        y = top + i * row
+        draw.rectangle([BAR_STRIP_LEFT, y, BAR_STRIP_LEFT + swatch, y + swatch], fill=_background_bytes(rgb), outline=TEXT)
+        draw.text((BAR_STRIP_LEFT + swatch + 8, y), name, fill=TEXT, font=text)
     return img
 
 
