@@ -28,7 +28,7 @@ scikit-fem's scalar degree of freedom ``d``.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -169,6 +169,7 @@ class _Points:
     g: np.ndarray  # (E, P, 3, 3): g[e, p, j] = dx / dxi_j
     inv: np.ndarray  # (E, P, 3, 3): inv[e, p, i, k] = dxi_i / dx_k
     det: np.ndarray  # (E, P)
+    cache: dict = field(default_factory=dict, repr=False)  # constants derived from X (per rule)
 
     @property
     def dx(self) -> np.ndarray:
@@ -260,9 +261,16 @@ class Elasticity:
         shapes = [self.element.lbasis(X, a) for a in self.slots]
         values = np.stack([v for v, _ in shapes], axis=1)  # (P, 27)
         ref = np.stack([d for _, d in shapes], axis=1).transpose(2, 1, 0)  # (P, 27, 3)
-        g = np.einsum("eam,paj->epjm", self._x, ref)  # (E, P, 3, 3): row j is dx/dxi_j
-        jac = g.transpose(0, 1, 3, 2)  # jac[m, j] = dx_m / dxi_j
-        return _Points(X, W, values, ref, g, np.linalg.inv(jac), np.linalg.det(jac))
+        n_p = X.shape[1]
+        # g[e, p, j, m] = sum_a dN_a/dxi_j(p) x[e, a, m]: one (3 P, 27) x (27, 3) product per element
+        g = np.matmul(ref.transpose(0, 2, 1).reshape(3 * n_p, 27), self._x).reshape(-1, n_p, 3, 3)
+        # the inverse of jac[m, j] = dx_m / dxi_j, row by row: the contravariant base vectors
+        # g^i = (g_j x g_k) / det with det = g_0 . (g_1 x g_2)
+        adj = np.stack([np.cross(g[:, :, 1], g[:, :, 2]), np.cross(g[:, :, 2], g[:, :, 0]), np.cross(g[:, :, 0], g[:, :, 1])], axis=2)
+        det = np.einsum("epm,epm->ep", g[:, :, 0], adj[:, :, 0])
+        with np.errstate(divide="ignore", invalid="ignore"):  # a degenerate point: inf, as the element is
+            inv = adj / det[:, :, None, None]
+        return _Points(X, W, values, ref, g, inv, det)
 
     @property
     def det(self) -> np.ndarray:
@@ -360,6 +368,27 @@ class Elasticity:
         cov[:, :, 2] = np.einsum("epc,pa,eac->ep", points.g[:, :, 2], points.ref[:, :, 2], U)
         return np.einsum("epvc,epc->epv", _to_cartesian(points.inv), cov)
 
+    def _assumed_gradients(self, points: _Points, comp: tuple[int, int]) -> np.ndarray:
+        """(P 27, T) or (P 27, 2 T): the reference gradients of :func:`_covariant` at the tying points of ``comp``, interpolated to ``points``.
+
+        The assumed covariant strain ``e_ij`` at point ``p``, as a row over
+        node ``a``'s displacement, is ``sum_t I[p, t] (dN_a/dxi_j g_i + dN_a/dxi_i g_j)(t) / 2``
+        (``I`` the tying interpolation): this constant times the stacked
+        base vectors ``[g_i(t); g_j(t)]`` of the element, one product per
+        element instead of rows at the tying points then their interpolation.
+        """
+        key = ("assumed", comp)
+        if key not in points.cache:
+            i, j = comp
+            part = dict((c, p) for p, cs in self._tying_parts() for c in cs)[comp]
+            ref = self._tying_points().ref[part]  # (T, 27, 3)
+            I = points.tying[comp]  # (P, T)
+            C = I[:, None, :] * ref[None, :, :, j].transpose(0, 2, 1)  # (P, 27, T): I[p, t] dN_a/dxi_j(t)
+            if i != j:
+                C = 0.5 * np.concatenate([C, I[:, None, :] * ref[None, :, :, i].transpose(0, 2, 1)], axis=2)
+            points.cache[key] = np.ascontiguousarray(C.reshape(-1, C.shape[2]))
+        return points.cache[key]
+
     def strain_rows(self, points: _Points, elements: slice, left=None, weight=None) -> np.ndarray:
         """(e, P, 6, 81) assumed Cartesian strains at ``points`` of ``elements``, as rows over the element's unknowns.
 
@@ -372,14 +401,15 @@ class Elasticity:
         ``left`` (6, 6) multiplies the rows from the left and ``weight``
         (e, P) scales them (both folded into the small transform).
         """
-        tying = self._tying_points()
-        g_t = tying.g[elements]
+        g_t = self._tying_points().g[elements]
         n, n_p = len(g_t), points.X.shape[1]
         cov = np.empty((n, n_p, 6, 81))
         for part, comps in self._tying_parts():
-            for comp in comps:
-                rows = _covariant(g_t[:, part], tying.ref[part], *comp)  # (e, T, 81)
-                cov[:, :, _COVARIANT.index(comp)] = np.matmul(points.tying[comp], rows)
+            for i, j in comps:
+                # the tying points' base vectors g_i (and g_j) times the constant interpolated gradients
+                G = g_t[:, part, i] if i == j else np.concatenate([g_t[:, part, i], g_t[:, part, j]], axis=1)
+                rows = np.matmul(self._assumed_gradients(points, (i, j)), G)  # (e, P 27, 3)
+                cov[:, :, _COVARIANT.index((i, j))] = rows.reshape(n, n_p, 81)
         cov[:, :, 2] = _covariant(points.g[elements], points.ref, 2, 2)
         T = _to_cartesian(points.inv[elements])  # (e, P, 6, 6)
         if left is not None:
