@@ -441,10 +441,10 @@ class Elasticity:
         cols = np.broadcast_to(loc[:, None, :], pair.shape)[pair]
         keys, block = np.unique(rows * n + cols, return_inverse=True)
         K = Ke.reshape(n_el, n_b, 3, n_b, 3).transpose(0, 1, 3, 2, 4)[pair]  # (pairs, 3, 3)
-        data = np.empty((len(keys), 3, 3))
-        for i in range(3):
-            for j in range(3):
-                data[:, i, j] = np.bincount(block, weights=K[:, i, j], minlength=len(keys))
+        # each block the sum of its pairs': one sparse product with the pairs -> blocks incidence
+        # (in CSC, one entry per pair's column: no sorting needed)
+        S = sp.csc_matrix((np.ones(len(block)), block, np.arange(len(block) + 1)), shape=(len(keys), len(block)))
+        data = (S @ K.reshape(-1, 9)).reshape(-1, 3, 3)
         indptr = np.searchsorted(keys // n, np.arange(n + 1)) if n else np.zeros(1, np.int64)
         A = sp.bsr_matrix((data, keys % n if n else keys, indptr), shape=(3 * n, 3 * n))
         return A.tocsr()
