@@ -290,3 +290,16 @@ def test_a_nearly_singular_stiffness_is_refused_not_answered():
     sol = model.solve(_pressure(mesh, 2000.0) + model.weight_load(), ends)
     applied = sol.load.sum(axis=0)
     assert np.abs(sol.reaction.sum(axis=0) + applied).max() <= 1e-6 * np.abs(applied).max()
+
+
+def test_strains_of_u_equal_the_strain_rows_times_u():
+    """The stresses' strains, from the tying-point strains of u directly, are the stiffness' strain rows times u."""
+    V, N, q9 = plate_quads9(3, 2, 0.3, 0.2)
+    V = V + np.c_[0.02 * np.sin(7 * V[:, 2]), 0.1 * V[:, 0] ** 2 + 0.2 * V[:, 2] ** 2, 0.01 * V[:, 0]]
+    mesh = ShellMesh.extrude(V, N, q9, 0.02)
+    model = Elasticity(mesh, NU03)
+    u = np.random.default_rng(2).standard_normal(model.n_dofs) * 1e-3
+    for points in (model.stress_points, model.full):
+        rows = model.strain_rows(points, slice(None))  # (E, P, 6, 81)
+        expected = np.einsum("epvx,ex->epv", rows, u[model._vector_dofs()])
+        assert np.abs(model.strains(points, u) - expected).max() <= 1e-12 * np.abs(expected).max()

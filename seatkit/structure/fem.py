@@ -464,7 +464,12 @@ class Elasticity:
         every element (the centre, and with one layer the centres of the
         top and bottom faces: a quarter of the unknowns), are eliminated
         element by element first (static condensation, exact), SuperLU
-        factorises what remains, and they are recovered from it.
+        factorises what remains, and they are recovered from it. One step
+        of iterative refinement follows, its residual from the stable
+        element product (:meth:`_element_product`), and the reactions are
+        that product less the load at the held nodes; a solution whose
+        reaction misses the load by more than :data:`IMBALANCE_LIMIT` is
+        refused (:meth:`_check_equilibrium`).
         """
         import scipy.sparse.linalg as sla
 
