@@ -228,3 +228,78 @@ def test_thin_curved_shell_does_not_lock():
     """The Scordelis-Lo roof (R/t = 100) at 8 x 8 elements within 3% of 0.3024; fully integrated it locks."""
     assert _scordelis_lo_roof(SPAN_ELEMENTS) == pytest.approx(0.3024, rel=0.03)
     assert _scordelis_lo_roof(SPAN_ELEMENTS, assumed_strain=False) < 0.9 * 0.3024
+
+
+def test_element_product_is_the_stiffness_times_u():
+    """The stable element product (each element's rigid motion taken out first) is K u, to rounding."""
+    V, N, q9 = plate_quads9(3, 2, 0.3, 0.2)
+    V = V + np.c_[0.02 * np.sin(7 * V[:, 2]), 0.1 * V[:, 0] ** 2, 0.01 * V[:, 0]]  # curved and skewed
+    mesh = ShellMesh.extrude(V, N, q9, 0.02)
+    model = Elasticity(mesh, NU03)
+    u = np.random.default_rng(1).standard_normal(model.n_dofs) * 1e-3
+    expected = model.stiffness @ u
+    assert np.abs(model._element_product(u) - expected).max() <= 1e-11 * np.abs(expected).max()
+    # a rigid motion (a translation plus a rotation) has no internal force, element by element
+    x = np.zeros((model.n_scalar, 3))
+    x[model.dof] = mesh.nodes
+    rigid = (np.array([1e-3, -2e-3, 5e-4]) + np.cross([0.01, -0.02, 0.03], x)).ravel()
+    assert np.abs(model._element_product(rigid)).max() <= 1e-13 * abs(model.stiffness).max() * np.abs(rigid).max()
+
+
+def _corrugated(amplitude, t=0.04, span=1.0, waves=4, nx=16):
+    """A plate corrugated along x (y = A sin(2 pi waves x / span)), its shell offset below it by ``t``."""
+    V, N, q9 = plate_quads9(nx, 2, span, 0.2)
+    k = 2 * np.pi * waves / span
+    V = V.copy()
+    V[:, 1] = amplitude * np.sin(k * V[:, 0])
+    slope = amplitude * k * np.cos(k * V[:, 0])
+    N = np.stack([-slope, np.ones_like(slope), np.zeros_like(slope)], axis=1)
+    N /= np.linalg.norm(N, axis=1)[:, None]
+    mesh = ShellMesh.extrude(V, N, q9, t)
+    return mesh, Elasticity(mesh, MATERIALS["birch-plywood"])
+
+
+def test_a_nearly_singular_stiffness_is_refused_not_answered():
+    """A shell folded exactly through itself has a nearly singular stiffness: one clear error, no wrong numbers.
+
+    The corrugation's crests curl tighter as the amplitude grows; past the
+    thickness the offset folds over itself. Bisecting the amplitude to where
+    the mapping of the crest elements nearly vanishes at a quadrature point
+    (smallest over largest determinant 1e-6) makes the stiffness nearly
+    singular: the displacements SuperLU returns balance nothing, and the
+    floor reaction, which must equal the load, shows it.
+    """
+    from seatkit.structure import StructureError
+
+    lo, hi = 0.01, 0.08  # sound, folded
+    assert _corrugated(lo)[1].det.min() > 0 > _corrugated(hi)[1].det.min()
+    for _ in range(60):
+        mesh, model = _corrugated(lo)
+        if model.det.min() < 1e-6 * model.det.max():
+            break
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _corrugated(mid)[1].det.min() > 0 else (lo, mid)
+    assert model.det.min() < 1e-6 * model.det.max()
+    x = mesh.nodes[:, 0]
+    ends = np.flatnonzero((x < 1e-9) | (x > 1.0 - 1e-9))
+    with pytest.raises(StructureError, match="floor reaction misses the applied load"):
+        model.solve(_pressure(mesh, 2000.0) + model.weight_load(), ends)
+    # a little less amplitude (the fold's mapping 1e-3 from vanishing) is solved, and balances
+    mesh, model = _corrugated(0.0558)
+    assert 0 < model.det.min() < 2e-3 * model.det.max()
+    sol = model.solve(_pressure(mesh, 2000.0) + model.weight_load(), ends)
+    applied = sol.load.sum(axis=0)
+    assert np.abs(sol.reaction.sum(axis=0) + applied).max() <= 1e-6 * np.abs(applied).max()
+
+
+def test_strains_of_u_equal_the_strain_rows_times_u():
+    """The stresses' strains, from the tying-point strains of u directly, are the stiffness' strain rows times u."""
+    V, N, q9 = plate_quads9(3, 2, 0.3, 0.2)
+    V = V + np.c_[0.02 * np.sin(7 * V[:, 2]), 0.1 * V[:, 0] ** 2 + 0.2 * V[:, 2] ** 2, 0.01 * V[:, 0]]
+    mesh = ShellMesh.extrude(V, N, q9, 0.02)
+    model = Elasticity(mesh, NU03)
+    u = np.random.default_rng(2).standard_normal(model.n_dofs) * 1e-3
+    for points in (model.stress_points, model.full):
+        rows = model.strain_rows(points, slice(None))  # (E, P, 6, 81)
+        expected = np.einsum("epvx,ex->epv", rows, u[model._vector_dofs()])
+        assert np.abs(model.strains(points, u) - expected).max() <= 1e-12 * np.abs(expected).max()

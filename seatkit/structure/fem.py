@@ -28,7 +28,7 @@ scikit-fem's scalar degree of freedom ``d``.
 from __future__ import annotations
 
 import functools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -40,9 +40,13 @@ from seatkit.structure.mesh import ShellMesh
 
 __all__ = ["Elasticity", "Solution"]
 
+@functools.cache
 def _gauss(points: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre points and weights on [0, 1] (read-only: shared between calls)."""
     x, w = np.polynomial.legendre.leggauss(points)
-    return 0.5 * (x + 1.0), 0.5 * w
+    x, w = 0.5 * (x + 1.0), 0.5 * w
+    x.flags.writeable = w.flags.writeable = False
+    return x, w
 
 
 _G2 = _gauss(2)[0]
@@ -58,6 +62,9 @@ _VOIGT = ((0, 0, 1.0), (1, 1, 1.0), (2, 2, 1.0), (0, 1, np.sqrt(2.0)), (1, 2, np
 #: rr and rz on 2 x 3 points, ss and sz on 3 x 2, rs on 2 x 2.
 _TYING_SETS = {(2, 3): ((0, 0), (0, 2)), (3, 2): ((1, 1), (1, 2)), (2, 2): ((0, 1),)}
 _TYING_OF = {comp: grid for grid, comps in _TYING_SETS.items() for comp in comps}
+#: Largest relative miss of the floor reaction against the applied load that a solution may have
+#: (the rounding of a sound solve is below 1e-6, docs/structure.md "Solve").
+IMBALANCE_LIMIT = 1e-4
 #: Elements per chunk when building the assumed-strain stiffness and stresses.
 CHUNK = 128
 
@@ -83,9 +90,12 @@ def _stress_rule() -> tuple[np.ndarray, np.ndarray]:
     return X, np.einsum("i,j,k->ijk", w2, w2, np.full(3, 1.0 / 3.0)).ravel()
 
 
+@functools.cache
 def _tying_grid(grid: tuple[int, int]) -> np.ndarray:
-    """(3, nr ns 3) reference points of a tying grid: Gauss points in r and s, at the 3 Gauss heights."""
-    return np.array(np.meshgrid(_gauss(grid[0])[0], _gauss(grid[1])[0], _G3, indexing="ij")).reshape(3, -1)
+    """(3, nr ns 3) reference points of a tying grid: Gauss points in r and s, at the 3 Gauss heights (read-only)."""
+    X = np.array(np.meshgrid(_gauss(grid[0])[0], _gauss(grid[1])[0], _G3, indexing="ij")).reshape(3, -1)
+    X.flags.writeable = False
+    return X
 
 
 def _lagrange_1d(nodes: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -159,6 +169,7 @@ class _Points:
     g: np.ndarray  # (E, P, 3, 3): g[e, p, j] = dx / dxi_j
     inv: np.ndarray  # (E, P, 3, 3): inv[e, p, i, k] = dxi_i / dx_k
     det: np.ndarray  # (E, P)
+    cache: dict = field(default_factory=dict, repr=False)  # constants derived from X (per rule)
 
     @property
     def dx(self) -> np.ndarray:
@@ -168,6 +179,11 @@ class _Points:
     def grads(self, elements=slice(None)) -> np.ndarray:
         """(e, P, 27, 3) physical gradients ``dN_a / dx_k``."""
         return np.matmul(self.ref[None], self.inv[elements])
+
+    @functools.cached_property
+    def tying(self) -> dict:
+        """Per assumed covariant component, its (P, T) interpolation from the tying points (:func:`_tying_matrix`)."""
+        return {comp: _tying_matrix(comp, self.X) for comp in _TYING_OF}
 
 
 def _chunks(n: int, size: int = CHUNK):
@@ -217,13 +233,23 @@ class Elasticity:
         self.skmesh = mesh.skfem_mesh()
         self.element = skfem.ElementHex2()
         dofs = skfem.assembly.Dofs(self.skmesh, self.element)
-        self.element_dofs = np.asarray(dofs.element_dofs)  # (27, E) scalar degrees of freedom
+        element_dofs = np.asarray(dofs.element_dofs)  # (27, E) scalar degrees of freedom
         self.n_scalar = int(dofs.N)
         self.assumed_strain = bool(assumed_strain)
+        # the element's own nodes (the slots whose node is in no other element: the centre and,
+        # with one layer, the centres of the top and bottom faces) last, so that the static
+        # condensation of :meth:`solve` reads contiguous blocks of the element matrices
+        count = np.bincount(element_dofs.ravel(), minlength=self.n_scalar)
+        own = (count[element_dofs] == 1).all(axis=1)
+        self.slots = np.concatenate([np.flatnonzero(~own), np.flatnonzero(own)])  # element slot order used here
+        self.n_outer = int((~own).sum())
+        self.element_dofs = element_dofs  # scikit-fem's slot order
+        self._edofs = element_dofs[self.slots]  # the order of :attr:`slots`, used by the element matrices
+        elements = mesh.elements[self.slots]
         # mesh node -> scalar degree of freedom (MeshHex2 renumbers the nodes)
         self.dof = np.empty(len(mesh.nodes), np.int64)
-        self.dof[mesh.elements.ravel()] = self.element_dofs.ravel()
-        self._x = np.ascontiguousarray(mesh.nodes[mesh.elements.T])  # (E, 27, 3) element nodes
+        self.dof[mesh.elements.ravel()] = element_dofs.ravel()
+        self._x = np.ascontiguousarray(mesh.nodes[elements.T])  # (E, 27, 3) element nodes
         self.full = self._points(*_full_rule())
         self.dx = self.full.dx
         self.volume = float(self.dx.sum())
@@ -232,12 +258,19 @@ class Elasticity:
         self.element_stiffness = self._element_stiffness()  # (E, 81, 81)
 
     def _points(self, X: np.ndarray, W: np.ndarray) -> _Points:
-        shapes = [self.element.lbasis(X, a) for a in range(27)]
+        shapes = [self.element.lbasis(X, a) for a in self.slots]
         values = np.stack([v for v, _ in shapes], axis=1)  # (P, 27)
         ref = np.stack([d for _, d in shapes], axis=1).transpose(2, 1, 0)  # (P, 27, 3)
-        g = np.einsum("eam,paj->epjm", self._x, ref)  # (E, P, 3, 3): row j is dx/dxi_j
-        jac = g.transpose(0, 1, 3, 2)  # jac[m, j] = dx_m / dxi_j
-        return _Points(X, W, values, ref, g, np.linalg.inv(jac), np.linalg.det(jac))
+        n_p = X.shape[1]
+        # g[e, p, j, m] = sum_a dN_a/dxi_j(p) x[e, a, m]: one (3 P, 27) x (27, 3) product per element
+        g = np.matmul(ref.transpose(0, 2, 1).reshape(3 * n_p, 27), self._x).reshape(-1, n_p, 3, 3)
+        # the inverse of jac[m, j] = dx_m / dxi_j, row by row: the contravariant base vectors
+        # g^i = (g_j x g_k) / det with det = g_0 . (g_1 x g_2)
+        adj = np.stack([np.cross(g[:, :, 1], g[:, :, 2]), np.cross(g[:, :, 2], g[:, :, 0]), np.cross(g[:, :, 0], g[:, :, 1])], axis=2)
+        det = np.einsum("epm,epm->ep", g[:, :, 0], adj[:, :, 0])
+        with np.errstate(divide="ignore", invalid="ignore"):  # a degenerate point: inf, as the element is
+            inv = adj / det[:, :, None, None]
+        return _Points(X, W, values, ref, g, inv, det)
 
     @property
     def det(self) -> np.ndarray:
@@ -249,7 +282,7 @@ class Elasticity:
         return 3 * self.n_scalar
 
     def _vector_dofs(self) -> np.ndarray:
-        d = self.element_dofs.T  # (E, 27)
+        d = self._edofs.T  # (E, 27)
         return (3 * d[:, :, None] + np.arange(3)).reshape(len(d), -1)  # (E, 81): node-major, then component
 
     @functools.cached_property
@@ -297,6 +330,65 @@ class Elasticity:
             np.matmul(B.transpose(0, 2, 1), B, out=K[chunk])
         return K
 
+    def _tying_points(self) -> _Points:
+        """The mapping at every MITC9 tying point (the grids of :data:`_TYING_SETS` one after the other), computed once."""
+        if self._tying is None:
+            T = np.concatenate([_tying_grid(grid) for grid in _TYING_SETS], axis=1)
+            self._tying = self._points(T, np.ones(T.shape[1]))
+        return self._tying
+
+    @staticmethod
+    def _tying_parts() -> list[tuple[slice, tuple]]:
+        """(slice of the tying points, covariant components tied there) per grid of :data:`_TYING_SETS`."""
+        out, start = [], 0
+        for grid, comps in _TYING_SETS.items():
+            stop = start + _tying_grid(grid).shape[1]
+            out.append((slice(start, stop), comps))
+            start = stop
+        return out
+
+    def strains(self, points: _Points, u: np.ndarray) -> np.ndarray:
+        """(E, P, 6) assumed Cartesian strains of the displacement ``u`` (3 N_dofs,) at ``points``.
+
+        The same strains as ``strain_rows(points) @ u_e``, computed from the
+        displacement's covariant strains at the tying points directly: no
+        rows over the element's unknowns (a test checks the two agree).
+        """
+        U = u.reshape(-1, 3)[self._edofs.T]  # (E, 27, 3)
+        tying = self._tying_points()
+        dU = np.einsum("taj,eac->etjc", tying.ref, U)  # du / dxi_j at the tying points
+        g = tying.g  # g[e, t, j] = dx / dxi_j
+        cov = np.empty((len(U), points.X.shape[1], 6))
+        for part, comps in self._tying_parts():
+            for i, j in comps:
+                e_ij = np.einsum("etc,etc->et", g[:, part, i], dU[:, part, j])
+                if i != j:
+                    e_ij = 0.5 * (e_ij + np.einsum("etc,etc->et", g[:, part, j], dU[:, part, i]))
+                cov[:, :, _COVARIANT.index((i, j))] = e_ij @ points.tying[(i, j)].T
+        cov[:, :, 2] = np.einsum("epc,pa,eac->ep", points.g[:, :, 2], points.ref[:, :, 2], U)
+        return np.einsum("epvc,epc->epv", _to_cartesian(points.inv), cov)
+
+    def _assumed_gradients(self, points: _Points, comp: tuple[int, int]) -> np.ndarray:
+        """(P 27, T) or (P 27, 2 T): the reference gradients of :func:`_covariant` at the tying points of ``comp``, interpolated to ``points``.
+
+        The assumed covariant strain ``e_ij`` at point ``p``, as a row over
+        node ``a``'s displacement, is ``sum_t I[p, t] (dN_a/dxi_j g_i + dN_a/dxi_i g_j)(t) / 2``
+        (``I`` the tying interpolation): this constant times the stacked
+        base vectors ``[g_i(t); g_j(t)]`` of the element, one product per
+        element instead of rows at the tying points then their interpolation.
+        """
+        key = ("assumed", comp)
+        if key not in points.cache:
+            i, j = comp
+            part = dict((c, p) for p, cs in self._tying_parts() for c in cs)[comp]
+            ref = self._tying_points().ref[part]  # (T, 27, 3)
+            I = points.tying[comp]  # (P, T)
+            C = I[:, None, :] * ref[None, :, :, j].transpose(0, 2, 1)  # (P, 27, T): I[p, t] dN_a/dxi_j(t)
+            if i != j:
+                C = 0.5 * np.concatenate([C, I[:, None, :] * ref[None, :, :, i].transpose(0, 2, 1)], axis=2)
+            points.cache[key] = np.ascontiguousarray(C.reshape(-1, C.shape[2]))
+        return points.cache[key]
+
     def strain_rows(self, points: _Points, elements: slice, left=None, weight=None) -> np.ndarray:
         """(e, P, 6, 81) assumed Cartesian strains at ``points`` of ``elements``, as rows over the element's unknowns.
 
@@ -309,20 +401,15 @@ class Elasticity:
         ``left`` (6, 6) multiplies the rows from the left and ``weight``
         (e, P) scales them (both folded into the small transform).
         """
-        X = points.X
-        if self._tying is None:
-            T = np.concatenate([_tying_grid(grid) for grid in _TYING_SETS], axis=1)
-            self._tying = self._points(T, np.ones(T.shape[1]))
-        g_t = self._tying.g[elements]
-        n, n_p = len(g_t), X.shape[1]
+        g_t = self._tying_points().g[elements]
+        n, n_p = len(g_t), points.X.shape[1]
         cov = np.empty((n, n_p, 6, 81))
-        start = 0
-        for grid, comps in _TYING_SETS.items():
-            part = slice(start, start + _tying_grid(grid).shape[1])
-            for comp in comps:
-                rows = _covariant(g_t[:, part], self._tying.ref[part], *comp)  # (e, T, 81)
-                cov[:, :, _COVARIANT.index(comp)] = np.matmul(_tying_matrix(comp, X), rows)
-            start = part.stop
+        for part, comps in self._tying_parts():
+            for i, j in comps:
+                # the tying points' base vectors g_i (and g_j) times the constant interpolated gradients
+                G = g_t[:, part, i] if i == j else np.concatenate([g_t[:, part, i], g_t[:, part, j]], axis=1)
+                rows = np.matmul(self._assumed_gradients(points, (i, j)), G)  # (e, P 27, 3)
+                cov[:, :, _COVARIANT.index((i, j))] = rows.reshape(n, n_p, 81)
         cov[:, :, 2] = _covariant(points.g[elements], points.ref, 2, 2)
         T = _to_cartesian(points.inv[elements])  # (e, P, 6, 6)
         if left is not None:
@@ -342,7 +429,7 @@ class Elasticity:
         to CSR. Rows and columns follow the kept degrees of freedom in order,
         3 per node.
         """
-        d = self.element_dofs.T if element_nodes is None else element_nodes  # (E, m)
+        d = self._edofs.T if element_nodes is None else element_nodes  # (E, m)
         Ke = self.element_stiffness if element_matrices is None else element_matrices
         n_el, n_b = d.shape
         index = np.full(self.n_scalar, -1, np.int64)
@@ -354,10 +441,10 @@ class Elasticity:
         cols = np.broadcast_to(loc[:, None, :], pair.shape)[pair]
         keys, block = np.unique(rows * n + cols, return_inverse=True)
         K = Ke.reshape(n_el, n_b, 3, n_b, 3).transpose(0, 1, 3, 2, 4)[pair]  # (pairs, 3, 3)
-        data = np.empty((len(keys), 3, 3))
-        for i in range(3):
-            for j in range(3):
-                data[:, i, j] = np.bincount(block, weights=K[:, i, j], minlength=len(keys))
+        # each block the sum of its pairs': one sparse product with the pairs -> blocks incidence
+        # (in CSC, one entry per pair's column: no sorting needed)
+        S = sp.csc_matrix((np.ones(len(block)), block, np.arange(len(block) + 1)), shape=(len(keys), len(block)))
+        data = (S @ K.reshape(-1, 9)).reshape(-1, 3, 3)
         indptr = np.searchsorted(keys // n, np.arange(n + 1)) if n else np.zeros(1, np.int64)
         A = sp.bsr_matrix((data, keys % n if n else keys, indptr), shape=(3 * n, 3 * n))
         return A.tocsr()
@@ -365,7 +452,7 @@ class Elasticity:
     def weight_load(self, g: float = GRAVITY) -> np.ndarray:
         """(N, 3) nodal forces of the shell's own weight (along -Y), N."""
         per_dof = np.zeros(self.n_scalar)
-        np.add.at(per_dof, self.element_dofs.T, self.dx @ self.full.values)
+        np.add.at(per_dof, self._edofs.T, self.dx @ self.full.values)
         out = np.zeros((len(self.mesh.nodes), 3))
         out[:, 1] = -self.material.density_kg_m3 * g * per_dof[self.dof]
         return out
@@ -377,7 +464,12 @@ class Elasticity:
         every element (the centre, and with one layer the centres of the
         top and bottom faces: a quarter of the unknowns), are eliminated
         element by element first (static condensation, exact), SuperLU
-        factorises what remains, and they are recovered from it.
+        factorises what remains, and they are recovered from it. One step
+        of iterative refinement follows, its residual from the stable
+        element product (:meth:`_element_product`), and the reactions are
+        that product less the load at the held nodes; a solution whose
+        reaction misses the load by more than :data:`IMBALANCE_LIMIT` is
+        refused (:meth:`_check_equilibrium`).
         """
         import scipy.sparse.linalg as sla
 
@@ -388,29 +480,27 @@ class Elasticity:
         held_node = np.zeros(self.n_scalar, bool)
         held_node[self.dof[np.asarray(held_nodes, dtype=np.int64)]] = True
         held = np.repeat(held_node, 3)
-        d = self.element_dofs.T  # (E, 27)
-        count = np.bincount(d.ravel(), minlength=self.n_scalar)
-        inner = np.flatnonzero((count[d] == 1).all(axis=0))  # element slots whose node is the element's own
-        outer = np.setdiff1d(np.arange(d.shape[1]), inner)
-        bi = (3 * inner[:, None] + np.arange(3)).ravel()
-        bo = (3 * outer[:, None] + np.arange(3)).ravel()
+        d = self._edofs.T  # (E, 27)
+        no = 3 * self.n_outer  # the element's own nodes are its last slots (see __init__)
+        bi, bo = slice(no, None), slice(None, no)
         Ke = self.element_stiffness
         dofs = self._vector_dofs()
         # a held inner unknown: its row and column replaced by the identity, its force by 0 (so it stays 0)
         fixed = held[dofs[:, bi]]  # (E, 3 k)
-        Kii = Ke[:, bi][:, :, bi]
-        Kio = Ke[:, bi][:, :, bo]
+        Kii = Ke[:, no:, no:].copy()
+        Kio = Ke[:, no:, :no].copy()
         Kii[fixed] = 0.0
         Kii.transpose(0, 2, 1)[fixed] = 0.0
-        Kii[:, np.arange(len(bi)), np.arange(len(bi))] += fixed
+        diagonal = np.arange(81 - no)
+        Kii[:, diagonal, diagonal] += fixed
         Kio[fixed] = 0.0
         X = np.linalg.solve(Kii, Kio)  # Kii^-1 Kio
-        Koo = Ke[:, bo][:, :, bo] - np.matmul(Kio.transpose(0, 2, 1), X)
+        Koo = Ke[:, :no, :no] - np.matmul(Kio.transpose(0, 2, 1), X)
         kept = ~held_node
-        kept[d[:, inner].ravel()] = False
+        kept[d[:, self.n_outer :].ravel()] = False
         free = np.flatnonzero(np.repeat(kept, 3))
         # the free outer block only, assembled directly (symmetric: its CSR arrays are its CSC arrays)
-        Kff = self._assemble(kept, Koo, d[:, outer])
+        Kff = self._assemble(kept, Koo, d[:, : self.n_outer])
         Kff = sp.csc_matrix((Kff.data, Kff.indices, Kff.indptr), shape=Kff.shape)
         # symmetric positive definite: a symmetric ordering without pivoting
         try:
@@ -433,21 +523,47 @@ class Elasticity:
             return out
 
         u = condensed_solve(f)
-        # one step of iterative refinement on the whole system: without pivoting, and with the
-        # nearly folded elements' ill-conditioned blocks, the residual showed as a floor
-        # reaction a few 1e-6 off the load (the 2 cm plywood bench)
+        # one step of iterative refinement on the whole system, its residual from the stable element
+        # product: a nearly folded element's matrix has entries up to 1e10 times a sound one's, so
+        # K u carries rounding of eps |K_e| |u_e| (tens of mN on the 2 cm plywood bench) unless
+        # each element's rigid motion, which its matrix maps to zero, is taken out of u_e first
         residual = f - self._element_product(u)
         residual[held] = 0.0
         u += condensed_solve(residual)
         reaction = self._element_product(u) - f
         reaction[~held] = 0.0
+        self._check_equilibrium(reaction, f)
         disp = u.reshape(-1, 3)[self.dof]
         return Solution(disp, reaction.reshape(-1, 3)[self.dof], np.asarray(load, dtype=np.float64), self.von_mises(u), self.volume)
 
+    @functools.cached_property
+    def _rigid(self) -> np.ndarray:
+        """(E, 81, 6) orthonormal basis of each element's rigid motions (translations and rotations about its centre)."""
+        c = self._x - self._x.mean(axis=1, keepdims=True)  # (E, 27, 3)
+        R = np.zeros(c.shape + (6,))
+        for k in range(3):
+            R[:, :, k, k] = 1.0
+            w = np.zeros(3)
+            w[k] = 1.0
+            R[:, :, :, 3 + k] = np.cross(w, c)
+        return np.linalg.qr(R.reshape(len(c), 81, 6))[0]
+
     def _element_product(self, u: np.ndarray) -> np.ndarray:
-        """``K @ u`` from the element matrices (3 N_dofs,), without the global matrix."""
+        """``K @ u`` from the element matrices (3 N_dofs,), without the global matrix, in a stable way.
+
+        Each element's displacement less its rigid motion (its projection on
+        :attr:`_rigid`) is multiplied by its matrix: the same product in
+        exact arithmetic (a rigid motion has no strain, :meth:`strain_rows`),
+        but the rounding is that of the element's deformation instead of its
+        whole displacement. A nearly folded element is stiff enough (entries
+        up to 1e10 times a sound element's) that ``K_e u_e`` directly loses
+        the floor reaction's sixth digit (docs/structure.md, "Solve").
+        """
         dofs = self._vector_dofs()
-        Ku = np.matmul(self.element_stiffness, u[dofs][:, :, None])[:, :, 0]
+        ue = u[dofs][:, :, None]
+        Q = self._rigid
+        ue = ue - np.matmul(Q, np.matmul(Q.transpose(0, 2, 1), ue))
+        Ku = np.matmul(self.element_stiffness, ue)[:, :, 0]
         return np.bincount(dofs.ravel(), weights=Ku.ravel(), minlength=self.n_dofs)
 
     def stress_basis(self) -> _Points:
@@ -458,6 +574,28 @@ class Elasticity:
         stiffness' own 3 x 3 x 3 points.
         """
         return self.stress_points
+
+    @staticmethod
+    def _check_equilibrium(reaction: np.ndarray, f: np.ndarray) -> None:
+        """Refuse a solution whose supports do not carry the load: the stiffness was singular or nearly so.
+
+        A mesh with an element whose mapping nearly vanishes at a quadrature
+        point (an offset folded exactly through itself) can have a nearly
+        singular stiffness, and SuperLU, without pivoting, then returns
+        displacements that balance nothing; the reaction says so.
+        """
+        applied = f.reshape(-1, 3).sum(axis=0)
+        scale = float(np.linalg.norm(applied))
+        if scale == 0.0:
+            return
+        miss = float(np.linalg.norm(reaction.reshape(-1, 3).sum(axis=0) + applied)) / scale
+        if not miss <= IMBALANCE_LIMIT:
+            msg = (
+                f"the solve is not to be trusted: the floor reaction misses the applied load by {miss:.1e} of it "
+                "(a nearly singular stiffness: the shell folds through itself where the surface curls about as tight "
+                "as it is thick); try another --thickness or --level"
+            )
+            raise StructureError(msg)
 
     def _check_held(self, held_nodes: np.ndarray) -> None:
         """Refuse a mesh with a connected piece that the held nodes do not fix (it could move freely)."""
@@ -481,18 +619,12 @@ class Elasticity:
         """(E, Q) von Mises stress of the displacement ``u`` (3 N_dofs,) at :meth:`stress_basis`'s points."""
         lam, mu = self.material.lame
         points = self.stress_basis()
-        dofs = self._vector_dofs()
         if self.assumed_strain:
-            D = _voigt_elasticity(lam, mu)
-            out = np.empty((len(self._x), points.X.shape[1]))
-            for chunk in _chunks(len(self._x)):
-                strain = np.einsum("eqvx,ex->eqv", self.strain_rows(points, chunk), u[dofs[chunk]])
-                stress = strain @ D  # D is symmetric
-                stress[:, :, :3] -= stress[:, :, :3].mean(axis=2, keepdims=True)  # the deviator
-                out[chunk] = np.sqrt(1.5 * np.einsum("eqv,eqv->eq", stress, stress))
-            return out
+            stress = self.strains(points, u) @ _voigt_elasticity(lam, mu)  # D is symmetric
+            stress[:, :, :3] -= stress[:, :, :3].mean(axis=2, keepdims=True)  # the deviator
+            return np.sqrt(1.5 * np.einsum("eqv,eqv->eq", stress, stress))
         grads = self.full.grads()
-        U = u.reshape(-1, 3)[self.element_dofs.T]  # (E, 27, 3)
+        U = u.reshape(-1, 3)[self._edofs.T]  # (E, 27, 3)
         grad = np.einsum("eqai,eaj->eqji", grads, U)  # du_j/dx_i -> [j, i]
         strain = 0.5 * (grad + grad.transpose(0, 1, 3, 2))
         tr = np.trace(strain, axis1=2, axis2=3)

@@ -97,15 +97,14 @@ def contact_loads(mesh: ShellMesh, bodies, fields, *, radius: float = SPREAD_RAD
         p = np.asarray(body.vertices, dtype=np.float64)[loaded]
         height, _ = tree.query(p)  # distance to the top face (to a Gauss point's spacing)
         reach = np.sqrt(height**2 + radius**2)
-        rows, cols, vals = [], [], []
-        for i, near in enumerate(tree.query_ball_point(p, reach, return_sorted=False)):
-            near = np.asarray(near, dtype=np.int64)
-            d2 = np.einsum("kc,kc->k", quad.points[near] - p[i], quad.points[near] - p[i])
-            along = np.sqrt(np.maximum(d2 - height[i] ** 2, 0.0)) / radius  # distance along the surface / radius
-            bump = np.clip(1.0 - along**2, 0.0, None) ** 2 * quad.weights[near]
-            rows.append(near)
-            cols.append(np.full(len(near), i))
-            vals.append(bump / bump.sum())
-        W = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(len(quad.points), len(loaded)))
+        near = tree.query_ball_point(p, reach, return_sorted=False)
+        cols = np.repeat(np.arange(len(p)), [len(n) for n in near])  # the body vertex of each pair
+        rows = np.fromiter((k for n in near for k in n), dtype=np.int64, count=len(cols))  # its Gauss point
+        diff = quad.points[rows] - p[cols]
+        d2 = np.einsum("kc,kc->k", diff, diff)
+        along = np.sqrt(np.maximum(d2 - height[cols] ** 2, 0.0)) / radius  # distance along the surface / radius
+        bump = np.clip(1.0 - along**2, 0.0, None) ** 2 * quad.weights[rows]
+        vals = bump / np.bincount(cols, weights=bump, minlength=len(p))[cols]  # each vertex's bump integrates to 1
+        W = sp.csr_matrix((vals, (rows, cols)), shape=(len(quad.points), len(loaded)))
         total += W @ force[loaded]
     return quad.nodal(total, len(mesh.nodes)), np.array(per_person).reshape(-1, 3)
