@@ -418,10 +418,12 @@ def cast_parallel(body: Body, origins: np.ndarray, direction: np.ndarray, length
     o3 = origins @ np.stack([e1, e2, d], 1)
     lo = np.minimum(o3.min(0), (o3 + np.outer(lengths, [0.0, 0.0, 1.0])).min(0))
     hi = np.maximum(o3.max(0), (o3 + np.outer(lengths, [0.0, 0.0, 1.0])).max(0))
-    P = proj[F]
-    inbox = ((P.max(1) >= lo) & (P.min(1) <= hi)).all(1)
+    # a triangle's box overlaps the rays' where, on every axis, some corner
+    # is >= lo and some corner <= hi: six bits per vertex, OR-ed per triangle
+    bits = ((proj >= lo) * np.array([1, 2, 4], np.uint8) + (proj <= hi) * np.array([8, 16, 32], np.uint8)).sum(1, dtype=np.uint8)
+    inbox = (bits[F[:, 0]] | bits[F[:, 1]] | bits[F[:, 2]]) == 63
     F = F[inbox]
-    P = P[inbox]
+    P = proj[F]
     if len(F) == 0:
         return t_hit, tri
     T = P[:, :, :2]
