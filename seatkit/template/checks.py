@@ -369,8 +369,9 @@ def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, toleranc
     edges, first = np.unique(np.sort(edges, 1), axis=0, return_index=True)
     eo = np.tile(owner[near], 3)[first]
     p0, p1 = points[edges[:, 0]], points[edges[:, 1]]
+    # a point of an edge lies within half a gap (spacing / 2) of a sample
     es, e_owner = _sample_segments(p0, p1, spacing)
-    si, tj = _close_pairs(es, spacing, _body_triangle_bins(body))
+    si, tj = _close_pairs(es, 0.5 * spacing * (1.0 + 1e-6), _body_triangle_bins(body))
     ei, tj = _unique_pairs(e_owner[si], tj, len(bf))
     B = bv[bf[tj]]
     hit = segments_cross_triangles(p0[ei], p1[ei], B[:, 0], B[:, 1], B[:, 2])

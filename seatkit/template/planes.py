@@ -311,7 +311,10 @@ def fit_support_plane(
         rejected["degenerate_row"] = int((bad & ok).sum())
         ok &= ~bad
     if neighbours is not None and len(neighbours):
-        cut = _neighbour_cut(points, supported, neighbours, normals, offsets, d_up, d_side, max_penetration)
+        # only the candidates still in the running: the others' cut changes nothing
+        live = np.flatnonzero(ok)
+        cut = np.zeros(len(normals))
+        cut[live] = _neighbour_cut(points, supported[live], neighbours, normals[live], offsets[live], d_up[live], d_side[live], max_penetration)
         bad = cut > max_neighbour_cut
         rejected["cuts_neighbour"] = int((bad & ok).sum())
         ok &= ~bad
