@@ -93,19 +93,6 @@ def topology_problems(quads: np.ndarray, n_vertices: int) -> list:
     return problems
 
 
-def _pairs_within(tree: cKDTree, centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(i, j) index pairs: point j of ``tree`` within ``radii[i]`` of ``centres[i]``."""
-    if len(centres) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    hits = tree.query_ball_point(centres, radii, return_sorted=False)
-    counts = np.fromiter((len(h) for h in hits), dtype=np.int64, count=len(hits))
-    if counts.sum() == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    i = np.repeat(np.arange(len(centres)), counts)
-    j = np.fromiter((x for h in hits for x in h), dtype=np.int64, count=int(counts.sum()))
-    return i, j
-
-
 def segments_cross_triangles(p0: np.ndarray, p1: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray, *, eps: float = 1e-9) -> np.ndarray:
     """(k,) bool: segment ``p0 -> p1`` crosses triangle ``(a, b, c)`` strictly inside, pairwise.
 
@@ -244,8 +231,9 @@ def self_intersecting_faces(vertices: np.ndarray, quads: np.ndarray) -> np.ndarr
     points, tris, owner = quad_triangles(vertices, quads)
     centres, radius = _triangle_spheres(points, tris)
     # triangle pairs whose bounding spheres overlap
-    tree = cKDTree(centres)
-    i, j = _pairs_within(tree, centres, radius + radius.max())
+    # (every pair within twice the largest radius, each once, ordered by quad)
+    i, j = cKDTree(centres).query_pairs(2.0 * float(radius.max()), output_type="ndarray").T.astype(np.int64)
+    i, j = np.where(owner[i] < owner[j], i, j), np.where(owner[i] < owner[j], j, i)
     keep = (owner[i] < owner[j]) & (np.linalg.norm(centres[i] - centres[j], axis=1) <= radius[i] + radius[j])
     i, j = i[keep], j[keep]
     # quads sharing a vertex are neighbours, not intersections
