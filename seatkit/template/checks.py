@@ -516,7 +516,8 @@ def check_supportability(state, max_occluded_fraction: float, max_roll: float, j
         for (r, c), face in sorted(block.faces.items()):
             if r not in block.rows or face.plane is None:
                 continue
-            imp = np.flatnonzero((block.importance >= p["important_threshold"]) & np.isin(block.segment, list(face.segments)))
+            mine = block.vertices_of(face.segments)  # ascending, kept per block
+            imp = mine[block.importance[mine] >= p["important_threshold"]]
             if face.spec.role == "outer":
                 # an outer face answers for the important vertices it supports
                 imp = np.intersect1d(imp, face.supported)
