@@ -97,43 +97,39 @@ def run(path: str, out: str, repeat: int, only: str | None, match: str = "") -> 
             if only in (None, "template"):
                 for seed in case["seeds"]:
                     key = f"template/{case['name']}/seed{seed}"
-                    cpu = np.inf
-                    for _ in range(repeat):
-                        body = _fresh(case["body"])  # no per-body cache survives from the last fit
-                        c0 = time.process_time()
-                        try:
-                            mesh, error = template.fit([body], [case["pressure"]], seed=seed), ""
-                        except UnsupportedPoseError as e:
-                            mesh, error = None, str(e)
-                        cpu = min(cpu, time.process_time() - c0)
-                    result[f"{key}|cpu"] = cpu
-                    totals["template"] += cpu
-                    if mesh is None:
-                        result[f"{key}|error"] = np.array(error)
-                    else:
-                        _arrays(mesh, key, result)
+                    # a fresh Body each time: no per-body cache survives from the last fit
+                    fit = lambda seed=seed: template.fit([_fresh(case["body"])], [case["pressure"]], seed=seed)  # noqa: E731
+                    mesh = _keep(key, fit, UnsupportedPoseError, repeat, result, totals, "template")
+                    if mesh is not None:
                         result[f"{key}|attempt"] = mesh.meta["fit_attempts"]["attempt"]
-                    print(f"{key:60s} cpu {cpu:6.3f} s  {'refused' if mesh is None else 'attempt %d' % mesh.meta['fit_attempts']['attempt']}", flush=True)
+                    print(f"{key:60s} cpu {result[key + '|cpu']:6.3f} s  {'refused' if mesh is None else 'attempt %d' % mesh.meta['fit_attempts']['attempt']}", flush=True)
             if only in (None, "optimize") and case["cage"] is not None:
                 key = f"optimize/{case['name']}"
-                cpu = np.inf
-                for _ in range(repeat):
-                    c0 = time.process_time()
-                    try:
-                        mesh, error = optimize_cage(case["cage"]), ""
-                    except SeatkitError as e:
-                        mesh, error = None, str(e)
-                    cpu = min(cpu, time.process_time() - c0)
-                result[f"{key}|cpu"] = cpu
-                totals["optimize"] += cpu
-                if mesh is None:
-                    result[f"{key}|error"] = np.array(error)
-                else:
-                    _arrays(mesh, key, result)
+                mesh = _keep(key, lambda: optimize_cage(case["cage"]), SeatkitError, repeat, result, totals, "optimize")
+                if mesh is not None:
                     result[f"{key}|iterations"] = mesh.meta["optimize"]["iterations"]
-                print(f"{key:60s} cpu {cpu:6.3f} s", flush=True)
+                print(f"{key:60s} cpu {result[key + '|cpu']:6.3f} s", flush=True)
     print(f"total CPU: template {totals['template']:.2f} s, optimize {totals['optimize']:.2f} s")
     np.savez(out, **result)
+
+
+def _keep(key, call, refusal, repeat, result, totals, kind):
+    """Run ``call()`` ``repeat`` times; keep the least CPU time and the mesh's arrays (or the refusal's message) under ``key``."""
+    cpu, mesh, error = np.inf, None, ""
+    for _ in range(repeat):
+        c0 = time.process_time()
+        try:
+            mesh, error = call(), ""
+        except refusal as e:
+            mesh, error = None, str(e)
+        cpu = min(cpu, time.process_time() - c0)
+    result[f"{key}|cpu"] = cpu
+    totals[kind] += cpu
+    if mesh is None:
+        result[f"{key}|error"] = np.array(error)
+    else:
+        _arrays(mesh, key, result)
+    return mesh
 
 
 def _fresh(body):
@@ -151,6 +147,10 @@ def compare(a_path: str, b_path: str, tolerance: float) -> int:
     print(f"{'case':62s} {'max |dv| m':>11s}  {'cpu a':>7s} {'cpu b':>7s}")
     for name in names:
         kind = name.split("/")[0]
+        if f"{name}|cpu" not in a.files or f"{name}|cpu" not in b.files:
+            bad += 1
+            print(f"{name:62s} run by {'b' if f'{name}|cpu' in b.files else 'a'} only")
+            continue
         ca, cb = float(a[f"{name}|cpu"]), float(b[f"{name}|cpu"])
         sums[kind][0] += ca
         sums[kind][1] += cb
