@@ -208,6 +208,12 @@ class CageEnergy:
     coeffs: dict
     corner_scatter: sp.csr_matrix
     plane_scatter: sp.csr_matrix
+    #: ``laplacian.T``, made once (scipy makes a new transposed matrix at every ``.T``)
+    laplacian_t: sp.spmatrix | None = None
+
+    def __post_init__(self):
+        if self.laplacian_t is None:
+            object.__setattr__(self, "laplacian_t", self.laplacian.T)
 
     @classmethod
     def build(
@@ -302,7 +308,7 @@ class CageEnergy:
         residual = self.laplacian @ x
         terms["laplacian"] = c["laplacian"] * float(np.sum(residual**2))
         if want_grad:
-            grad += 2.0 * c["laplacian"] * (self.laplacian.T @ residual)
+            grad += 2.0 * c["laplacian"] * (self.laplacian_t @ residual)
 
         # S_A: corner angles alpha = angle(a, b), a = prev - v, b = next - v
         alpha, parts = _corner_angles(x, self.faces)

@@ -93,19 +93,6 @@ def topology_problems(quads: np.ndarray, n_vertices: int) -> list:
     return problems
 
 
-def _pairs_within(tree: cKDTree, centres: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(i, j) index pairs: point j of ``tree`` within ``radii[i]`` of ``centres[i]``."""
-    if len(centres) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    hits = tree.query_ball_point(centres, radii, return_sorted=False)
-    counts = np.fromiter((len(h) for h in hits), dtype=np.int64, count=len(hits))
-    if counts.sum() == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    i = np.repeat(np.arange(len(centres)), counts)
-    j = np.fromiter((x for h in hits for x in h), dtype=np.int64, count=int(counts.sum()))
-    return i, j
-
-
 def segments_cross_triangles(p0: np.ndarray, p1: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray, *, eps: float = 1e-9) -> np.ndarray:
     """(k,) bool: segment ``p0 -> p1`` crosses triangle ``(a, b, c)`` strictly inside, pairwise.
 
@@ -133,25 +120,36 @@ def _triangle_spheres(points: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray,
     return c, np.linalg.norm(P - c[:, None], axis=2).max(1)
 
 
-def _close_pairs(queries: np.ndarray, reach: float, targets: np.ndarray, radii: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _close_pairs(queries: np.ndarray, reach: float, targets, radii: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(i, j) pairs with ``|queries[i] - targets[j]| <= reach + radii[j]`` (a superset).
 
     Targets are split by radius (the smallest 60 %, up to 95 %, the rest),
     so that one large target does not widen every query (scipy k-d trees,
-    ``sparse_distance_matrix``).
+    ``sparse_distance_matrix``). ``targets`` may also be the bins
+    :func:`_target_bins` made of them once (a body's edges, kept per body).
     """
-    if len(queries) == 0 or len(targets) == 0:
+    bins = _target_bins(targets, radii) if radii is not None else targets
+    if len(queries) == 0 or not bins:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     qtree = cKDTree(queries)
-    cuts = np.quantile(radii, [0.6, 0.95])
     out_i, out_j = [], []
-    for sel in (np.flatnonzero(radii <= cuts[0]), np.flatnonzero((radii > cuts[0]) & (radii <= cuts[1])), np.flatnonzero(radii > cuts[1])):
-        if len(sel) == 0:
-            continue
-        res = qtree.sparse_distance_matrix(cKDTree(targets[sel]), reach + float(radii[sel].max()), output_type="ndarray")
+    for sel, tree, rmax in bins:
+        res = qtree.sparse_distance_matrix(tree, reach + rmax, output_type="ndarray")
         out_i.append(res["i"].astype(np.int64))
         out_j.append(sel[res["j"]])
     return np.concatenate(out_i), np.concatenate(out_j)
+
+
+def _target_bins(targets: np.ndarray, radii: np.ndarray) -> list:
+    """[(indices, k-d tree of those targets, their largest radius)] by radius: the smallest 60 %, up to 95 %, the rest."""
+    if len(targets) == 0:
+        return []
+    cuts = np.quantile(radii, [0.6, 0.95])
+    bins = []
+    for sel in (np.flatnonzero(radii <= cuts[0]), np.flatnonzero((radii > cuts[0]) & (radii <= cuts[1])), np.flatnonzero(radii > cuts[1])):
+        if len(sel):
+            bins.append((sel, cKDTree(targets[sel]), float(radii[sel].max())))
+    return bins
 
 
 def _sample_triangles(points: np.ndarray, tris: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
@@ -170,10 +168,51 @@ def _sample_triangles(points: np.ndarray, tris: np.ndarray, spacing: float) -> t
     return np.concatenate(samples), np.concatenate(owner)
 
 
-def _sample_segments(p0: np.ndarray, p1: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
-    """Points every ``spacing`` or less along each segment (end points included), and their segment."""
-    length = np.linalg.norm(p1 - p0, axis=1)
-    n = np.maximum(np.ceil(length / spacing).astype(np.int64), 1)
+def _cover_triangles(points: np.ndarray, tris: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """Points within ``spacing`` of every point of each triangle, and their triangle (a cover, for candidate pairs).
+
+    Rows parallel to the longest edge AB, at most ``spacing / sqrt 2`` apart
+    from AB to the opposite corner C, each sampled end to end at most
+    ``sqrt 2 * spacing`` apart. A point of the triangle lies within
+    ``spacing / sqrt 2`` of the row on its AB side (the foot of the
+    perpendicular stays on that row: the angles at A and B are acute, AB
+    being the longest edge) and that foot within ``spacing / sqrt 2`` of a
+    sample. About area / spacing^2 samples per triangle, where
+    :func:`_sample_triangles` takes (longest edge / spacing)^2 / 2: a long
+    thin wall triangle gets a few rows instead of a full grid.
+    """
+    P = points[tris]
+    if len(P) == 0:
+        return np.zeros((0, 3)), np.zeros(0, np.int64)
+    step = spacing / np.sqrt(2.0) * (1.0 - 1e-6)  # a hair under, for round-off
+    side = np.linalg.norm(P[:, [1, 2, 0]] - P, axis=2)  # |AB|, |BC|, |CA| of the given order
+    first = np.argmax(side, axis=1)  # the longest edge runs from corner ``first`` to the next
+    t = np.arange(len(P))
+    A, B, C = P[t, first], P[t, (first + 1) % 3], P[t, (first + 2) % 3]
+    L = side[t, first]
+    area2 = np.linalg.norm(np.cross(B - A, C - A), axis=1)
+    h = area2 / np.maximum(L, 1e-300)
+    m = np.maximum(np.ceil(h / step).astype(np.int64), 1)  # row gaps per triangle
+    row_tri = np.repeat(t, m + 1)
+    row_start = np.repeat(np.cumsum(m + 1) - (m + 1), m + 1)
+    frac = (np.arange(len(row_tri)) - row_start) / m[row_tri]  # 0 at AB, 1 at C
+    start = A[row_tri] + frac[:, None] * (C - A)[row_tri]
+    end = B[row_tri] + frac[:, None] * (C - B)[row_tri]
+    n = np.maximum(np.ceil(L[row_tri] * (1.0 - frac) / (2.0 * step)).astype(np.int64), 1)  # gaps per row
+    samples, row = _sample_segments(start, end, 0.0, gaps=n)
+    return samples, row_tri[row]
+
+
+def _sample_segments(p0: np.ndarray, p1: np.ndarray, spacing: float, *, gaps: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Points every ``spacing`` or less along each segment (end points included), and their segment.
+
+    ``gaps`` (one count per segment) gives the number of equal intervals instead.
+    """
+    if gaps is None:
+        length = np.linalg.norm(p1 - p0, axis=1)
+        n = np.maximum(np.ceil(length / spacing).astype(np.int64), 1)
+    else:
+        n = gaps
     seg = np.repeat(np.arange(len(p0)), n + 1)
     start = np.repeat(np.cumsum(n + 1) - (n + 1), n + 1)
     frac = (np.arange(len(seg)) - start) / n[seg]
@@ -192,8 +231,9 @@ def self_intersecting_faces(vertices: np.ndarray, quads: np.ndarray) -> np.ndarr
     points, tris, owner = quad_triangles(vertices, quads)
     centres, radius = _triangle_spheres(points, tris)
     # triangle pairs whose bounding spheres overlap
-    tree = cKDTree(centres)
-    i, j = _pairs_within(tree, centres, radius + radius.max())
+    # (every pair within twice the largest radius, each once, ordered by quad)
+    i, j = cKDTree(centres).query_pairs(2.0 * float(radius.max()), output_type="ndarray").T.astype(np.int64)
+    i, j = np.where(owner[i] < owner[j], i, j), np.where(owner[i] < owner[j], j, i)
     keep = (owner[i] < owner[j]) & (np.linalg.norm(centres[i] - centres[j], axis=1) <= radius[i] + radius[j])
     i, j = i[keep], j[keep]
     # quads sharing a vertex are neighbours, not intersections
@@ -219,16 +259,20 @@ def _cached(body: Body, name: str, make):
 
 
 def body_edges(body: Body) -> np.ndarray:
-    """(e, 2) int64 unique edges of the body's triangles."""
+    """(e, 2) int64 unique edges of the body's triangles.
 
-    def make(body):
+    They depend on the triangles alone, so they are kept per ``faces``
+    array: every pose of a rig shares its rig's (:func:`seatkit.body.pose_rig`).
+    """
+
+    def make():
         f = np.asarray(body.faces)
-        n = len(body.vertices)
+        n = int(f.max()) + 1 if f.size else 1
         e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), 1)
         key = np.unique(e[:, 0] * n + e[:, 1])
         return np.stack([key // n, key % n], 1)
 
-    return _cached(body, "edges", make)
+    return _BODY_CACHE.get((body.faces,), make, tag="edges")
 
 
 def body_tree(body: Body) -> cKDTree:
@@ -244,6 +288,23 @@ def body_vertex_normals(body: Body) -> np.ndarray:
 
 def _body_triangle_spheres(body: Body) -> tuple[np.ndarray, np.ndarray]:
     return _cached(body, "spheres", lambda b: _triangle_spheres(np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces)))
+
+
+def _body_edge_bins(body: Body) -> list:
+    """:func:`_target_bins` of the body's edges (midpoints, half lengths), once per body."""
+
+    def make(b):
+        bv = np.asarray(b.vertices, dtype=np.float64)
+        be = body_edges(b)
+        e0, e1 = bv[be[:, 0]], bv[be[:, 1]]
+        return _target_bins(0.5 * (e0 + e1), 0.5 * np.linalg.norm(e1 - e0, axis=1))
+
+    return _cached(body, "edge_bins", make)
+
+
+def _body_triangle_bins(body: Body) -> list:
+    """:func:`_target_bins` of the body's triangles (bounding spheres), once per body."""
+    return _cached(body, "triangle_bins", lambda b: _target_bins(*_body_triangle_spheres(b)))
 
 
 def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, tolerance: float) -> np.ndarray:
@@ -277,21 +338,28 @@ def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, toleranc
         return np.zeros(0, np.int64)
     # body edges against cage triangles: candidates from samples of the triangles
     be = body_edges(body)
-    e0, e1 = bv[be[:, 0]], bv[be[:, 1]]
-    samples, s_owner = _sample_triangles(points, tris[near], spacing)
-    si, ej = _close_pairs(samples, spacing, 0.5 * (e0 + e1), 0.5 * np.linalg.norm(e1 - e0, axis=1))
+    # every point of a near triangle lies within ``spacing`` of one of its
+    # samples, so an edge crossing it is within ``spacing`` + its half
+    # length of a sample: the candidates are a superset of the crossings,
+    # and the exact test below decides (any superset gives the same faces)
+    samples, s_owner = _cover_triangles(points, tris[near], spacing)
+    si, ej = _close_pairs(samples, spacing, _body_edge_bins(body))
     ti, ej = _unique_pairs(near[s_owner[si]], ej, len(be))
+    e0, e1 = bv[be[ej, 0]], bv[be[ej, 1]]
     T = points[tris[ti]]
-    hit = segments_cross_triangles(e0[ej], e1[ej], T[:, 0], T[:, 1], T[:, 2])
+    hit = segments_cross_triangles(e0, e1, T[:, 0], T[:, 1], T[:, 2])
     bad[owner[ti[hit]]] = True
-    # edges of those cage triangles against body triangles
+    # edges of those cage triangles against body triangles; the spokes (a
+    # corner to its quad's centre) are shared by two triangles of one quad:
+    # tested once
     sub = tris[near]
     edges = np.concatenate([sub[:, [0, 1]], sub[:, [1, 2]], sub[:, [2, 0]]])
-    eo = np.tile(owner[near], 3)
+    edges, first = np.unique(np.sort(edges, 1), axis=0, return_index=True)
+    eo = np.tile(owner[near], 3)[first]
     p0, p1 = points[edges[:, 0]], points[edges[:, 1]]
+    # a point of an edge lies within half a gap (spacing / 2) of a sample
     es, e_owner = _sample_segments(p0, p1, spacing)
-    bc, br = _body_triangle_spheres(body)
-    si, tj = _close_pairs(es, spacing, bc, br)
+    si, tj = _close_pairs(es, 0.5 * spacing * (1.0 + 1e-6), _body_triangle_bins(body))
     ei, tj = _unique_pairs(e_owner[si], tj, len(bf))
     B = bv[bf[tj]]
     hit = segments_cross_triangles(p0[ei], p1[ei], B[:, 0], B[:, 1], B[:, 2])
@@ -339,10 +407,12 @@ def cast_parallel(body: Body, origins: np.ndarray, direction: np.ndarray, length
     o3 = origins @ np.stack([e1, e2, d], 1)
     lo = np.minimum(o3.min(0), (o3 + np.outer(lengths, [0.0, 0.0, 1.0])).min(0))
     hi = np.maximum(o3.max(0), (o3 + np.outer(lengths, [0.0, 0.0, 1.0])).max(0))
-    P = proj[F]
-    inbox = ((P.max(1) >= lo) & (P.min(1) <= hi)).all(1)
+    # a triangle's box overlaps the rays' where, on every axis, some corner
+    # is >= lo and some corner <= hi: six bits per vertex, OR-ed per triangle
+    bits = ((proj >= lo) * np.array([1, 2, 4], np.uint8) + (proj <= hi) * np.array([8, 16, 32], np.uint8)).sum(1, dtype=np.uint8)
+    inbox = (bits[F[:, 0]] | bits[F[:, 1]] | bits[F[:, 2]]) == 63
     F = F[inbox]
-    P = P[inbox]
+    P = proj[F]
     if len(F) == 0:
         return t_hit, tri
     T = P[:, :, :2]
@@ -446,7 +516,8 @@ def check_supportability(state, max_occluded_fraction: float, max_roll: float, j
         for (r, c), face in sorted(block.faces.items()):
             if r not in block.rows or face.plane is None:
                 continue
-            imp = np.flatnonzero((block.importance >= p["important_threshold"]) & np.isin(block.segment, list(face.segments)))
+            mine = block.vertices_of(face.segments)  # ascending, kept per block
+            imp = mine[block.importance[mine] >= p["important_threshold"]]
             if face.spec.role == "outer":
                 # an outer face answers for the important vertices it supports
                 imp = np.intersect1d(imp, face.supported)

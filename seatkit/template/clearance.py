@@ -105,26 +105,41 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
         samples, s_owner = _sample_triangles(points, tris[close], _SPACING)
         s_owner = close[s_owner]
         stree = cKDTree(samples)
-        # body vertices near those triangles, and the triangles of their nearest samples
+        # body vertices near those triangles, and the triangles of their
+        # nearest samples. Only samples within ``reach`` count: a triangle
+        # all of whose samples lie farther is farther than ``depth`` from the
+        # vertex (each point of a triangle is within _SPACING of one of its
+        # samples), so it could give no row (|s| < depth over the triangle)
+        reach = depth + _SPACING + 0.02
+        k = min(_NEAREST, len(samples))
         if person not in cache:
             lo, hi = samples.min(0) - depth, samples.max(0) + depth
             cand = np.flatnonzero(((B >= lo) & (B <= hi)).all(1))
-            d, _ = stree.query(B[cand], distance_upper_bound=depth + _SPACING + 0.02)
-            cache[person] = cand[np.isfinite(d)]
+            d, nearest = stree.query(B[cand], k=k, distance_upper_bound=reach)
+            d, nearest = d.reshape(len(cand), k), nearest.reshape(len(cand), k)
+            found = np.isfinite(d[:, 0])
+            cache[person] = cand[found]
+            nearest = nearest[found]
+        elif len(cache[person]):
+            nearest = stree.query(B[cache[person]], k=k, distance_upper_bound=reach)[1].reshape(len(cache[person]), k)
         near = cache[person]
         if len(near) == 0:
             continue
-        k = min(_NEAREST, len(samples))
-        _, nearest = stree.query(B[near], k=k)
-        key = np.unique(np.repeat(near, k) * len(tris) + s_owner[nearest.ravel()])
-        bi, ti = key // len(tris), key % len(tris)
+        # (body vertex, triangle) pairs, each once, in the order of
+        # bi * len(tris) + ti (near is ascending): the rows' order
+        owners = np.sort(np.where(nearest < len(samples), s_owner[np.minimum(nearest, len(samples) - 1)], len(tris)), axis=1)
+        fresh = np.ones(owners.shape, bool)
+        fresh[:, 1:] = owners[:, 1:] != owners[:, :-1]
+        fresh &= owners < len(tris)
+        bi, ti = np.broadcast_to(near[:, None], owners.shape)[fresh], owners[fresh]
         keep = good[ti]
         bi, ti = bi[keep], ti[keep]
-        a, e1, e2, n = T[ti, 0], T[ti, 1] - T[ti, 0], T[ti, 2] - T[ti, 0], n_t[ti]
+        a, n = T[ti, 0], n_t[ti]
         rel = B[bi] - a
         s = np.einsum("ij,ij->i", rel, n)
         sel = (s < depth) & (s > -depth)
-        bi, ti, s, rel, e1, e2, n = bi[sel], ti[sel], s[sel], rel[sel], e1[sel], e2[sel], n[sel]
+        bi, ti, s, rel, n = bi[sel], ti[sel], s[sel], rel[sel], n[sel]
+        e1, e2 = T[ti, 1] - T[ti, 0], T[ti, 2] - T[ti, 0]
         # barycentric coordinates of the projection
         d00, d01, d11 = np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e1, e2), np.einsum("ij,ij->i", e2, e2)
         d20, d21 = np.einsum("ij,ij->i", rel, e1), np.einsum("ij,ij->i", rel, e2)

@@ -107,6 +107,7 @@ class Block:
     estimates: dict = field(default_factory=dict)
     cases: dict = field(default_factory=dict)
     members: dict = field(default_factory=dict, repr=False)
+    centroids: dict = field(default_factory=dict, repr=False)
 
     # -- body queries -------------------------------------------------------
     def vertices_of(self, segments) -> np.ndarray:
@@ -115,6 +116,13 @@ class Block:
         if key not in self.members:
             self.members[key] = np.flatnonzero(np.isin(self.segment, list(key)))
         return self.members[key]
+
+    def centroid(self, segments) -> np.ndarray:
+        """(3,) float64 mean of :meth:`vertices_of` ``segments``, kept per segment set (a new array each call)."""
+        key = tuple(sorted(int(s) for s in segments))
+        if key not in self.centroids:
+            self.centroids[key] = self.body.vertices[self.vertices_of(key)].mean(0)
+        return self.centroids[key].copy()
 
     def neighbours_of(self, segments) -> list:
         """Segments adjacent (parent or child) to ``segments`` but not in them."""
@@ -132,8 +140,7 @@ class Block:
         pts = [body.joints[c] for c in range(len(PARENTS)) if (c in a and PARENTS[c] in b) or (c in b and PARENTS[c] in a)]
         if pts:
             return np.mean(pts, axis=0)
-        va, vb = self.vertices_of(a), self.vertices_of(b)
-        return (body.vertices[va].mean(0) + body.vertices[vb].mean(0)) / 2
+        return (self.centroid(a) + self.centroid(b)) / 2
 
     def bone(self, segments) -> np.ndarray:
         """(3,) float64 mean bone direction (joint to tip) of ``segments``."""
@@ -187,9 +194,7 @@ class Block:
         i = rows.index(r)
         before = rows[i - 1] if i > 0 else r
         after = rows[i + 1] if i + 1 < len(rows) else r
-        va = self.vertices_of(self.row_segments(before))
-        vb = self.vertices_of(self.row_segments(after))
-        return self.body.vertices[vb].mean(0) - self.body.vertices[va].mean(0)
+        return self.centroid(self.row_segments(after)) - self.centroid(self.row_segments(before))
 
     # -- planes and lines ----------------------------------------------------
     def set_frame(self, face: FaceState, plane: Plane, *, side_range=None) -> None:
@@ -203,7 +208,7 @@ class Block:
         side = np.cross(up, n)
         idx = self.vertices_of(face.segments)
         pts = self.body.vertices[idx]
-        centre = plane.project(pts.mean(0)[None])[0]
+        centre = plane.project(self.centroid(face.segments)[None])[0]
         if side_range is None:
             s = (pts - centre) @ side
             half = 0.5 * (s.max() - s.min()) * face.spec.width_fraction
@@ -249,7 +254,7 @@ class Block:
                 # the line must lie between the two rows' segments along d_up,
                 # or the face would fold over its neighbour
                 sign = 1.0 if other_row > face.spec.row else -1.0
-                other = self.body.vertices[self.vertices_of(segs_other)].mean(0)
+                other = self.centroid(segs_other)
                 t_line = sign * float((point - face.centre) @ face.d_up)
                 t_other = sign * float((other - face.centre) @ face.d_up)
                 between = 0.0 < t_line < t_other

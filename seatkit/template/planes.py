@@ -245,6 +245,7 @@ def fit_support_plane(
     """
     k = len(points)
     w = importance + importance_floor
+    n_ref = pca_normal(points, fallback=reference)
     if fixed is None:
         prob = w / w.sum()
         idx = rng.choice(k, size=(iterations, 3), p=prob)
@@ -253,7 +254,7 @@ def fit_support_plane(
         anchors = a
         # the reference orientations compete too (a cylinder-like limb with
         # no load gives RANSAC nothing to prefer one tangent plane by)
-        refs = [r for r in (reference, pca_normal(points, fallback=reference)) if r is not None]
+        refs = [r for r in (reference, n_ref) if r is not None]
         if refs:
             normals = np.vstack([normals, np.asarray(refs, dtype=np.float64)])
             anchors = np.vstack([anchors, np.repeat(points.mean(0)[None] - 1.0 * np.asarray(refs), 1, axis=0)])
@@ -288,7 +289,6 @@ def fit_support_plane(
     rejected = {"degenerate": int((~ok).sum())}
     supported = np.abs(dist) <= support_distance
     # penalties
-    n_ref = pca_normal(points, fallback=reference)
     p_r = penalty_reference(normals, n_ref)
     d_up = unit(bone - normals * (normals @ bone)[:, None])
     d_side = np.cross(d_up, normals)
@@ -311,7 +311,10 @@ def fit_support_plane(
         rejected["degenerate_row"] = int((bad & ok).sum())
         ok &= ~bad
     if neighbours is not None and len(neighbours):
-        cut = _neighbour_cut(points, supported, neighbours, normals, offsets, d_up, d_side, max_penetration)
+        # only the candidates still in the running: the others' cut changes nothing
+        live = np.flatnonzero(ok)
+        cut = np.zeros(len(normals))
+        cut[live] = _neighbour_cut(points, supported[live], neighbours, normals[live], offsets[live], d_up[live], d_side[live], max_penetration)
         bad = cut > max_neighbour_cut
         rejected["cuts_neighbour"] = int((bad & ok).sum())
         ok &= ~bad

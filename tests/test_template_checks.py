@@ -1,0 +1,157 @@
+"""The final check's broad phases find every crossing that an all-pairs test finds.
+
+The cage-against-body and cage-against-itself checks
+(:mod:`seatkit.template.checks`) test only candidate pairs found with k-d
+trees; a candidate set that misses a crossing pair would pass a cage that
+crosses the body. Here they are compared with the exact test run on every
+pair, on a sphere crossed by a random cage, and the triangle cover the first
+pass samples is checked to reach every point of its triangle.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import trimesh
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial import cKDTree
+
+from seatkit.model import Body
+from seatkit.template.checks import (
+    _cover_triangles,
+    crossing_faces,
+    quad_triangles,
+    segments_cross_triangles,
+    self_intersecting_faces,
+)
+
+
+def _sphere_body(radius=0.2, centre=(0.0, 0.5, 0.0), subdivisions=3) -> Body:
+    mesh = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
+    n = len(mesh.vertices)
+    return Body(
+        vertices=np.asarray(mesh.vertices) + centre,
+        faces=np.asarray(mesh.faces, dtype=np.int64),
+        weights=np.full((n, 21), 1 / 21),
+        joints=np.zeros((21, 3)),
+        tips=np.zeros((21, 3)),
+        segment_mass=np.full(21, 75 / 21),
+        segment_com=np.zeros((21, 3)),
+    )
+
+
+def _random_cage(rng, rows=5, cols=6, size=0.6, bump=0.15):
+    """A wavy quad grid through the sphere's region (faces (r*c, 4))."""
+    u, v = np.meshgrid(np.linspace(-size / 2, size / 2, cols + 1), np.linspace(0.5 - size / 2, 0.5 + size / 2, rows + 1))
+    z = rng.normal(scale=bump, size=u.shape)
+    V = np.stack([u, v, z], -1).reshape(-1, 3)
+    ids = np.arange((rows + 1) * (cols + 1)).reshape(rows + 1, cols + 1)
+    Q = np.stack([ids[:-1, :-1], ids[:-1, 1:], ids[1:, 1:], ids[1:, :-1]], -1).reshape(-1, 4)
+    return V, Q
+
+
+def _brute_crossing(vertices, quads, body, tolerance):
+    """crossing_faces by testing every body edge against every cage triangle and every cage edge against every body triangle."""
+    V = np.asarray(vertices, float)
+    Q = V[quads]
+    fn = np.cross(Q[:, 2] - Q[:, 0], Q[:, 3] - Q[:, 1])
+    fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
+    Q = Q - tolerance * fn[:, None, :]
+    points, tris, owner = quad_triangles(Q.reshape(-1, 3), np.arange(4 * len(quads)).reshape(-1, 4))
+    bv, bf = body.vertices, body.faces
+    edges = np.unique(np.sort(np.concatenate([bf[:, [0, 1]], bf[:, [1, 2]], bf[:, [2, 0]]]), 1), axis=0)
+    bad = np.zeros(len(quads), bool)
+    ti, ej = (a.ravel() for a in np.meshgrid(np.arange(len(tris)), np.arange(len(edges)), indexing="ij"))
+    T = points[tris[ti]]
+    hit = segments_cross_triangles(bv[edges[ej, 0]], bv[edges[ej, 1]], T[:, 0], T[:, 1], T[:, 2])
+    bad[owner[ti[hit]]] = True
+    cage_edges = np.concatenate([tris[:, [0, 1]], tris[:, [1, 2]], tris[:, [2, 0]]])
+    eo = np.tile(owner, 3)
+    ei, tj = (a.ravel() for a in np.meshgrid(np.arange(len(cage_edges)), np.arange(len(bf)), indexing="ij"))
+    B = bv[bf[tj]]
+    hit = segments_cross_triangles(points[cage_edges[ei, 0]], points[cage_edges[ei, 1]], B[:, 0], B[:, 1], B[:, 2])
+    bad[eo[ei[hit]]] = True
+    return np.flatnonzero(bad)
+
+
+def test_crossing_faces_finds_what_every_pair_finds():
+    body = _sphere_body(subdivisions=2)
+    rng = np.random.default_rng(7)
+    found = 0
+    for _ in range(12):
+        V, Q = _random_cage(rng)
+        for tolerance in (0.0, 0.007):
+            got = crossing_faces(V, Q, body, tolerance)
+            want = _brute_crossing(V, Q, body, tolerance)
+            np.testing.assert_array_equal(got, want)
+            found += len(want)
+    assert found > 0  # the cages do cross the sphere
+
+
+def test_self_intersections_match_every_pair():
+    rng = np.random.default_rng(3)
+    for _ in range(10):
+        V, Q = _random_cage(rng, bump=0.3)
+        got = self_intersecting_faces(V, Q)
+        points, tris, owner = quad_triangles(V, Q)
+        i, j = (a.ravel() for a in np.meshgrid(np.arange(len(tris)), np.arange(len(tris)), indexing="ij"))
+        keep = owner[i] < owner[j]
+        i, j = i[keep], j[keep]
+        shared = (Q[owner[i]][:, :, None] == Q[owner[j]][:, None, :]).any((1, 2))
+        i, j = i[~shared], j[~shared]
+        hit = np.zeros(len(i), bool)
+        for a_, b_ in ((i, j), (j, i)):
+            T = points[tris[b_]]
+            for e0, e1 in ((0, 1), (1, 2), (2, 0)):
+                hit |= segments_cross_triangles(points[tris[a_, e0]], points[tris[a_, e1]], T[:, 0], T[:, 1], T[:, 2])
+        want = np.unique(np.sort(np.stack([owner[i[hit]], owner[j[hit]]], 1), 1), axis=0).reshape(-1, 2)
+        np.testing.assert_array_equal(got, want)
+
+
+coords = st.floats(-1.0, 1.0, allow_nan=False)
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    st.lists(st.tuples(coords, coords, coords), min_size=3, max_size=3),
+    st.floats(0.0, 1.0),
+    st.sampled_from([0.005, 0.03, 0.2]),
+)
+def test_triangle_cover_reaches_every_point(corners, squash, spacing):
+    P = np.array(corners)
+    # squash the third corner towards the first edge: long thin triangles too
+    mid = 0.5 * (P[0] + P[1])
+    P[2] = mid + squash * (P[2] - mid)
+    samples, owner = _cover_triangles(P, np.array([[0, 1, 2]]), spacing)
+    assert (owner == 0).all()
+    u = np.random.default_rng(0).random((3000, 2))
+    flip = u.sum(1) > 1
+    u[flip] = 1 - u[flip]
+    pts = np.vstack([P, P[0] + u[:, :1] * (P[1] - P[0]) + u[:, 1:] * (P[2] - P[0]), 0.5 * (P + np.roll(P, 1, axis=0))])
+    d, _ = cKDTree(samples).query(pts)
+    assert d.max() <= spacing * (1 + 1e-9)
+
+
+def test_a_small_body_through_a_large_face_is_found():
+    """A ball 2 cm across poking through the middle of one of a quad's four triangles: no cage edge meets it, only the body's edges cross the face."""
+    V = np.array([[-0.4, 0.5, -0.4], [0.4, 0.5, -0.4], [0.4, 0.5, 0.4], [-0.4, 0.5, 0.4]])
+    Q = np.array([[0, 1, 2, 3]])
+    for x, z in ((0.0, -0.25), (0.13, -0.3), (-0.2, -0.33)):
+        body = _sphere_body(radius=0.01, centre=(x, 0.5, z), subdivisions=2)
+        np.testing.assert_array_equal(crossing_faces(V, Q, body, 0.0), [0])
+        np.testing.assert_array_equal(_brute_crossing(V, Q, body, 0.0), [0])
+
+
+def test_a_cage_edge_through_a_coarse_body_is_found():
+    """A thin quad whose long edge pierces one triangle (8 cm edges) of a coarse body at its middle, far from the body's edges."""
+    body = _sphere_body(radius=0.3, centre=(0.0, 0.5, 0.0), subdivisions=2)
+    c = body.vertices[body.faces[0]].mean(0)
+    n = np.cross(*(body.vertices[body.faces[0][1:]] - body.vertices[body.faces[0][0]]))
+    n /= np.linalg.norm(n)
+    side = np.cross(n, [0.0, 1.0, 0.0])
+    side /= np.linalg.norm(side)
+    a, b = c - 0.05 * n, c + 0.05 * n
+    V = np.array([a, b, b + 0.005 * side, a + 0.005 * side])
+    got = crossing_faces(V, np.array([[0, 1, 2, 3]]), body, 0.0)
+    np.testing.assert_array_equal(got, [0])
+    np.testing.assert_array_equal(_brute_crossing(V, np.array([[0, 1, 2, 3]]), body, 0.0), [0])
