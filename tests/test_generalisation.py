@@ -286,6 +286,37 @@ def test_hands_beside_the_seat_or_the_calf_are_built_around_not_refused(rigs, ch
     assert shank and all(d["occluded_fraction"] == 0.0 for d in shank)
 
 
+
+def test_hands_hanging_beside_the_seat_get_a_backrest_and_a_lowered_border_for_every_seed(rigs, chair):
+    """seated-036 (draw seed 2026, male): trunk 7 deg forward, both arms hanging straight down beside the seat.
+
+    Before fit14 it built with seed 0 only (without its backrest) and was
+    refused with seeds 1 and 2: ``supportability`` cast the lower back's
+    skin along the mean normal of only the faces with important vertices of
+    their own (leaned 20 deg towards the left outer face), into the left
+    upper arm beside the torso; and the border's side ring, 5 cm out from
+    the seat's edge at the height of the hanging hands, was lifted over
+    them and folded over the thigh face. Now the back row's casts go along
+    all its faces' mean normal (the arm is beside the back, not behind it),
+    and the border's repair lowers the side ring under the hands: the
+    seed's own first start builds, with the backrest, for every seed.
+    """
+    b = pose_rig(rigs["default-male"], draw_pose(np.random.default_rng([2026, 36]), "seated").pose)
+    p = solve_pressure(b)
+    assert assess_pose(b, template_rule(chair)).supportable
+    for seed in (0, 1, 2):
+        mesh = chair.fit([b], [p], seed=seed)
+        assert "lower_back.middle" in mesh.face_labels and "dropped_steps" not in mesh.meta
+        back = mesh.meta["supportability"][0]["segments"]["Spine1"]
+        assert all(d["occluded_fraction"] <= 0.2 for d in back)
+        if seed < 2:
+            assert mesh.meta["fit_attempts"]["attempt"] == 1
+        border = [r for r in mesh.meta["repairs"] if r.get("step") == "border"]
+        assert border and border[0]["dropped_beside"] > 0 and border[0]["feasible"]
+    with pytest.raises(UnsupportedPoseError):
+        chair.fit([b], [p], seed=1, params={"steps": {"clearance": {"repair": False}}, "fit_attempts": 1})
+
+
 # -- seatkit poses --check ---------------------------------------------------------
 
 runner = CliRunner()
