@@ -165,6 +165,14 @@ def _clear_bodies(line: np.ndarray, along: np.ndarray, across: np.ndarray, point
                 line[i] += need * along
 
 
+def _strips(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of each ring vertex's strip, from its coordinates ``c`` across the ring: the midpoints to its neighbours (open at the ends)."""
+    mid = 0.5 * (c[1:] + c[:-1])
+    lo = np.concatenate([[-np.inf], mid])
+    hi = np.concatenate([mid, [np.inf]])
+    return np.minimum(lo, hi), np.maximum(lo, hi)
+
+
 def _drop_beside(line: np.ndarray, edge: np.ndarray, out: np.ndarray, across: np.ndarray, points: np.ndarray, gap: float) -> None:
     """Lower the side ring's vertices where its face would pass through a body part hanging beside the seat, in place.
 
@@ -180,11 +188,7 @@ def _drop_beside(line: np.ndarray, edge: np.ndarray, out: np.ndarray, across: np
     """
     if len(points) == 0:
         return
-    c = line @ across
-    mid = 0.5 * (c[1:] + c[:-1])
-    lo = np.concatenate([[-np.inf], mid])
-    hi = np.concatenate([mid, [np.inf]])
-    lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+    lo, hi = _strips(line @ across)
     po, pc, py = points @ out, points @ across, points[:, 1]
     for i in range(len(line)):
         e = edge[i]
