@@ -178,13 +178,20 @@ def _leaning_forward(rng) -> np.ndarray:
         A.side(side, "Foot", _u(rng, -10, 20))
     _spine(rng, A, 4, 9)
     _head(rng, A, -25, -5)
+    # the trunk's pitch from upright (root and spine flexion), deg
+    pitch = A.a[SEGMENT_INDEX["Hips"], 0] + sum(A.a[SEGMENT_INDEX[s], 0] for s in ("Spine", "Spine1", "Spine2", "Spine3"))
     for side in ("Right", "Left"):  # elbows on the knees or hands on the thighs
         if rng.random() < 0.6:
             A.side(side, "Arm", _u(rng, -62, -54), 0.0, _u(rng, 84, 88))
             A.side(side, "ForeArm", 0.0, _u(rng, 75, 88), _u(rng, 12, 20))
         else:
-            A.side(side, "Arm", _u(rng, -45, -25), 0.0, _u(rng, 80, 88))
-            A.side(side, "ForeArm", 0.0, _u(rng, 30, 55), _u(rng, 0, 15))
+            # hands on the thighs: the upper arm 40-60 deg behind the vertical
+            # in the world (set against the trunk's pitch, as the thighs are
+            # against the root's), so it lies along the flank and the elbow,
+            # bent 105-130 deg, lays the forearm along the thigh; the hand
+            # ends between the hip and the knee, on the thigh
+            A.side(side, "Arm", _u(rng, 40, 60) - pitch, 0.0, _u(rng, 80, 88))
+            A.side(side, "ForeArm", 0.0, _u(rng, 105, 130), _u(rng, 0, 15))
     return A.a
 
 

@@ -165,6 +165,41 @@ def _clear_bodies(line: np.ndarray, along: np.ndarray, across: np.ndarray, point
                 line[i] += need * along
 
 
+def _strips(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bounds of each ring vertex's strip, from its coordinates ``c`` across the ring: the midpoints to its neighbours (open at the ends)."""
+    mid = 0.5 * (c[1:] + c[:-1])
+    lo = np.concatenate([[-np.inf], mid])
+    hi = np.concatenate([mid, [np.inf]])
+    return np.minimum(lo, hi), np.maximum(lo, hi)
+
+
+def _drop_beside(line: np.ndarray, edge: np.ndarray, out: np.ndarray, across: np.ndarray, points: np.ndarray, gap: float) -> None:
+    """Lower the side ring's vertices where its face would pass through a body part hanging beside the seat, in place.
+
+    The first ring continues the seat outwards from its edge ``edge[i]``
+    along ``out``; a body part hanging beside the edge at the edge's height
+    (a hand or an arm beside the thigh) has skin both above and below that
+    face in the vertex's strip (between the midpoints to its neighbours
+    along ``across``), more than ``gap`` outside the edge and within the
+    ring's reach. No lift helps there (lifting the face over the hand folds
+    it over the seat): the ring vertex goes straight down from the edge
+    instead, ``gap`` below the lowest such skin, and the wall hangs inside
+    the hanging part.
+    """
+    if len(points) == 0:
+        return
+    lo, hi = _strips(line @ across)
+    po, pc, py = points @ out, points @ across, points[:, 1]
+    for i in range(len(line)):
+        e = edge[i]
+        reach = float((line[i] - e) @ out) + gap
+        sel = (pc >= lo[i]) & (pc <= hi[i]) & (po > e @ out + gap) & (po < e @ out + reach) & (py >= 0.02)
+        if sel.any() and (py[sel] > e[1]).any() and (py[sel] < e[1]).any():
+            low = max(float(py[sel].min()) - gap, 0.0)
+            line[i] = e
+            line[i, 1] = low
+
+
 def _set_back_front_edge(V: np.ndarray, points: np.ndarray, back: np.ndarray, across: np.ndarray, gap: float, *, most: float = 0.8) -> None:
     """Move the first vertex row back along the first face row until the legs hang in front of it, in place.
 
@@ -213,6 +248,7 @@ def add_border(
     front_wall: str = "before-feet",
     front_drop: float = 0.08,
     body_clearance: float | None = None,
+    drop_beside: bool = False,
 ) -> GridMesh:
     """The grid with two border rings, the outer one on a ground rectangle.
 
@@ -242,6 +278,12 @@ def add_border(
         ``behind-calves``: height of the front face, m.
     body_clearance : float, optional
         Gap between walls and bodies, m (default ``min_spacing``).
+    drop_beside : bool
+        Where a body part hangs beside the seat's edge at its height (a hand
+        beside the thigh: skin above and below the first ring's side face),
+        the ring vertex goes straight down from the edge, below that skin
+        (:func:`_drop_beside`). The clearance step's repair rebuilds the
+        border this way after the final check refused border faces.
 
     Returns
     -------
@@ -289,6 +331,12 @@ def add_border(
         _clear_bodies(ring[0, 1:-1], -front, side, pts, gap)
     else:
         _clear_bodies(ring[0, 1:-1], front, side, pts, gap)
+    dropped = 0
+    if drop_beside:
+        for line, edge, out in ((ring[1:-1, 0], V[:, 0], -side), (ring[1:-1, -1], V[:, -1], side)):
+            before = line.copy()
+            _drop_beside(line, edge, out, front, pts, gap)
+            dropped += int(np.any(line != before, axis=1).sum())
     _clear_bodies(ring[1:-1, 0], -side, front, pts, gap)
     _clear_bodies(ring[1:-1, -1], side, front, pts, gap)
     for i, k, ii in ((0, 0, 1), (0, -1, 1), (-1, 0, -2), (-1, -1, -2)):
@@ -349,6 +397,8 @@ def add_border(
         "margin": margin,
         "front_wall": front_wall,
     }
+    if drop_beside:
+        meta["border"]["dropped_beside"] = dropped
     return GridMesh(
         out,
         pad(grid.segment, -1),

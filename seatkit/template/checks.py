@@ -536,11 +536,18 @@ def check_supportability(state, max_occluded_fraction: float, max_roll: float, j
         if len(down):
             t_down[down], hit_down[down] = cast_parallel(body, body.vertices[down] - 2e-3 * up, -up, np.maximum(body.vertices[down, 1], 1e-6))
         bad = []
-        # faces of a row that are not seat-like share one direction (their mean normal)
+        # faces of a row that are not seat-like share one direction: the mean
+        # normal of all the row's fitted faces that are not seat-like, with or
+        # without important vertices of their own (the mean of only the faces
+        # with tests leaned a back row's casts 20 deg towards the one outer
+        # face that had some, into a hanging upper arm beside the torso)
         row_normal = {}
         for face, imp, allowed, vertical in tests:
             if not vertical:
-                row_normal.setdefault(face.spec.row, []).append(face.plane.normal)
+                row_normal.setdefault(face.spec.row, [])
+        for (r, c), face in sorted(block.faces.items()):
+            if r in block.rows and face.plane is not None and face.spec.row in row_normal and face.plane.normal[1] < np.cos(np.pi / 4):
+                row_normal[face.spec.row].append(face.plane.normal)
         row_cast = {}
         for r, normals in row_normal.items():
             n = unit(np.mean(normals, axis=0))
@@ -569,10 +576,12 @@ def check_supportability(state, max_occluded_fraction: float, max_roll: float, j
                     occluded[np.flatnonzero(on)[np.linalg.norm(point - joint, axis=1) <= joint_reach]] = False
             w = block.importance[imp]
             frac = float(w[occluded].sum() / w.sum()) if w.sum() > 0 else 0.0
+            # which parts are in the way, by their share of the face's importance
+            by = {SEGMENTS[int(s)]: float(w[occluded & (seg == s)].sum() / w.sum()) for s in np.unique(seg[occluded])} if frac > 0 else {}
             for s in face.segments:
-                diag["segments"].setdefault(SEGMENTS[s], []).append({"face": state.face_name(face), "occluded_fraction": frac})
+                diag["segments"].setdefault(SEGMENTS[s], []).append({"face": state.face_name(face), "occluded_fraction": frac, "occluded_by": by})
             if frac > max_occluded_fraction:
-                bad.append((state.face_name(face), frac, face.segments))
+                bad.append((state.face_name(face), frac, face.segments, by))
         state.meta.setdefault("supportability", []).append(diag)
         if roll > max_roll:
             parts = ["Hips", "Spine", "RightUpLeg", "LeftUpLeg"]
@@ -584,9 +593,9 @@ def check_supportability(state, max_occluded_fraction: float, max_roll: float, j
             )
             raise UnsupportedPoseError(msg, parts=parts, diagnostics=diag)
         if bad:
-            parts = sorted({SEGMENTS[s] for _, _, segs in bad for s in segs})
+            parts = sorted({SEGMENTS[s] for _, _, segs, _ in bad for s in segs})
             ok = sorted(set(diag["segments"]) - set(parts))
-            detail = ", ".join(f"{name} {100 * f:.0f}%" for name, f, _ in bad)
+            detail = ", ".join(f"{name} {100 * f:.0f}% by {', '.join(sorted(by, key=by.get, reverse=True))}" for name, f, _, by in bad)
             msg = (
                 f"{person_label(block.person, block.body)}: cannot support {', '.join(parts)}: their important vertices lie above other body parts "
                 f"(occluded share: {detail}); a support there would cross the body. Supportable: {', '.join(ok) or 'nothing'}"

@@ -207,6 +207,9 @@ class YamlTemplate:
             except UnsupportedPoseError as e:
                 # repair the faces the check names (docs/templates.md, "Seed-independent success")
                 faces = e.diagnostics.get("crossing_faces")
+                if faces is None and e.diagnostics.get("self_intersections"):
+                    # a fold: the faces of every intersecting pair (the border's repair lowers a ring folded over a hanging hand)
+                    faces = sorted({int(f) for pair in e.diagnostics["self_intersections"] for f in pair})
                 if faces is None or round_ == _REPAIR_ROUNDS or not any(step.repair(state, faces, options=o) for step, o in repairs):
                     raise
         raise AssertionError("unreachable")

@@ -380,6 +380,10 @@ class FitState:
         Set by the ``join`` step (or the first ``"grid"`` step).
     meta : dict
         Special cases taken, diagnostics; copied to ``ControlMesh.meta``.
+    rebuild_border : callable or None
+        Set by the ``border`` step: builds the border again from the grid it
+        started from, with the side rings lowered beside hanging hands (the
+        clearance step's repair; docs/templates.md, "Seed-independent success").
     """
 
     spec: TemplateSpec
@@ -388,6 +392,7 @@ class FitState:
     rng: np.random.Generator
     grid: GridMesh | None = None
     meta: dict = field(default_factory=dict)
+    rebuild_border: object = None
 
     def face_name(self, face: FaceState) -> str:
         """``thigh.right`` style name of a face."""

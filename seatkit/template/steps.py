@@ -12,6 +12,8 @@ returning an object of this shape from ``seatkit_register_template_steps``.
 
 from __future__ import annotations
 
+import functools
+
 from typing import Any, Mapping
 
 import numpy as np
@@ -397,7 +399,8 @@ class BorderStep:
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
         if state.grid is None:
             state.grid = join_blocks(state)
-        state.grid = add_border(
+        border = functools.partial(
+            add_border,
             state.grid,
             width=float(options.get("width", 0.05)),
             margin=float(options.get("margin", 0.05)),
@@ -408,6 +411,9 @@ class BorderStep:
             front_drop=float(options.get("front_drop", 0.08)),
             body_clearance=options.get("body_clearance"),
         )
+        state.grid = border()
+        # the clearance step's repair may rebuild it with the side rings lowered beside a hanging hand
+        state.rebuild_border = functools.partial(border, drop_beside=True)
         if options.get("clearance", True):
             lift_grid(state, {})
 
@@ -506,6 +512,20 @@ class ClearanceStep:
         """
         if not options.get("repair", True) or state.grid is None:
             return False
+        rebuild = getattr(state, "rebuild_border", None)
+        labels = state.grid.label.ravel()
+        named = sorted({str(labels[i]) for i in faces})
+        if rebuild is not None and "border" in named:
+            # a hand hanging beside the seat pierces the border's side faces:
+            # rebuilt with the side ring lowered there (once per start), then lifted as at first
+            state.rebuild_border = None
+            lifted, border = state.grid, state.meta["border"]
+            state.grid = rebuild()
+            if state.meta["border"]["dropped_beside"]:
+                report = lift_grid(state, options)
+                state.meta.setdefault("repairs", []).append({"step": "border", "faces": named, "dropped_beside": state.meta["border"]["dropped_beside"], **report})
+                return True
+            state.grid, state.meta["border"] = lifted, border
         return lift_grid(state, options, faces=faces)["moved_vertices"] > 0
 
 
