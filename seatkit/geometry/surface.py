@@ -174,8 +174,6 @@ def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | No
     cx = c_lo[owner, 0] + k % nx[owner]
     cz = c_lo[owner, 1] + k // nx[owner]
     key = cz * width + cx
-    order = np.argsort(key, kind="stable")
-    key, owner = key[order], owner[order]
     # the body vertices above the floor, their cells, and the triangles there
     up = np.flatnonzero(p[:, 1] > 0.0)
     # the rays start a hair off the body vertices in the plan (a fixed offset
@@ -185,6 +183,15 @@ def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | No
     start_points = p[up] + [1.2345e-9, 0.0, 2.3456e-9]
     pc = np.floor((start_points[:, [0, 2]] - origin) / cell).astype(np.int64)
     pkey = pc[:, 1] * width + pc[:, 0]
+    # a ray crosses only triangles above its start: a (triangle, cell) pair
+    # whose triangle lies wholly below the lowest body vertex of the cell
+    # (the seat under the thighs) is left out, which changes no parity
+    lowest = np.full(int(max(key.max(initial=0), pkey.max(initial=0))) + 1, np.inf)
+    np.minimum.at(lowest, pkey, start_points[:, 1])
+    above = t[:, :, 1].max(axis=1)[owner] > lowest[key]
+    key, owner = key[above], owner[above]
+    order = np.argsort(key, kind="stable")
+    key, owner = key[order], owner[order]
     start = np.searchsorted(key, pkey, side="left")
     stop = np.searchsorted(key, pkey, side="right")
     n = stop - start

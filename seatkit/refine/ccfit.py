@@ -266,6 +266,26 @@ def skin_depth(skins: Sequence[SkinDistance], points: np.ndarray):
     return depth, foot, out
 
 
+def skin_depth_near(skins: Sequence[SkinDistance], points: np.ndarray, near: float):
+    """:func:`skin_depth` where it can be above ``-near``; elsewhere a bound below it.
+
+    Points the skins' open-space grids (:meth:`SkinDistance.clear_of`) put
+    at least ``near`` outside every body are not asked: their depth is
+    minus that bound (they are at least that far outside, and
+    :func:`skin_depth` would put them beyond ``-near`` too), their skin
+    point and way out placeholders.
+    """
+    clear = np.min([skin.clear_of(points) for skin in skins], axis=0) if skins else np.full(len(points), _FAR)
+    ask = np.flatnonzero(clear < near)
+    depth = -clear
+    foot = np.array(points, dtype=np.float64, copy=True)
+    out = np.zeros_like(foot)
+    out[:, 1] = 1.0
+    if ask.size:
+        depth[ask], foot[ask], out[ask] = skin_depth(skins, points[ask])
+    return depth, foot, out
+
+
 def _boundary_samples(ops) -> np.ndarray:
     """(p,) bool: refined vertices on the boundary of the refined mesh."""
     q = ops.faces
@@ -461,7 +481,10 @@ def _fit_once(mesh, bodies, pressures, params) -> ControlMesh:
         closest, dist, signed = surface_distances(X, N, b, boundary=on_boundary)
         mean = float(np.sum(w_base * dist) / w_sum)
         Y = probe @ P
-        depth, foot, out = skin_depth(skins, Y)  # depth > 0: probe inside a body
+        # depth > 0: probe inside a body. Only probes that can be nearer the
+        # skin than twice the clearance are asked (those farther take no
+        # part in the step): about half of a chair's probes
+        depth, foot, out = skin_depth_near(skins, Y, 2.0 * p["clearance"])
         # the floor is an obstacle too: nothing goes below y = 0
         below = -Y[:, 1] > np.maximum(depth, 0.0)
         depth = np.where(below, -Y[:, 1], depth)
