@@ -370,6 +370,9 @@ def fit_cage(
         return _fit_cage(mesh, bodies, pressures, params)
 
 
+#: Guarded body vertices farther than this from the surface are not pushed (m): the closest sample's side means little there.
+_GUARD_REACH = 0.06
+
 #: Fits with a tighter probe target tried when the final surface exceeds ``surface_limit``.
 _REPAIR_ROUNDS = 2
 #: The tightest probe target a repair round asks for, m.
@@ -384,13 +387,19 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     surface exceeds the limit, the fit is run again from the same cage with
     the probe target lowered by the excess (and 1 mm more), at most
     ``_REPAIR_ROUNDS`` times; a surface still too deep is a SolverError.
+    When a body vertex lies deeper inside the furniture than the limit, the
+    refits also *guard* the body vertices the fit does not pull to (a hand
+    hanging beside the seat, under its edge): one behind the surface, by
+    the closest limit sample's side, pushes that sample back past it by the
+    clearance, as firmly as a probe inside the body.
     """
     p = refiner_params("catmull-clark-fit", CCFIT_DEFAULTS, mesh.meta, params)
     params = dict(params or {})
     target = p["max_penetration"]
     rounds = []
+    guard = False
     for round_ in range(_REPAIR_ROUNDS + 1):
-        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target})
+        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target}, guard=guard)
         report = out.meta["catmull-clark-fit"]
         final = report["final_depth"]
         if final is None or max(final.values()) <= p["surface_limit"]:
@@ -398,7 +407,11 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
                 report["repair_rounds"] = rounds
                 report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
             return out
-        rounds.append({"probe_target": target, **final})
+        rounds.append({"probe_target": target, "guard": guard, **final})
+        # a body part the cage does not support inside the furniture (a
+        # hanging hand under the edge of the seat): the refits keep every
+        # body vertex out, not only the supported ones
+        guard = guard or final["body_in_surface"] > p["surface_limit"]
         excess = max(final.values()) - p["surface_limit"]
         if target <= _MIN_PROBE_TARGET:
             break
@@ -412,7 +425,7 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     raise SolverError(msg)
 
 
-def _fit_once(mesh, bodies, pressures, params) -> ControlMesh:
+def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> ControlMesh:
     from seatkit.subdivision import Cage, build_operators
 
     start = time.perf_counter()
@@ -453,6 +466,14 @@ def _fit_once(mesh, bodies, pressures, params) -> ControlMesh:
     # the surface under the ground
     b[:, 1] = np.maximum(b[:, 1], 0.0)
     k_sup = len(b)
+    # the guarded body vertices: every vertex the fit does not pull to (see _fit_cage)
+    if guard:
+        everything = np.concatenate([bd.vertices for bd in bodies])
+        pulled = np.zeros(len(everything), bool)
+        pulled[owner_offset[targets.body] + targets.vertex] = True
+        guarded = everything[~pulled]
+    else:
+        guarded = np.zeros((0, 3))
     w_base = targets.weights
     w_sum = float(w_base.sum())
     w_pen = p["penetration_weight"] * float(np.mean(w_base))
@@ -644,6 +665,22 @@ def _fit_once(mesh, bodies, pressures, params) -> ControlMesh:
             idx = idx[~on_floor]
             boost = 1.0 + np.minimum(depth[idx].clip(0) / p["clearance"], 4.0)
             pen = (idx, out[idx], foot[idx], gap[idx], w_pen / w_sum * boost)
+            if len(guarded):
+                # guarded body vertices behind the surface (within reach of
+                # it): their closest limit sample is pushed back past them by
+                # the clearance, along minus its normal
+                g_closest, g_dist, g_signed = surface_distances(X, N, guarded, boundary=on_boundary)
+                hit = np.flatnonzero((g_signed < 0.0) & (g_dist < _GUARD_REACH))
+                if hit.size:
+                    c_hit = g_closest[hit]
+                    g_boost = 1.0 + np.minimum(-g_signed[hit] / p["clearance"], 4.0)
+                    pen = (
+                        np.concatenate([idx, c_hit]),
+                        np.concatenate([out[idx], -N[c_hit]]),
+                        np.concatenate([foot[idx], guarded[hit]]),
+                        np.concatenate([gap[idx], np.full(hit.size, p["clearance"])]),
+                        np.concatenate([pen[4], w_pen / w_sum * g_boost]),
+                    )
             try:
                 solution = solve_step(P, N, closest, w, pen, phase)
             except (RuntimeError, np.linalg.LinAlgError) as exc:  # singular factorisation
