@@ -20,7 +20,11 @@ supported body regions without passing through the body. ICP-like:
    The probes are the limit points, and in a polishing phase (only when
    needed) also the refined quads' centres, which catch thin body parts
    poking through between the limit points. The floor (y = 0) is an
-   obstacle too: probes below it are lifted to it;
+   obstacle too: probes below it are lifted to it. Only the probes that
+   can be within the clearance of a skin are asked (the skin's
+   open-space grid gives a lower bound on the distance,
+   :meth:`~seatkit.geometry.skin.SkinDistance.clear_of`): a probe farther
+   out takes no part in the step, so the iterates are the same;
 4. one sparse linear least-squares solve for the moving control points::
 
        min  sum_b w_b [ (n_c . (L_c P - b))^2 + mu |L_c P - b|^2 ] / sum_b w_b
@@ -67,7 +71,10 @@ with ``raise_on_penetration`` a penetration above the limit is a
 :class:`~seatkit.errors.SolverError`. Last, the guarantee: the kept
 surface is measured as the evaluation measures it (surface below the skin,
 body vertices inside the furniture); deeper than ``surface_limit`` (5 mm),
-it is refitted with a tighter probe target, and refused with a
+it is refitted with a tighter probe target (and, when a body vertex lies
+too deep inside the furniture, with every body vertex guarded: one the fit
+does not pull to, a hand hanging under the edge of the seat, pushes the
+surface back past it like a probe inside the body), and refused with a
 ``SolverError`` if it stays too deep, never returned as a success.
 """
 
@@ -271,10 +278,15 @@ def skin_depth_near(skins: Sequence[SkinDistance], points: np.ndarray, near: flo
 
     Points the skins' open-space grids (:meth:`SkinDistance.clear_of`) put
     at least ``near`` outside every body are not asked: their depth is
-    minus that bound (they are at least that far outside, and
-    :func:`skin_depth` would put them beyond ``-near`` too), their skin
-    point and way out placeholders.
+    minus that bound, their skin point and way out placeholders.
+    :func:`skin_depth` would put them at ``-near`` or beyond too (``near``
+    at most :attr:`SkinDistance.EXACT_WITHIN`): its exact answer is the
+    distance to the closest triangle it finds, never nearer than the true
+    one; its estimate is used only beyond ``EXACT_WITHIN``; a point far
+    from a body's box gets ``-_FAR``.
     """
+    if near > SkinDistance.EXACT_WITHIN:
+        raise ValueError(f"near ({near} m) must be at most SkinDistance.EXACT_WITHIN ({SkinDistance.EXACT_WITHIN} m)")
     clear = np.min([skin.clear_of(points) for skin in skins], axis=0) if skins else np.full(len(points), _FAR)
     ask = np.flatnonzero(clear < near)
     depth = -clear
@@ -503,9 +515,9 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
         mean = float(np.sum(w_base * dist) / w_sum)
         Y = probe @ P
         # depth > 0: probe inside a body. Only probes that can be nearer the
-        # skin than twice the clearance are asked (those farther take no
-        # part in the step): about half of a chair's probes
-        depth, foot, out = skin_depth_near(skins, Y, 2.0 * p["clearance"])
+        # skin than the clearance are asked: the others take no part in the
+        # step (and the query would put them at least that far out too)
+        depth, foot, out = skin_depth_near(skins, Y, p["clearance"])
         # the floor is an obstacle too: nothing goes below y = 0
         below = -Y[:, 1] > np.maximum(depth, 0.0)
         depth = np.where(below, -Y[:, 1], depth)
