@@ -127,9 +127,10 @@ def test_a_hand_hanging_under_the_seat_edge_is_guarded_not_refused(tmp_path):
 
     The hands hang beside the seat, under the edge of the surface, which the
     fit does not pull to: the first fit left them 37 mm inside the furniture
-    and the design was refused. The refit guards every body vertex and keeps
-    them out: the build succeeds within the 5 mm guarantee, measured as the
-    evaluation measures it.
+    and the design was refused. The refit guards every body vertex (those
+    inside the furniture by the evaluation's ray parity push the surface
+    back past them) and keeps them out: the build succeeds within the 5 mm
+    guarantee, measured as the evaluation measures it.
     """
     from seatkit.body.generator import draw_pose, pose_yaml
     from seatkit.pipeline import build
