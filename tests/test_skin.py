@@ -58,13 +58,17 @@ def _fine(mesh, edge=0.01):
     return trimesh.Trimesh(v, f)
 
 
-def test_crease_between_overlapping_parts_is_settled_by_the_winding_number():
-    # two boxes that overlap, as one self-intersecting skin (a hand sunk into a thigh)
+def _two_boxes():
+    """Two boxes that overlap, as one self-intersecting skin with centimetre edges (vertices, faces)."""
     a = _fine(trimesh.creation.box(extents=(0.2, 0.1, 0.1)))
     b = _fine(trimesh.creation.box(extents=(0.1, 0.1, 0.3)))
     b.apply_translation((0.12, 0.0, 0.0))
-    v = np.vstack([a.vertices, b.vertices])
-    f = np.vstack([a.faces, b.faces + len(a.vertices)])
+    return np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + len(a.vertices)])
+
+
+def test_crease_between_overlapping_parts_is_settled_by_the_winding_number():
+    # two boxes that overlap, as one self-intersecting skin (a hand sunk into a thigh)
+    v, f = _two_boxes()
     skin = SkinDistance(v, f)
     # inside box a, but outside box b, and nearest to b's skin: a local sign calls it outside
     p = np.array([[0.064, 0.0, 0.0]])
@@ -170,11 +174,7 @@ def test_clear_of_is_a_lower_bound_on_the_distance_outside():
     # a body-like skin (two overlapping boxes, edges of a centimetre) and
     # points all around it: clear_of never exceeds the true distance, is 0
     # for points inside, and is positive for most points a few cells away
-    a = _fine(trimesh.creation.box(extents=(0.2, 0.1, 0.1)))
-    b = _fine(trimesh.creation.box(extents=(0.1, 0.1, 0.3)))
-    b.apply_translation((0.12, 0.0, 0.0))
-    v = np.vstack([a.vertices, b.vertices])
-    f = np.vstack([a.faces, b.faces + len(a.vertices)])
+    v, f = _two_boxes()
     skin = SkinDistance(v, f)
     rng = np.random.default_rng(3)
     points = rng.uniform((-0.25, -0.15, -0.3), (0.3, 0.15, 0.3), size=(1500, 3))
