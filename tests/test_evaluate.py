@@ -140,3 +140,40 @@ def test_body_depth_in_surface_on_a_dome():
     assert body_depth_in_surface(dome, SimpleNamespace(vertices=pts[outside])) == 0.0
     # one point just under the top, 5 cm deep
     assert body_depth_in_surface(dome, SimpleNamespace(vertices=np.array([[0.0, h - 0.05, 0.0]]))) == pytest.approx(0.05, abs=2e-3)
+
+
+def test_body_depth_in_surface_agrees_with_brute_force_parity():
+    """The candidate filter (triangles wholly below a cell's lowest body point left out) changes no answer."""
+    from types import SimpleNamespace
+
+    from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface
+    from seatkit.model import Surface
+
+    rng = np.random.default_rng(7)
+    # a wavy sheet with a raised back, like a seat and its back rest, over the floor
+    xs, zs = np.linspace(-0.3, 0.3, 31), np.linspace(-0.3, 0.3, 31)
+    X, Z = np.meshgrid(xs, zs, indexing="ij")
+    Y = 0.4 + 0.05 * np.sin(8 * X) * np.cos(6 * Z) + np.where(Z < -0.15, 3.0 * (-0.15 - Z), 0.0)
+    edge = (np.abs(X) > 0.299) | (np.abs(Z) > 0.299)
+    Y = np.where(edge, 0.0, Y)  # the ground ring
+    verts = np.stack([X, Y, Z], axis=-1).reshape(-1, 3)
+    idx = np.arange(len(verts)).reshape(X.shape)
+    quads = np.stack([idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]], axis=-1).reshape(-1, 4)
+    sheet = Surface(verts, np.tile([0.0, 1.0, 0.0], (len(verts), 1)), quads, 3)
+    pts = np.column_stack([rng.uniform(-0.35, 0.35, 3000), rng.uniform(0.0, 0.9, 3000), rng.uniform(-0.35, 0.35, 3000)])
+    # brute force: count the crossings of the ray up from each point with every triangle
+    tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
+    t = verts[tris]
+    q = pts + [1.2345e-9, 0.0, 2.3456e-9]
+    a, b, c = t[None, :, 0], t[None, :, 1], t[None, :, 2]
+    e1, e2, d = (b - a)[..., [0, 2]], (c - a)[..., [0, 2]], q[:, None, [0, 2]] - a[..., [0, 2]]
+    det = e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0]
+    s = (d[..., 0] * e2[..., 1] - d[..., 1] * e2[..., 0]) / det
+    r = (e1[..., 0] * d[..., 1] - e1[..., 1] * d[..., 0]) / det
+    height = a[..., 1] + s * (b - a)[..., 1] + r * (c - a)[..., 1]
+    crossings = ((s >= 0) & (r >= 0) & (s + r <= 1) & (height > q[:, None, 1])).sum(axis=1)
+    inside = crossings % 2 == 1
+    assert 100 < inside.sum() < 2900
+    dist, _ = SurfaceQuery(sheet).query(pts)
+    assert body_depth_in_surface(sheet, SimpleNamespace(vertices=pts)) == dist[inside].max()
+    assert body_depth_in_surface(sheet, SimpleNamespace(vertices=pts[~inside])) == 0.0

@@ -120,3 +120,28 @@ def test_unmeetable_penetration_limit_raises():
     body, field = synthetic_body(25)
     with pytest.raises(SolverError, match="inside"):
         fit_cage(flat_cage(height=0.55), [body], [field], {"max_iterations": 1, "polish_iterations": 0, "max_penetration": 0.0, "raise_on_penetration": True})
+
+
+def test_a_hand_hanging_under_the_seat_edge_is_guarded_not_refused(tmp_path):
+    """Generated pose seated-008 (the generalisation benchmark's draw, seed 2026) on default-male.
+
+    The hands hang beside the seat, under the edge of the surface, which the
+    fit does not pull to: the first fit left them 37 mm inside the furniture
+    and the design was refused. The refit guards every body vertex (those
+    inside the furniture by the evaluation's ray parity push the surface
+    back past them) and keeps them out: the build succeeds within the 5 mm
+    guarantee, measured as the evaluation measures it.
+    """
+    from seatkit.body.generator import draw_pose, pose_yaml
+    from seatkit.pipeline import build
+
+    drawn = draw_pose(np.random.default_rng([2026, 8]), "seated", "seated-008")
+    path = tmp_path / "seated-008.yaml"
+    path.write_text(pose_yaml(drawn))
+    result = build({"template": "chair", "seed": 0, "bodies": [{"model": "default-male", "pose": str(path)}]}, write=False, processes=False)
+    report = result.control_mesh.meta["catmull-clark-fit"]
+    rounds = report.get("repair_rounds", [])
+    assert rounds and rounds[0]["body_in_surface"] > 0.005  # the first fit left a hand inside
+    assert max(report["final_depth"].values()) <= 0.005
+    ours = result.metrics["ours"][0]
+    assert ours["max_penetration_m"] <= 0.005

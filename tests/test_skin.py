@@ -58,13 +58,17 @@ def _fine(mesh, edge=0.01):
     return trimesh.Trimesh(v, f)
 
 
-def test_crease_between_overlapping_parts_is_settled_by_the_winding_number():
-    # two boxes that overlap, as one self-intersecting skin (a hand sunk into a thigh)
+def _two_boxes():
+    """Two boxes that overlap, as one self-intersecting skin with centimetre edges (vertices, faces)."""
     a = _fine(trimesh.creation.box(extents=(0.2, 0.1, 0.1)))
     b = _fine(trimesh.creation.box(extents=(0.1, 0.1, 0.3)))
     b.apply_translation((0.12, 0.0, 0.0))
-    v = np.vstack([a.vertices, b.vertices])
-    f = np.vstack([a.faces, b.faces + len(a.vertices)])
+    return np.vstack([a.vertices, b.vertices]), np.vstack([a.faces, b.faces + len(a.vertices)])
+
+
+def test_crease_between_overlapping_parts_is_settled_by_the_winding_number():
+    # two boxes that overlap, as one self-intersecting skin (a hand sunk into a thigh)
+    v, f = _two_boxes()
     skin = SkinDistance(v, f)
     # inside box a, but outside box b, and nearest to b's skin: a local sign calls it outside
     p = np.array([[0.064, 0.0, 0.0]])
@@ -164,3 +168,33 @@ def test_points_in_open_space_under_a_self_touching_body_are_outside():
     # far outside the skin's box, and in the open space between the box and the body: outside
     assert np.all(skin._in_open_space(np.array([[0.0, -1.0, 0.0], [5.0, 5.0, 5.0], points[0]])))
     assert not np.any(skin._in_open_space(body.vertices[::50]))  # the skin's own cells are never open
+
+
+def test_clear_of_is_a_lower_bound_on_the_distance_outside():
+    # a body-like skin (two overlapping boxes, edges of a centimetre) and
+    # points all around it: clear_of never exceeds the true distance, is 0
+    # for points inside, and is positive for most points a few cells away
+    v, f = _two_boxes()
+    skin = SkinDistance(v, f)
+    rng = np.random.default_rng(3)
+    points = rng.uniform((-0.25, -0.15, -0.3), (0.3, 0.15, 0.3), size=(1500, 3))
+    truth = _brute_distance(v, f, points)
+    inside = skin.winding_numbers(points) > 0.5
+    clear = skin.clear_of(points)
+    assert np.all(clear >= 0.0)
+    assert np.all(clear <= truth + 1e-12)
+    assert np.all(clear[inside] == 0.0)
+    # it is not vacuous: points more than 3 cells from the skin get a bound of at least a quarter of their distance
+    far = ~inside & (truth > 3 * SkinDistance.OPEN_SPACE_CELL)
+    assert far.sum() > 100 and np.all(clear[far] > truth[far] / 4)
+    # the fit's use of it: the query says the same where the bound lets it be asked, and the others are farther out
+    from seatkit.refine.ccfit import skin_depth, skin_depth_near
+
+    near = 0.012
+    d_all, _, _ = skin_depth([skin], points)
+    d_near, _, _ = skin_depth_near([skin], points, near)
+    asked = clear < near
+    assert np.array_equal(d_near[asked], d_all[asked])
+    assert np.all(d_near[~asked] <= -near) and np.all(d_all[~asked] <= -near)
+    # max_depth skips the points in open space and answers as before
+    assert skin.max_depth(points) == pytest.approx(float(np.max(np.where(inside, truth, 0.0))), abs=1e-9)

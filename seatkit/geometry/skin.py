@@ -130,7 +130,7 @@ class SkinDistance:
         self._d00 = np.einsum("ij,ij->i", self._ab, self._ab)
         self._d01 = np.einsum("ij,ij->i", self._ab, self._ac)
         self._d11 = np.einsum("ij,ij->i", self._ac, self._ac)
-        self._open = None  # (origin, cell, open-space mask), built on first use
+        self._open = None  # (origin, cell, open-space mask, clearance per cell), built on first use
 
     @classmethod
     def of(cls, vertices: np.ndarray, faces: np.ndarray) -> "SkinDistance":
@@ -198,6 +198,40 @@ class SkinDistance:
         the outer layer through faces are open space, where the winding
         number is 0 (it changes only across the skin). Built on first use.
         """
+        origin, h, open_space, _ = self._open_space()
+        cells = np.floor((points - origin) / h).astype(int)
+        within = np.all((cells >= 0) & (cells < open_space.shape), axis=1)
+        out = ~within
+        c = cells[within]
+        out[within] = open_space[c[:, 0], c[:, 1], c[:, 2]]
+        return out
+
+    def clear_of(self, points: np.ndarray) -> np.ndarray:
+        """(k,) float64: a lower bound on how far points are outside the skin, m (0 where unknown).
+
+        From the open-space grid (see :meth:`_in_open_space`): a point in an
+        open cell ``c`` cells (chessboard) from the nearest cell a triangle's
+        samples touch is at least ``(c - 1) h`` from those samples, and every
+        point of a triangle is within ``h / sqrt(3)`` of one (its samples are
+        at most ``h`` apart), so at least ``(c - 1 - 1/sqrt(3)) h`` from the
+        skin, and outside; no point is nearer the skin than the skin's
+        bounding box. :meth:`query` reports such a point at least
+        that far outside (its closest-point search can only find a farther
+        triangle), so a caller that needs only points nearer than some
+        distance can leave the others out.
+        """
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        origin, h, _, clear = self._open_space()
+        cells = np.floor((points - origin) / h).astype(int)
+        within = np.all((cells >= 0) & (cells < clear.shape), axis=1)
+        lo, hi = self.bounds
+        out = np.linalg.norm(np.maximum(lo - points, 0.0) + np.maximum(points - hi, 0.0), axis=1)
+        c = cells[within]
+        out[within] = np.maximum(out[within], clear[c[:, 0], c[:, 1], c[:, 2]])
+        return out
+
+    def _open_space(self):
+        """(origin, cell, open-space mask, clearance per cell) of the open-space grid, built on first use."""
         if self._open is None:
             h = self.OPEN_SPACE_CELL
             v, f = self.vertices, self.faces
@@ -214,16 +248,14 @@ class SkinDistance:
                 samples = np.einsum("sc,mci->msi", bary, corners[steps == n]).reshape(-1, 3)
                 cells = np.floor((samples - origin) / h).astype(int)
                 marked[cells[:, 0], cells[:, 1], cells[:, 2]] = True
+            # chessboard distance (cells) to the nearest touched cell
+            reach = ndimage.distance_transform_cdt(~marked, metric="chessboard")
             marked = ndimage.binary_dilation(marked, structure=np.ones((3, 3, 3), bool))
             labels, _ = ndimage.label(~marked)  # face-connected components of the unmarked cells
-            self._open = (origin, h, labels == labels[0, 0, 0])
-        origin, h, open_space = self._open
-        cells = np.floor((points - origin) / h).astype(int)
-        within = np.all((cells >= 0) & (cells < open_space.shape), axis=1)
-        out = ~within
-        c = cells[within]
-        out[within] = open_space[c[:, 0], c[:, 1], c[:, 2]]
-        return out
+            open_space = labels == labels[0, 0, 0]
+            clear = np.where(open_space, np.maximum((reach - 1.0 - 1.0 / np.sqrt(3.0)) * h, 0.0), 0.0)
+            self._open = (origin, h, open_space, clear)
+        return self._open
 
     def _exact(self, points: np.ndarray, near: np.ndarray):
         cand = self.rings[near].reshape(len(points), -1)
@@ -305,6 +337,11 @@ class SkinDistance:
         candidates the next one's depth is reported unconfirmed (the
         conservative answer).
         """
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        # points in open space are outside (query would say so): not asked
+        points = points[~self._in_open_space(points)]
+        if not len(points):
+            return 0.0
         depth, _, _ = self.query(points)
         order = np.argsort(-depth)
         order = order[depth[order] > 0.0]

@@ -20,7 +20,7 @@ from seatkit.geometry.closest import closest_point_on_triangles, vertex_triangle
 from seatkit.geometry.skin import SkinDistance
 from seatkit.model import Body, Surface
 
-__all__ = ["SurfaceQuery", "surface_depth_in_body", "body_depth_in_surface"]
+__all__ = ["SurfaceQuery", "surface_depth_in_body", "body_depth_in_surface", "inside_furniture"]
 
 
 class SurfaceQuery:
@@ -153,12 +153,27 @@ def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | No
     Candidate triangles come from a grid of ``cell`` (m) over the floor
     plan; the point-in-triangle tests are exact in the plan.
     """
+    p = np.asarray(body.vertices, dtype=np.float64)
+    inside = np.flatnonzero(inside_furniture(surface, p, cell=cell))
+    if not inside.size:
+        return 0.0
+    query = query if query is not None else SurfaceQuery(surface)
+    dist, _ = query.query(p[inside])
+    return float(dist.max())
+
+
+def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02) -> np.ndarray:
+    """(k,) bool: points inside the furniture the surface closes with the floor (see :func:`body_depth_in_surface`).
+
+    A point above the floor is inside when the ray from it straight up
+    crosses the surface an odd number of times.
+    """
     v = np.asarray(surface.vertices, dtype=np.float64)
     f = np.asarray(surface.faces, dtype=np.int64)
     tris = np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]]) if f.shape[1] == 4 else f
-    p = np.asarray(body.vertices, dtype=np.float64)
+    p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if not len(tris) or not len(p):
-        return 0.0
+        return np.zeros(len(p), bool)
     t = v[tris]  # (T, 3, 3)
     lo = t[:, :, [0, 2]].min(axis=1)
     hi = t[:, :, [0, 2]].max(axis=1)
@@ -174,8 +189,6 @@ def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | No
     cx = c_lo[owner, 0] + k % nx[owner]
     cz = c_lo[owner, 1] + k // nx[owner]
     key = cz * width + cx
-    order = np.argsort(key, kind="stable")
-    key, owner = key[order], owner[order]
     # the body vertices above the floor, their cells, and the triangles there
     up = np.flatnonzero(p[:, 1] > 0.0)
     # the rays start a hair off the body vertices in the plan (a fixed offset
@@ -185,11 +198,20 @@ def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | No
     start_points = p[up] + [1.2345e-9, 0.0, 2.3456e-9]
     pc = np.floor((start_points[:, [0, 2]] - origin) / cell).astype(np.int64)
     pkey = pc[:, 1] * width + pc[:, 0]
+    # a ray crosses only triangles above its start: a (triangle, cell) pair
+    # whose triangle lies wholly below the lowest body vertex of the cell
+    # (the seat under the thighs) is left out, which changes no parity
+    lowest = np.full(int(max(key.max(initial=0), pkey.max(initial=0))) + 1, np.inf)
+    np.minimum.at(lowest, pkey, start_points[:, 1])
+    above = t[:, :, 1].max(axis=1)[owner] > lowest[key]
+    key, owner = key[above], owner[above]
+    order = np.argsort(key, kind="stable")
+    key, owner = key[order], owner[order]
     start = np.searchsorted(key, pkey, side="left")
     stop = np.searchsorted(key, pkey, side="right")
     n = stop - start
     if not n.sum():
-        return 0.0
+        return np.zeros(len(p), bool)
     pt = np.repeat(np.arange(up.size), n)
     j = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
     tri = owner[np.repeat(start, n) + j]
@@ -205,9 +227,6 @@ def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | No
     within = ok & (s >= 0) & (r >= 0) & (s + r <= 1)
     height = a[:, 1] + s * (b[:, 1] - a[:, 1]) + r * (c[:, 1] - a[:, 1])
     crossing = within & (height > q[:, 1])
-    inside = np.bincount(pt[crossing], minlength=up.size) % 2 == 1
-    if not inside.any():
-        return 0.0
-    query = query if query is not None else SurfaceQuery(surface)
-    dist, _ = query.query(p[up[inside]])
-    return float(dist.max())
+    out = np.zeros(len(p), bool)
+    out[up] = np.bincount(pt[crossing], minlength=up.size) % 2 == 1
+    return out

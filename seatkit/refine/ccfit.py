@@ -20,7 +20,11 @@ supported body regions without passing through the body. ICP-like:
    The probes are the limit points, and in a polishing phase (only when
    needed) also the refined quads' centres, which catch thin body parts
    poking through between the limit points. The floor (y = 0) is an
-   obstacle too: probes below it are lifted to it;
+   obstacle too: probes below it are lifted to it. Only the probes that
+   can be within the clearance of a skin are asked (the skin's
+   open-space grid gives a lower bound on the distance,
+   :meth:`~seatkit.geometry.skin.SkinDistance.clear_of`): a probe farther
+   out takes no part in the step, so the iterates are the same;
 4. one sparse linear least-squares solve for the moving control points::
 
        min  sum_b w_b [ (n_c . (L_c P - b))^2 + mu |L_c P - b|^2 ] / sum_b w_b
@@ -67,7 +71,10 @@ with ``raise_on_penetration`` a penetration above the limit is a
 :class:`~seatkit.errors.SolverError`. Last, the guarantee: the kept
 surface is measured as the evaluation measures it (surface below the skin,
 body vertices inside the furniture); deeper than ``surface_limit`` (5 mm),
-it is refitted with a tighter probe target, and refused with a
+it is refitted with a tighter probe target (and, when a body vertex lies
+too deep inside the furniture, with every body vertex guarded: one the fit
+does not pull to, a hand hanging under the edge of the seat, pushes the
+surface back past it like a probe inside the body), and refused with a
 ``SolverError`` if it stays too deep, never returned as a success.
 """
 
@@ -85,7 +92,7 @@ from scipy.spatial import cKDTree
 from seatkit.errors import SolverError
 from seatkit.geometry.normals import vertex_normals
 from seatkit.geometry.skin import SkinDistance
-from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, surface_depth_in_body
+from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, inside_furniture, surface_depth_in_body
 from seatkit.model import Body, ControlMesh, PressureField, Surface
 from seatkit.pressure.contact import supported_vertices
 from seatkit.params import refiner_params
@@ -266,6 +273,31 @@ def skin_depth(skins: Sequence[SkinDistance], points: np.ndarray):
     return depth, foot, out
 
 
+def skin_depth_near(skins: Sequence[SkinDistance], points: np.ndarray, near: float):
+    """:func:`skin_depth` where it can be above ``-near``; elsewhere a bound below it.
+
+    Points the skins' open-space grids (:meth:`SkinDistance.clear_of`) put
+    at least ``near`` outside every body are not asked: their depth is
+    minus that bound, their skin point and way out placeholders.
+    :func:`skin_depth` would put them at ``-near`` or beyond too (``near``
+    at most :attr:`SkinDistance.EXACT_WITHIN`): its exact answer is the
+    distance to the closest triangle it finds, never nearer than the true
+    one; its estimate is used only beyond ``EXACT_WITHIN``; a point far
+    from a body's box gets ``-_FAR``.
+    """
+    if near > SkinDistance.EXACT_WITHIN:
+        raise ValueError(f"near ({near} m) must be at most SkinDistance.EXACT_WITHIN ({SkinDistance.EXACT_WITHIN} m)")
+    clear = np.min([skin.clear_of(points) for skin in skins], axis=0) if skins else np.full(len(points), _FAR)
+    ask = np.flatnonzero(clear < near)
+    depth = -clear
+    foot = np.array(points, dtype=np.float64, copy=True)
+    out = np.zeros_like(foot)
+    out[:, 1] = 1.0
+    if ask.size:
+        depth[ask], foot[ask], out[ask] = skin_depth(skins, points[ask])
+    return depth, foot, out
+
+
 def _boundary_samples(ops) -> np.ndarray:
     """(p,) bool: refined vertices on the boundary of the refined mesh."""
     q = ops.faces
@@ -364,13 +396,22 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     surface exceeds the limit, the fit is run again from the same cage with
     the probe target lowered by the excess (and 1 mm more), at most
     ``_REPAIR_ROUNDS`` times; a surface still too deep is a SolverError.
+    When a body vertex lies deeper inside the furniture than the limit, the
+    refits also *guard* the body vertices the fit does not pull to (a hand
+    hanging beside the seat, under its edge): one inside the furniture (the
+    evaluation's ray parity, on the fit's tessellation, every iteration)
+    pushes its closest limit sample back past it by the clearance, as
+    firmly as a probe inside the body. (The closest sample's side alone
+    calls about 2,000 vertices of a seated body "behind" the surface, up to
+    23 cm deep, and those rows pushed the surface into the body.)
     """
     p = refiner_params("catmull-clark-fit", CCFIT_DEFAULTS, mesh.meta, params)
     params = dict(params or {})
     target = p["max_penetration"]
     rounds = []
+    guard = False
     for round_ in range(_REPAIR_ROUNDS + 1):
-        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target})
+        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target}, guard=guard)
         report = out.meta["catmull-clark-fit"]
         final = report["final_depth"]
         if final is None or max(final.values()) <= p["surface_limit"]:
@@ -378,7 +419,11 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
                 report["repair_rounds"] = rounds
                 report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
             return out
-        rounds.append({"probe_target": target, **final})
+        rounds.append({"probe_target": target, "guard": guard, **final})
+        # a body part the cage does not support inside the furniture (a
+        # hanging hand under the edge of the seat): the refits keep every
+        # body vertex out, not only the supported ones
+        guard = guard or final["body_in_surface"] > p["surface_limit"]
         excess = max(final.values()) - p["surface_limit"]
         if target <= _MIN_PROBE_TARGET:
             break
@@ -392,7 +437,7 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     raise SolverError(msg)
 
 
-def _fit_once(mesh, bodies, pressures, params) -> ControlMesh:
+def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> ControlMesh:
     from seatkit.subdivision import Cage, build_operators
 
     start = time.perf_counter()
@@ -433,6 +478,14 @@ def _fit_once(mesh, bodies, pressures, params) -> ControlMesh:
     # the surface under the ground
     b[:, 1] = np.maximum(b[:, 1], 0.0)
     k_sup = len(b)
+    # the guarded body vertices: every vertex the fit does not pull to (see _fit_cage)
+    if guard:
+        everything = np.concatenate([bd.vertices for bd in bodies])
+        pulled = np.zeros(len(everything), bool)
+        pulled[owner_offset[targets.body] + targets.vertex] = True
+        guarded = everything[~pulled]
+    else:
+        guarded = np.zeros((0, 3))
     w_base = targets.weights
     w_sum = float(w_base.sum())
     w_pen = p["penetration_weight"] * float(np.mean(w_base))
@@ -461,7 +514,10 @@ def _fit_once(mesh, bodies, pressures, params) -> ControlMesh:
         closest, dist, signed = surface_distances(X, N, b, boundary=on_boundary)
         mean = float(np.sum(w_base * dist) / w_sum)
         Y = probe @ P
-        depth, foot, out = skin_depth(skins, Y)  # depth > 0: probe inside a body
+        # depth > 0: probe inside a body. Only probes that can be nearer the
+        # skin than the clearance are asked: the others take no part in the
+        # step (and the query would put them at least that far out too)
+        depth, foot, out = skin_depth_near(skins, Y, p["clearance"])
         # the floor is an obstacle too: nothing goes below y = 0
         below = -Y[:, 1] > np.maximum(depth, 0.0)
         depth = np.where(below, -Y[:, 1], depth)
@@ -621,6 +677,22 @@ def _fit_once(mesh, bodies, pressures, params) -> ControlMesh:
             idx = idx[~on_floor]
             boost = 1.0 + np.minimum(depth[idx].clip(0) / p["clearance"], 4.0)
             pen = (idx, out[idx], foot[idx], gap[idx], w_pen / w_sum * boost)
+            if len(guarded):
+                # guarded body vertices inside the furniture (the ray parity
+                # of the evaluation, on the fit's tessellation): their closest
+                # limit sample is pushed back past them by the clearance,
+                # along minus its normal
+                held = guarded[inside_furniture(Surface(X, N, ops.faces, p["level"]), guarded)]
+                if len(held):
+                    c_hit, g_dist, _ = surface_distances(X, N, held)
+                    g_boost = 1.0 + np.minimum(g_dist / p["clearance"], 4.0)
+                    pen = (
+                        np.concatenate([idx, c_hit]),
+                        np.concatenate([out[idx], -N[c_hit]]),
+                        np.concatenate([foot[idx], held]),
+                        np.concatenate([gap[idx], np.full(len(held), p["clearance"])]),
+                        np.concatenate([pen[4], w_pen / w_sum * g_boost]),
+                    )
             try:
                 solution = solve_step(P, N, closest, w, pen, phase)
             except (RuntimeError, np.linalg.LinAlgError) as exc:  # singular factorisation
