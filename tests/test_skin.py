@@ -196,5 +196,8 @@ def test_clear_of_is_a_lower_bound_on_the_distance_outside():
     asked = clear < near
     assert np.array_equal(d_near[asked], d_all[asked])
     assert np.all(d_near[~asked] <= -near) and np.all(d_all[~asked] <= -near)
+    # a clearance beyond the exact query's reach (above 15 mm) asks every point, as before the bound
+    d_wide, _, _ = skin_depth_near([skin], points, 2 * SkinDistance.EXACT_WITHIN)
+    assert np.array_equal(d_wide, d_all)
     # max_depth skips the points in open space and answers as before
     assert skin.max_depth(points) == pytest.approx(float(np.max(np.where(inside, truth, 0.0))), abs=1e-9)

@@ -283,10 +283,11 @@ def skin_depth_near(skins: Sequence[SkinDistance], points: np.ndarray, near: flo
     at most :attr:`SkinDistance.EXACT_WITHIN`): its exact answer is the
     distance to the closest triangle it finds, never nearer than the true
     one; its estimate is used only beyond ``EXACT_WITHIN``; a point far
-    from a body's box gets ``-_FAR``.
+    from a body's box gets ``-_FAR``. A ``near`` beyond ``EXACT_WITHIN`` (a
+    clearance above 15 mm) asks every point: :func:`skin_depth` itself.
     """
     if near > SkinDistance.EXACT_WITHIN:
-        raise ValueError(f"near ({near} m) must be at most SkinDistance.EXACT_WITHIN ({SkinDistance.EXACT_WITHIN} m)")
+        return skin_depth(skins, points)
     clear = np.min([skin.clear_of(points) for skin in skins], axis=0) if skins else np.full(len(points), _FAR)
     ask = np.flatnonzero(clear < near)
     depth = -clear
