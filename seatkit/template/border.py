@@ -150,11 +150,7 @@ def _clear_bodies(line: np.ndarray, along: np.ndarray, across: np.ndarray, point
     """
     if len(points) == 0:
         return
-    c = line @ across
-    mid = 0.5 * (c[1:] + c[:-1])
-    lo = np.concatenate([[-np.inf], mid])
-    hi = np.concatenate([mid, [np.inf]])
-    lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+    lo, hi = _strips(line @ across)
     pa, pc, py = points @ along, points @ across, points[:, 1]
     top = line[:, 1] if top is None else np.asarray(top)
     for i in range(len(line)):
@@ -211,11 +207,7 @@ def _set_back_front_edge(V: np.ndarray, points: np.ndarray, back: np.ndarray, ac
     """
     if len(points) == 0 or len(V) < 2:
         return
-    c = V[0] @ across
-    mid = 0.5 * (c[1:] + c[:-1])
-    lo = np.concatenate([[-np.inf], mid])
-    hi = np.concatenate([mid, [np.inf]])
-    lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+    lo, hi = _strips(V[0] @ across)
     pa, pc, py = points @ back, points @ across, points[:, 1]
     for k in range(V.shape[1]):
         p0, p1 = V[0, k], V[1, k]
