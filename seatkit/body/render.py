@@ -148,14 +148,15 @@ def render_body(
     rotations = [view_axes(view) for view in views]  # refuses an unknown view before any work
     values = scale = None
     lo = hi = 0.0
+    base = np.asarray(base_color if colors is None else colors, dtype=np.float64)
     if colors is not None:
         if scalars is not None:
             msg = "give scalars (a colour scale) or colors (per-vertex RGB), not both"
             raise ValueError(msg)
-        base = np.asarray(colors, dtype=np.float64)
         if base.shape != vertices.shape:
             msg = f"colors must be ({len(vertices)}, 3), got {base.shape}"
             raise ValueError(msg)
+    base = np.broadcast_to(base, vertices.shape)
     if scalars is not None:
         values = np.asarray(scalars, dtype=np.float64)
         if values.shape != (len(vertices),):
@@ -181,8 +182,6 @@ def render_body(
     height += SCALE_BAND
     frames = [replace(f, height=height) for f in frames]
     normals = vertex_normals(vertices, faces)
-    if colors is None:
-        base = np.broadcast_to(np.asarray(base_color, dtype=np.float64), vertices.shape)
     text = pic.font(13)
     panels = []
     for view, frame in zip(views, frames):
