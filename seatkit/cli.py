@@ -128,6 +128,12 @@ def build(
 
     Stages: bodies -> pressure -> template -> refiners -> surface -> exporters.
     """
+    from seatkit.workers import start_fork_server
+
+    # the build's helper processes are forked from a fork server that
+    # imports numpy, scipy and the stages (seatkit.workers): started first,
+    # its imports run beside this process's start-up, not beside the stages
+    start_fork_server()
     from seatkit.pipeline import build as run_build
     from seatkit.recipe import apply_overrides, check_recipe, load_recipe
 

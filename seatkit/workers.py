@@ -20,7 +20,9 @@ PNG writer thread, ``seatkit serve``). The fork server is started once per
 Python process, from a fresh interpreter, and imports :data:`PRELOAD` first,
 so that each worker forked from it starts with numpy, scipy and seatkit's
 stages imported. It starts with the first pool, at the beginning of a build,
-while the build computes the bodies and their pressure.
+while the build computes the bodies and their pressure, or earlier where a
+program calls :func:`start_fork_server` (``seatkit build`` does, first
+thing, so that those imports run beside its own start-up).
 
 Errors cross the boundary as they were raised (a
 :class:`~seatkit.errors.SeatkitError` stays one, with the same one-line
@@ -55,16 +57,17 @@ from typing import Any, Callable, Sequence
 from seatkit.constants import BACKGROUND_NICE
 from seatkit.errors import SeatkitError
 
-__all__ = ["BACKGROUND_NICE", "PRELOAD", "Helper", "WorkerLost", "main_is_import_safe", "pool_context"]
+__all__ = ["BACKGROUND_NICE", "PRELOAD", "Helper", "WorkerLost", "main_is_import_safe", "pool_context", "start_fork_server"]
 
 
 #: Modules the fork server imports before it forks any worker: what the
-#: baseline imports (the flat patch and the refiners, the limit surface, the
-#: evaluation and its pressure solve; measured with ``sys.modules`` after a
-#: baseline fit) and nothing more: on two busy cores every import is CPU
-#: the build's own stages want. The big exporter libraries are not among
-#: them: the export worker imports those itself, beside the build, so the
-#: baseline worker need not wait for them.
+#: baseline's job imports (its arguments unpickled, the flat-patch template,
+#: the refiners, the limit surface, the evaluation and its pressure solve;
+#: measured with ``sys.modules`` around a baseline job in a process that
+#: imported only these: nothing more is imported) and nothing more: on two
+#: busy cores every import is CPU the build's own stages want. The big
+#: exporter libraries are not among them: the export worker imports those
+#: itself, beside the build, so the baseline worker need not wait for them.
 PRELOAD = (
     "seatkit.background",  # first: lowers the fork server's priority (and so its workers')
     "numpy",
@@ -75,6 +78,10 @@ PRELOAD = (
     "seatkit.evaluate",
     "seatkit.subdivision",
     "seatkit.refine",
+    "seatkit.template",
+    "seatkit.stages",
+    "seatkit.recipe",
+    "threadpoolctl",
 )
 
 
@@ -103,6 +110,23 @@ def pool_context() -> multiprocessing.context.BaseContext:
         ctx.set_forkserver_preload(list(PRELOAD))
         return ctx
     return multiprocessing.get_context("spawn")
+
+
+def start_fork_server() -> None:
+    """Start the fork server now, so that it imports :data:`PRELOAD` while the caller starts up.
+
+    The first :class:`Helper` would start it anyway, at the beginning of the
+    build; a program that knows it will build (``seatkit build``) calls this
+    before its own start-up work (the plugins, the recipe), so that the fork
+    server's imports run beside the program's own instead of beside the
+    build's first stages. Without a fork server (spawn platforms) it does
+    nothing: every worker is a fresh interpreter there anyway.
+    """
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        from multiprocessing import forkserver
+
+        pool_context()  # sets PRELOAD
+        forkserver.ensure_running()
 
 
 def _end_with_the_build() -> None:

@@ -359,3 +359,36 @@ def test_workers_run_below_the_build_and_the_build_keeps_its_priority():
         theirs = work.result(work.submit(os.nice, 0))
     assert os.nice(0) == mine  # importing seatkit.workers does not lower the build
     assert theirs == min(mine + BACKGROUND_NICE, 19)
+
+
+_PRELOAD_CHECK = """
+import importlib, pickle, sys
+from seatkit.workers import PRELOAD
+for name in PRELOAD:
+    importlib.import_module(name)
+before = set(sys.modules)
+recipe, bodies, pressures, components, segments = pickle.loads(sys.stdin.buffer.read())
+from seatkit.stages import fit_baseline_with
+fit_baseline_with(recipe, bodies, pressures, components, segments)
+print(" ".join(sorted(set(sys.modules) - before)))
+"""
+
+
+def test_the_fork_server_preloads_every_module_the_baseline_job_imports():
+    """PRELOAD is what a baseline job imports (its arguments unpickled, the fit, the evaluation), so no worker imports it again."""
+    import subprocess
+    import sys
+
+    from seatkit.evaluate import design_segments
+    from seatkit.plugins import get_plugin_manager
+    from seatkit.recipe import apply_overrides, check_recipe, load_recipe
+    from seatkit.stages import baseline_components, make_bodies, solve_importance
+
+    registry = get_plugin_manager().registry
+    recipe = check_recipe(apply_overrides(load_recipe(None)[0], template="chair", poses=["lounger"]), registry)
+    bodies = make_bodies(recipe, registry)
+    pressures = solve_importance(recipe, bodies, registry)
+    cage = registry.get("template", "chair").fit(bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
+    job = pickle.dumps((recipe, bodies, pressures, baseline_components(recipe, registry), design_segments(cage)))
+    done = subprocess.run([sys.executable, "-c", _PRELOAD_CHECK], input=job, capture_output=True, check=True)
+    assert done.stdout.decode().split() == []
