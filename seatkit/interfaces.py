@@ -146,6 +146,16 @@ class SupportTemplate(Protocol):
         ------
         UnsupportedPoseError
             When a pose cannot be supported by this topology.
+
+        Notes
+        -----
+        A template may also define ``fits(bodies, pressures, *, params=None,
+        seed=0)``, an iterator of its valid cages in order of preference whose
+        first is ``fit``'s (:meth:`seatkit.template.YamlTemplate.fits`: one per
+        start that gives a valid cage). When a refiner refuses a cage
+        (:class:`~seatkit.errors.SolverError`), a build refines the next one
+        (:func:`seatkit.stages.refine_first_accepted`); without ``fits`` the
+        refusal ends the build.
         """
         ...
 

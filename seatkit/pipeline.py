@@ -35,8 +35,9 @@ from seatkit.stages import (
     fit_baseline,
     fit_baseline_with,
     make_bodies,
-    refine,
+    refine_first_accepted,
     solve_importance,
+    template_cages,
     total_seconds,
 )
 
@@ -140,8 +141,9 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         pressures = solve_importance(recipe, bodies, registry)
 
     with timer.stage("template"):
+        cages = template_cages(registry.get("template", recipe["template"]), bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
         try:
-            initial = registry.get("template", recipe["template"]).fit(bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
+            initial = next(cages)
         except UnsupportedPoseError as e:
             if write:
                 save_unsupported(e, recipe)
@@ -153,15 +155,17 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     if baseline_helper is not None:
         from seatkit.evaluate import design_segments
 
-        job = baseline_helper.submit(
-            fit_baseline_with, recipe, bodies, pressures, baseline_components(recipe, registry), design_segments(initial)
-        )
+        segments = design_segments(initial)
+        job = baseline_helper.submit(fit_baseline_with, recipe, bodies, pressures, baseline_components(recipe, registry), segments)
 
         def baseline():
             return baseline_helper.result(job)
 
+    # the template's next cage when the refiners refuse one (stages.refine_first_accepted)
     refiners = [(r["name"], registry.get("refiner", r["name"]), r["params"]) for r in recipe["refiners"]]
-    mesh = refine(initial, refiners, bodies, pressures, timer)
+    initial, mesh = refine_first_accepted(cages, initial, refiners, bodies, pressures, timer)
+    if baseline is not None and design_segments(initial) != segments:
+        baseline = None  # a later cage supports other segments: its baseline is fitted here, in evaluate_result
 
     with timer.stage("surface"):
         from seatkit.subdivision import limit_surface

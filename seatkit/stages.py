@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from contextlib import contextmanager
-from typing import Callable, Mapping
+from typing import Callable, Iterator, Mapping
 
 import numpy as np
 
@@ -135,6 +135,66 @@ def refine(mesh, refiners, bodies, pressures, timer: StageTimer | None = None):
         with timer.stage(f"refine:{name}"):
             mesh = refiner.refine(mesh, bodies, pressures, params=params)
     return mesh
+
+
+#: Cages of the template refined in all, at most, before a build is refused
+#: because its refiners refuse them (each one more costs a template start and
+#: the refiners again: about a second for the chair).
+MAX_REFINED_CAGES = 4
+
+
+def template_cages(template, bodies, pressures, *, params, seed) -> Iterator:
+    """The template's valid cages in its order of preference.
+
+    Its ``fits`` where it has one (:meth:`seatkit.template.YamlTemplate.fits`:
+    one cage per start that gives a valid one), else the single cage of its
+    ``fit``. Lazy: a cage is fitted only when it is asked for.
+    """
+    fits = getattr(template, "fits", None)
+    if fits is None:
+        yield template.fit(bodies, pressures, params=params, seed=seed)
+    else:
+        yield from fits(bodies, pressures, params=params, seed=seed)
+
+
+def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, timer: StageTimer | None = None) -> tuple:
+    """``(cage, refined)``: the first of the template's cages that the refiners accept, and it refined.
+
+    ``cage`` is the template's first cage, ``cages`` the rest of
+    :func:`template_cages`. A refiner refuses a cage by raising
+    :class:`~seatkit.errors.SolverError`: the surface fit's guarantee (its
+    surface would reach more than 5 mm into the person, or the person into
+    the furniture), or a fit that cannot be solved. Another start of the
+    template is another design of the same pose, so the next cage is
+    refined instead, up to :data:`MAX_REFINED_CAGES` in all; a cage that is
+    refused by every refiner run, or a template with no other cage, raises
+    the first refusal. The refusals of earlier cages are kept in the accepted
+    cage's ``meta["refiner_refusals"]`` (and the refined cage's). The seed
+    thus picks among designs the whole build accepts, not only the template.
+    """
+    from seatkit.errors import SolverError
+
+    timer = timer or StageTimer()
+    refusals: list[str] = []
+    first_error = None
+    while True:
+        try:
+            refined = refine(cage, refiners, bodies, pressures, timer)
+        except SolverError as e:
+            first_error = first_error or e
+            refusals.append(str(e))
+            nxt = None
+            if len(refusals) < MAX_REFINED_CAGES:
+                with timer.stage("template"):
+                    nxt = next(cages, None)
+            if nxt is None:
+                raise first_error from None
+            cage = nxt
+            continue
+        if refusals:
+            cage.meta["refiner_refusals"] = list(refusals)
+            refined.meta["refiner_refusals"] = list(refusals)
+        return cage, refined
 
 
 def baseline_components(recipe: Mapping, registry) -> tuple:

@@ -18,7 +18,7 @@ names the faces and body parts, with the fit's diagnostics.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -140,7 +140,25 @@ class YamlTemplate:
         params: Mapping[str, Any] | None = None,
         seed: int = 0,
     ) -> ControlMesh:
-        """Fit the template to ``bodies`` (see :class:`seatkit.interfaces.SupportTemplate`)."""
+        """Fit the template to ``bodies`` (see :class:`seatkit.interfaces.SupportTemplate`): the first of :meth:`fits`."""
+        return next(self.fits(bodies, pressures, params=params, seed=seed))
+
+    def fits(
+        self,
+        bodies: Sequence[Body],
+        pressures: Sequence[PressureField],
+        *,
+        params: Mapping[str, Any] | None = None,
+        seed: int = 0,
+    ) -> Iterator[ControlMesh]:
+        """Every valid cage, one per start that gives one, in the order of the starts.
+
+        A generator: a start runs only when its cage is asked for. The first
+        cage is :meth:`fit`'s; the build asks for the next only when a
+        refiner refuses the one before (docs/templates.md, "Seed-independent
+        success"). Raises the first start's refusal when no start gives a
+        valid cage, and a refusal of the pose rule at once.
+        """
         bodies, pressures = list(bodies), list(pressures)
         lo, hi = self.spec.people
         if not lo <= len(bodies) <= hi:
@@ -164,7 +182,7 @@ class YamlTemplate:
         optional = [i for i, (step, _) in enumerate(bound) if getattr(step, "optional", False)]
         phases = [frozenset(optional[len(optional) - n :]) for n in range(len(optional) + 1)]
         plan = [(stream(), dropped) for dropped in phases for stream in streams]
-        first = None
+        first, found = None, False
         for attempt, (rng, dropped) in enumerate(plan):
             try:
                 mesh = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
@@ -175,11 +193,13 @@ class YamlTemplate:
                 continue
             stream = "seed" if attempt % max(1, p["fit_attempts"]) == 0 else f"fallback {attempt % p['fit_attempts']}"
             mesh.meta["fit_attempts"] = {"attempt": attempt + 1, "of": len(plan), "stream": stream, "optional_steps_dropped": bool(dropped)}
-            if attempt:
+            if first is not None:
                 mesh.meta["fit_attempts"]["first_refusal"] = str(first)
-            return mesh
-        first.diagnostics["fit_attempts"] = len(plan)
-        raise first
+            found = True
+            yield mesh
+        if not found:
+            first.diagnostics["fit_attempts"] = len(plan)
+            raise first
 
     def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset()) -> ControlMesh:
         """One run of the bound steps and the final check with one random stream."""

@@ -1,0 +1,109 @@
+"""A cage the refiners refuse: the build refines the template's next cage (stages.refine_first_accepted)."""
+
+from __future__ import annotations
+
+
+import numpy as np
+import pytest
+
+from seatkit.errors import SolverError
+from seatkit.stages import MAX_REFINED_CAGES, StageTimer, refine_first_accepted, template_cages
+
+
+class _Cage:
+    """A stand-in for a ControlMesh: only ``meta`` is used on the way."""
+
+    def __init__(self, name):
+        self.name = name
+        self.meta = {}
+
+
+class _Refiner:
+    """Refuses the cages it is told to, passes the others through (marked refined)."""
+
+    def __init__(self, refuse):
+        self.refuse = set(refuse)
+        self.seen = []
+
+    def refine(self, mesh, bodies, pressures, *, params=None):
+        self.seen.append(mesh.name)
+        if mesh.name in self.refuse:
+            raise SolverError(f"catmull-clark-fit: the surface of cage {mesh.name} reaches 9.0 mm into the body")
+        out = _Cage(mesh.name + "+refined")
+        out.meta = dict(mesh.meta)
+        return out
+
+
+def _run(names, refuse):
+    cages = iter([_Cage(n) for n in names])
+    refiner = _Refiner(refuse)
+    timer = StageTimer()
+    first = next(cages)
+    cage, refined = refine_first_accepted(cages, first, [("fake", refiner, {})], [], [], timer)
+    return cage, refined, refiner, timer
+
+
+def test_the_first_cage_the_refiners_accept_is_the_design_and_the_refusals_are_kept():
+    cage, refined, refiner, timer = _run(["a", "b", "c"], refuse={"a"})
+    assert cage.name == "b" and refined.name == "b+refined"
+    assert refiner.seen == ["a", "b"]  # "c" is never fitted
+    assert cage.meta["refiner_refusals"] == ["catmull-clark-fit: the surface of cage a reaches 9.0 mm into the body"]
+    assert refined.meta["refiner_refusals"] == cage.meta["refiner_refusals"]
+    assert "template" in timer.timings and "refine:fake" in timer.timings
+
+
+def test_an_accepted_first_cage_is_refined_alone_and_unmarked():
+    cage, refined, refiner, _ = _run(["a", "b"], refuse=set())
+    assert cage.name == "a" and refiner.seen == ["a"] and "refiner_refusals" not in cage.meta
+
+
+def test_when_every_cage_is_refused_the_first_refusal_is_raised():
+    with pytest.raises(SolverError, match="cage a reaches"):
+        _run(["a", "b"], refuse={"a", "b"})
+
+
+def test_at_most_max_refined_cages_are_refined():
+    names = [str(i) for i in range(MAX_REFINED_CAGES + 3)]
+    refiner = _Refiner(refuse=set(names))
+    cages = iter([_Cage(n) for n in names])
+    with pytest.raises(SolverError, match="cage 0 reaches"):
+        refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [])
+    assert refiner.seen == names[:MAX_REFINED_CAGES]
+
+
+def test_a_template_without_fits_offers_its_one_cage():
+    class One:
+        def fit(self, bodies, pressures, *, params=None, seed=0):
+            return _Cage(f"seed {seed}")
+
+    assert [c.name for c in template_cages(One(), [], [], params={}, seed=3)] == ["seed 3"]
+
+
+def test_the_chair_offers_its_valid_starts_in_order_and_its_first_is_fit(seated):
+    from seatkit.resources import template_path
+    from seatkit.template import load_template
+
+    chair = load_template(template_path("chair.yaml"))
+    body, pressure = seated["upright-sitting"]
+    fits = chair.fits([body], [pressure], seed=0)
+    first, second = next(fits), next(fits)
+    assert np.array_equal(first.vertices, chair.fit([body], [pressure], seed=0).vertices)
+    assert first.meta["fit_attempts"]["attempt"] < second.meta["fit_attempts"]["attempt"]
+    assert not np.array_equal(first.vertices, second.vertices)
+    assert "first_refusal" not in second.meta["fit_attempts"]  # the first start was valid: nothing refused it
+
+
+@pytest.mark.slow
+def test_a_seed_whose_surface_the_fit_refuses_builds_from_the_templates_next_start():
+    """default-female armrest-sitting, seed 7: the seed's cage gives a surface 25 mm into the right thigh."""
+    from seatkit.pipeline import build
+
+    r = build({"template": "chair", "seed": 7, "bodies": [{"model": "default-female", "pose": "armrest-sitting"}]}, write=False, processes=False)
+    refusals = r.initial_mesh.meta["refiner_refusals"]
+    assert len(refusals) == 1 and "above the 5.0 mm limit" in refusals[0]
+    assert r.initial_mesh.meta["fit_attempts"]["attempt"] > 1
+    assert r.control_mesh.meta["catmull-clark-fit"]["final_depth"]["surface_in_body"] <= 0.005
+    ours, flat = r.metrics["ours"][0], r.metrics["baseline"][0]
+    assert ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005
+    for key in ("avg_distance_m", "avg_pressure_pa", "max_pressure_pa"):
+        assert ours[key] < flat[key], key
