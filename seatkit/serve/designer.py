@@ -137,10 +137,16 @@ class _ObservedTemplate:
         return getattr(self._template, name)
 
     def fit(self, bodies, pressures, *, params=None, seed=0):
+        return next(self.fits(bodies, pressures, params=params, seed=seed))
+
+    def fits(self, bodies, pressures, *, params=None, seed=0):
+        """The template's cages (``seatkit.stages.template_cages``), each shown as the template preview when it is made."""
+        from seatkit.stages import template_cages
+
         self._observe("posed", bodies=bodies, pressures=pressures)
-        mesh = self._template.fit(bodies, pressures, params=params, seed=seed)
-        self._observe("template", mesh=mesh)
-        return mesh
+        for mesh in template_cages(self._template, bodies, pressures, params=params, seed=seed):
+            self._observe("template", mesh=mesh)
+            yield mesh
 
 
 class _ObservedRefiner:
