@@ -48,7 +48,12 @@ def register(app: typer.Typer) -> None:
                 "and read the designs' files; the app has no login",
                 err=True,
             )
+        from seatkit.side import use_side_thread
+
         designer = Designer(folder or Path("seatkit-out") / "serve", pm=plugin_manager(ctx))
+        # one design at a time, alone on the machine: the surface fit's
+        # independent queries run side by side (seatkit.side)
+        use_side_thread(True)
         url = f"http://{'localhost' if host in ('0.0.0.0', '::') else host}:{port}/"
         console = stderr_console()
         console.print(f"seatkit serve: [bold]{url}[/]  (files in {designer.root}; Ctrl+C to stop)")

@@ -97,6 +97,7 @@ from seatkit.model import Body, ControlMesh, PressureField, Surface
 from seatkit.pressure.contact import supported_vertices
 from seatkit.params import refiner_params
 from seatkit.refine.quality import mesh_edges
+from seatkit.side import beside
 
 __all__ = [
     "CCFIT_DEFAULTS",
@@ -512,8 +513,8 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
     def measure(P):
         X = limit @ P
         N = ops.limit_normals(P)
-        closest, dist, signed = surface_distances(X, N, b, boundary=on_boundary)
-        mean = float(np.sum(w_base * dist) / w_sum)
+        # the correspondences, beside the probes' depths where a side thread runs (seatkit.side)
+        correspondences = beside(surface_distances, X, N, b, boundary=on_boundary)
         Y = probe @ P
         # depth > 0: probe inside a body. Only probes that can be nearer the
         # skin than the clearance are asked: the others take no part in the
@@ -561,6 +562,8 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
                 k = inside[short]
                 foot[k] = Y[k] + t[short, None] * back[short]
                 out[k] = back[short]
+        closest, dist, _ = correspondences()
+        mean = float(np.sum(w_base * dist) / w_sum)
         return X, N, closest, dist, mean, (foot, out, below), depth
 
     # The normal equations of one step, unknowns stacked by coordinate
@@ -783,10 +786,12 @@ def _final_depths(mesh: ControlMesh, bodies: Sequence[Body], level: int) -> dict
     probes = [finest.vertices, finest.vertices[finest.faces].mean(axis=1)]
     probes += [s.vertices[s.faces].mean(axis=1) for s in surfaces[:-1]]
     points = np.concatenate(probes)
-    surface_in_body = max(SkinDistance.of(b.vertices, b.faces).max_depth(points) for b in bodies)
     # a body vertex inside the furniture, at each level (a coarser
-    # tessellation's chords can read deeper than the finer one's)
-    body_in_surface = max(body_depth_in_surface(s, b) for s in surfaces for b in bodies)
+    # tessellation's chords can read deeper than the finer one's), beside
+    # the surface's depth in the bodies where a side thread runs
+    in_surface = [beside(body_depth_in_surface, s, b) for s in surfaces for b in bodies]
+    surface_in_body = max(SkinDistance.of(b.vertices, b.faces).max_depth(points) for b in bodies)
+    body_in_surface = max(depth() for depth in in_surface)
     return {"surface_in_body": float(surface_in_body), "body_in_surface": float(body_in_surface)}
 
 
