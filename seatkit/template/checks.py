@@ -20,6 +20,7 @@ from seatkit.errors import UnsupportedPoseError
 from seatkit.geometry.normals import vertex_normals as _triangle_normals
 from seatkit.model import Body, ControlMesh
 from seatkit.skeleton import PARENTS, SEGMENT_INDEX, SEGMENTS
+from seatkit.template.grid import NOT_HELD
 from seatkit.template.planes import unit
 
 __all__ = [
@@ -480,7 +481,7 @@ def _parts(mesh: ControlMesh, faces) -> list:
 #: occlude it. Whether the cage meets the hand is the final check's (and its
 #: repair's) question; refusing here refused chairs that pass it (fit3:
 #: every such case of the generalisation benchmark built without it).
-_NOT_HELD = {SEGMENT_INDEX[h] for h in ("RightHand", "LeftHand", "RightForeArm", "LeftForeArm")}
+_NOT_HELD = set(NOT_HELD)
 
 
 def check_supportability(state, max_occluded_fraction: float, max_roll: float, joint_reach: float = 0.1) -> None:
