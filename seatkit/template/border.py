@@ -183,12 +183,21 @@ def _drop_beside(line: np.ndarray, edge: np.ndarray, out: np.ndarray, across: np
     the hanging part. Skin of the parts the chair does not hold (``loose``,
     (k,) bool: hands and forearms) counts below the edge alone too: a hand
     hanging wholly below the ring would be closed into the furniture by
-    the ring and the wall outside it.
+    the ring and the wall outside it. The strips of the two end vertices
+    reach as far beyond them as towards their neighbour, not on to
+    infinity: the vertex at the backrest's top answers for what hangs
+    beside it, not for every hand behind the hips (and its drop takes the
+    ring's corner down with it, into the back wall).
     """
     if len(points) == 0:
         return
     loose = np.zeros(len(points), bool) if loose is None else loose
-    lo, hi = _strips(line @ across)
+    c = line @ across
+    lo, hi = _strips(c)
+    if len(line) > 1:
+        for i, j in ((0, 1), (len(line) - 1, len(line) - 2)):
+            half = abs(c[i] - c[j]) / 2
+            lo[i], hi[i] = c[i] - half, c[i] + half
     po, pc, py = points @ out, points @ across, points[:, 1]
     for i in range(len(line)):
         e = edge[i]
