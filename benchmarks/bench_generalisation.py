@@ -103,7 +103,7 @@ def run_library(task):
 
 def run_task(task):
     """Fit every seed (and one full build) for one pose on one body."""
-    from seatkit.body import pose_rig
+    from seatkit.body import load_pose, pose_rig
     from seatkit.body.generator import draw_pose, pose_yaml
     from seatkit.errors import SeatkitError, UnsupportedPoseError
     from seatkit.pipeline import build
@@ -115,15 +115,22 @@ def run_task(task):
     index, family, draw_seed, body_name, seeds, table1 = task
     drawn = draw_pose(np.random.default_rng([draw_seed, index]), family, f"{family}-{index:03d}")
     template = _STATE["template"]
-    body = pose_rig(_STATE["rigs"][body_name], drawn.pose)
+    # the template fits and the full build fit the same pose: the one the
+    # build reads from the pose file, which is the drawn pose bit for bit
+    # (pose_yaml writes every angle at full precision)
+    path = _STATE["folder"] / body_name / f"{drawn.name}.yaml"
+    path.parent.mkdir(exist_ok=True)
+    path.write_text(pose_yaml(drawn))
+    pose = load_pose(path)
+    if not (np.array_equal(pose.rotations, drawn.pose.rotations) and np.array_equal(pose.translation, drawn.pose.translation)):
+        raise AssertionError(f"{drawn.name}: the pose read back from its YAML file is not the drawn pose")
+    body = pose_rig(_STATE["rigs"][body_name], pose)
     pressure = solve_pressure(body)
     verdict = assess_pose(body, template_rule(template))
     out = {"pose": drawn.name, "family": family, "body": body_name, "rule_ok": verdict.supportable, "rule_reasons": verdict.reasons, "fits": []}
     fit_seeds = list(seeds)
     if table1 and verdict.supportable:
         # the full build's own template fit (seed ``seeds[0]``) counts as that seed's fit
-        path = _STATE["folder"] / f"{drawn.name}-{body_name}.yaml"
-        path.write_text(pose_yaml(drawn))
         recipe = {"template": "chair", "seed": seeds[0], "bodies": [{"model": body_name, "pose": str(path)}]}
         t0 = time.perf_counter()
         try:
@@ -141,7 +148,7 @@ def run_task(task):
             pass  # fitted again below, to record the refusal like any other
         except SeatkitError as e:
             out["build"] = {"ok": False, "seconds": time.perf_counter() - t0, "reason": f"{type(e).__name__}: {e}"}
-        path.unlink()
+    path.unlink()
     for seed in fit_seeds:
         t0 = time.perf_counter()
         try:

@@ -29,7 +29,7 @@ from seatkit.body.poses import euler_to_rotvec
 from seatkit.model import Pose
 from seatkit.skeleton import N_SEGMENTS, SEGMENT_INDEX, SEGMENTS
 
-__all__ = ["FAMILIES", "UNSUPPORTED_FAMILIES", "DrawnPose", "draw_pose", "draw_poses", "pose_yaml"]
+__all__ = ["FAMILIES", "UNSUPPORTED_FAMILIES", "DrawnPose", "draw_pose", "draw_poses", "pose_yaml", "yaml_float"]
 
 #: The families the chair is meant to support, drawn in turn by :func:`draw_poses`.
 FAMILIES = ("seated", "reclined", "crossed-legs", "leaning-forward")
@@ -263,13 +263,36 @@ def draw_poses(n: int, *, seed: int = 0, families=FAMILIES) -> list[DrawnPose]:
     return out
 
 
+def yaml_float(value: float) -> str:
+    """``value`` as a YAML float that reads back as the very same float.
+
+    ``repr`` gives the shortest decimal that round-trips; YAML 1.1 (PyYAML)
+    reads a float only with a point in the mantissa and a signed exponent,
+    so ``1e-05`` is written ``1.0e-05``.
+    """
+    text = repr(float(value))
+    if "e" in text:
+        mantissa, exponent = text.split("e")
+        if "." not in mantissa:
+            mantissa += ".0"
+        text = f"{mantissa}e{exponent if exponent[0] in '+-' else '+' + exponent}"
+    elif "." not in text:  # inf, nan: never drawn
+        raise ValueError(f"not a finite angle: {value!r}")
+    return text
+
+
 def pose_yaml(drawn: DrawnPose) -> str:
-    """The pose as a pose YAML file (docs/poses.md), to reproduce or inspect it."""
+    """The pose as a pose YAML file (docs/poses.md), to reproduce or inspect it.
+
+    Every angle is written at full precision (:func:`yaml_float`): the file
+    read back (:func:`seatkit.body.load_pose`) is the drawn pose, bit for
+    bit, so a build from the file fits what a fit of ``drawn.pose`` fits.
+    """
     lines = [f"description: random {drawn.family} pose {drawn.name} (seatkit.body.generator)", "joints:"]
     for i, seg in enumerate(SEGMENTS[1:], start=1):
-        x, y, z = (round(float(v), 2) for v in drawn.angles[i])
+        x, y, z = (float(v) for v in drawn.angles[i])
         if x or y or z:
-            lines.append(f"  {seg}: {{x: {x}, y: {y}, z: {z}}}")
-    x, y, z = (round(float(v), 2) for v in drawn.angles[0])
+            lines.append(f"  {seg}: {{x: {yaml_float(x)}, y: {yaml_float(y)}, z: {yaml_float(z)}}}")
+    x, y, z = (yaml_float(v) for v in drawn.angles[0])
     lines += ["root:", f"  rotation: {{x: {x}, y: {y}, z: {z}}}"]
     return "\n".join(lines) + "\n"

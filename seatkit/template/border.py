@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linprog
 
-from seatkit.template.grid import GridMesh
+from seatkit.template.grid import NOT_HELD, GridMesh, segment_of_vertex
 from seatkit.template.planes import unit
 
 __all__ = ["add_border", "place_ground_side"]
@@ -169,7 +169,7 @@ def _strips(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.minimum(lo, hi), np.maximum(lo, hi)
 
 
-def _drop_beside(line: np.ndarray, edge: np.ndarray, out: np.ndarray, across: np.ndarray, points: np.ndarray, gap: float) -> None:
+def _drop_beside(line: np.ndarray, edge: np.ndarray, out: np.ndarray, across: np.ndarray, points: np.ndarray, gap: float, loose=None) -> None:
     """Lower the side ring's vertices where its face would pass through a body part hanging beside the seat, in place.
 
     The first ring continues the seat outwards from its edge ``edge[i]``
@@ -180,18 +180,32 @@ def _drop_beside(line: np.ndarray, edge: np.ndarray, out: np.ndarray, across: np
     ring's reach. No lift helps there (lifting the face over the hand folds
     it over the seat): the ring vertex goes straight down from the edge
     instead, ``gap`` below the lowest such skin, and the wall hangs inside
-    the hanging part.
+    the hanging part. Skin of the parts the chair does not hold (``loose``,
+    (k,) bool: hands and forearms) counts below the edge alone too: a hand
+    hanging wholly below the ring would be closed into the furniture by
+    the ring and the wall outside it. The strips of the two end vertices
+    reach as far beyond them as towards their neighbour, not on to
+    infinity: the vertex at the backrest's top answers for what hangs
+    beside it, not for every hand behind the hips (and its drop takes the
+    ring's corner down with it, into the back wall).
     """
     if len(points) == 0:
         return
-    lo, hi = _strips(line @ across)
+    loose = np.zeros(len(points), bool) if loose is None else loose
+    c = line @ across
+    lo, hi = _strips(c)
+    if len(line) > 1:
+        for i, j in ((0, 1), (len(line) - 1, len(line) - 2)):
+            half = abs(c[i] - c[j]) / 2
+            lo[i], hi[i] = c[i] - half, c[i] + half
     po, pc, py = points @ out, points @ across, points[:, 1]
     for i in range(len(line)):
         e = edge[i]
         reach = float((line[i] - e) @ out) + gap
         sel = (pc >= lo[i]) & (pc <= hi[i]) & (po > e @ out + gap) & (po < e @ out + reach) & (py >= 0.02)
-        if sel.any() and (py[sel] > e[1]).any() and (py[sel] < e[1]).any():
-            low = max(float(py[sel].min()) - gap, 0.0)
+        below = sel & (py < e[1])
+        if below.any() and ((py[sel] > e[1]).any() or loose[below].any()):
+            low = max(float(py[below].min()) - gap, 0.0)
             line[i] = e
             line[i, 1] = low
 
@@ -297,6 +311,7 @@ def add_border(
     # forward past the seat's edge) would make the walls below it overlap
     _monotone(V, axis=0, direction=-front, step=min_spacing)
     pts = np.concatenate([np.asarray(b.vertices, dtype=np.float64) for b in bodies]) if len(bodies) else np.zeros((0, 3))
+    loose = np.concatenate([np.isin(segment_of_vertex(b), list(NOT_HELD)) for b in bodies]) if drop_beside and len(bodies) else None
     if behind:
         _set_back_front_edge(V, pts, -front, side, gap)
     ring = np.full((R + 3, C + 3, 3), np.nan)  # ring-1 grid: original at [1:-1, 1:-1]
@@ -323,14 +338,15 @@ def add_border(
         _clear_bodies(ring[0, 1:-1], -front, side, pts, gap)
     else:
         _clear_bodies(ring[0, 1:-1], front, side, pts, gap)
+    _clear_bodies(ring[1:-1, 0], -side, front, pts, gap)
+    _clear_bodies(ring[1:-1, -1], side, front, pts, gap)
     dropped = 0
     if drop_beside:
         for line, edge, out in ((ring[1:-1, 0], V[:, 0], -side), (ring[1:-1, -1], V[:, -1], side)):
             before = line.copy()
-            _drop_beside(line, edge, out, front, pts, gap)
+            _drop_beside(line, edge, out, front, pts, gap, loose)
             dropped += int(np.any(line != before, axis=1).sum())
-    _clear_bodies(ring[1:-1, 0], -side, front, pts, gap)
-    _clear_bodies(ring[1:-1, -1], side, front, pts, gap)
+            _clear_bodies(line, out, front, pts, gap)
     for i, k, ii in ((0, 0, 1), (0, -1, 1), (-1, 0, -2), (-1, -1, -2)):
         kk = 1 if k == 0 else -2
         ring[i, k] = ring[i, kk] + (ring[ii, k] - ring[ii, kk])

@@ -25,6 +25,12 @@ from seatkit.template.schema import FaceSpec, TemplateSpec
 __all__ = ["FaceState", "Block", "GridMesh", "FitState", "segment_of_vertex"]
 
 
+#: Parts the chair never holds (hands and forearms): they do not occlude a
+#: supported part (``supportability``), and the border's repair keeps the
+#: furniture from closing over them (docs/templates.md).
+NOT_HELD = frozenset(SEGMENTS.index(h) for h in ("RightHand", "LeftHand", "RightForeArm", "LeftForeArm"))
+
+
 def segment_of_vertex(body: Body) -> np.ndarray:
     """(n,) int64 segment of largest skinning weight of each vertex."""
     return np.asarray(body.weights).argmax(1).astype(np.int64)
