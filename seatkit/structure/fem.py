@@ -67,6 +67,10 @@ _TYING_OF = {comp: grid for grid, comps in _TYING_SETS.items() for comp in comps
 IMBALANCE_LIMIT = 1e-4
 #: Elements per chunk when building the assumed-strain stiffness and stresses.
 CHUNK = 128
+#: No element is stiffer than this many times a typical one (the median over the elements of
+#: their largest diagonal entry): beyond it an element is rigid to its neighbours, and more only
+#: costs digits (docs/structure.md, "Solve"; :meth:`Elasticity._cap_stiffness`).
+STIFFNESS_CAP = 1e7
 
 
 def _full_rule() -> tuple[np.ndarray, np.ndarray]:
@@ -255,7 +259,7 @@ class Elasticity:
         self.volume = float(self.dx.sum())
         self.stress_points = self._points(*_stress_rule()) if assumed_strain else self.full
         self._tying = None
-        self.element_stiffness = self._element_stiffness()  # (E, 81, 81)
+        self.element_stiffness = self._cap_stiffness(self._element_stiffness())  # (E, 81, 81)
 
     def _points(self, X: np.ndarray, W: np.ndarray) -> _Points:
         shapes = [self.element.lbasis(X, a) for a in self.slots]
@@ -309,6 +313,39 @@ class Elasticity:
         del H
         for i in range(3):
             K5[:, :, i, :, i] += mu * trace
+        return K
+
+    def _cap_stiffness(self, K: np.ndarray) -> np.ndarray:
+        """``K`` (E, 81, 81) with every element's stiffness above :data:`STIFFNESS_CAP` times a typical one's cut to it.
+
+        An element whose mapping nearly vanishes at a quadrature point (the
+        offset folded through itself) has a stiffness growing as the inverse
+        cube of that point's determinant (the assumed strains are carried to
+        Cartesian ones by the inverse mapping twice): up to 1e13 times a
+        sound element's on the default chair in 2 cm plywood. No displacement
+        in double precision balances such a matrix (the rounding of ``u``
+        alone, times it, is newtons), and beyond ten million times its
+        neighbours' stiffness an element is rigid to them anyway. So its
+        stiffness on its deformations (the complement of its rigid motions,
+        which stay exactly free) has its eigenvalues above the cap set to the
+        cap: rigid stays rigid, its soft directions are untouched. Elements
+        with no eigenvalue above the cap (every one, on a sound mesh) are
+        left as they are.
+        """
+        if not np.isfinite(STIFFNESS_CAP) or not len(K):
+            return K
+        diagonal = np.einsum("eii->ei", K)
+        cap = STIFFNESS_CAP * float(np.median(diagonal.max(axis=1)))
+        candidates = np.flatnonzero(diagonal.sum(axis=1) > cap)  # the trace bounds the largest eigenvalue
+        if not candidates.size:
+            return K
+        # an orthonormal basis of each element's deformations: the complement of its rigid motions
+        N = np.linalg.qr(self._rigid[candidates], mode="complete")[0][:, :, 6:]  # (c, 81, 75)
+        Kd = np.matmul(N.transpose(0, 2, 1), np.matmul(K[candidates], N))
+        w, V = np.linalg.eigh(0.5 * (Kd + Kd.transpose(0, 2, 1)))
+        over = (w > cap).any(axis=1)
+        NV = np.matmul(N[over], V[over])
+        K[candidates[over]] = np.matmul(NV * np.minimum(w[over], cap)[:, None, :], NV.transpose(0, 2, 1))
         return K
 
     def _assumed_strain_stiffness(self) -> np.ndarray:
