@@ -156,17 +156,24 @@ def test_a_shell_held_nowhere_is_one_clear_error():
         model.solve(_pressure(mesh, 100.0), np.zeros(0, np.int64))
 
 
+@pytest.mark.parametrize("solver", ["cholmod", "superlu"])
 @pytest.mark.parametrize("layers", [1, 2])
-def test_condensed_solve_equals_the_global_solve(layers):
+def test_condensed_solve_equals_the_global_solve(layers, solver, monkeypatch):
     """Eliminating each element's own nodes first (held ones among them) changes nothing but rounding.
 
     A curved plate held on one edge and on its whole underside near it (the
     bottom-face centre nodes there are held: with one layer they belong to
     one element only) under a uniform pressure, against a direct solve of
-    the global stiffness with the held rows and columns taken out.
+    the global stiffness with the held rows and columns taken out; with
+    either factorisation of the condensed stiffness.
     """
     import scipy.sparse.linalg as sla
 
+    from seatkit.structure import solvers
+
+    if solver == "cholmod":
+        pytest.importorskip("cvxopt")
+    monkeypatch.setattr(solvers, "SOLVER", solver)
     V, N, q9 = plate_quads9(3, 4, 0.3, 0.4)
     V = V + np.c_[0 * V[:, 0], 0.2 * V[:, 0] ** 2 + 0.1 * V[:, 2] ** 2, 0 * V[:, 0]]
     mesh = ShellMesh.extrude(V, N, q9, 0.01, layers)
@@ -176,6 +183,7 @@ def test_condensed_solve_equals_the_global_solve(layers):
     load = _pressure(mesh, 1000.0)
     load[:, 0] += 0.3 * load[:, 1]  # a friction-like shear too
     sol = model.solve(load, held_nodes)
+    assert sol.solver.lower().startswith(solver)
     f = np.zeros(model.n_dofs)
     f.reshape(-1, 3)[model.dof] = load
     held = np.zeros(model.n_dofs, bool)
@@ -188,6 +196,24 @@ def test_condensed_solve_equals_the_global_solve(layers):
     reaction = (model.stiffness @ u - f).reshape(-1, 3)[model.dof]
     reaction[np.setdiff1d(np.arange(len(mesh.nodes)), held_nodes)] = 0.0
     assert np.abs(sol.reaction - reaction).max() <= 1e-8 * np.abs(reaction).max()
+
+
+def test_without_cvxopt_the_analysis_falls_back_to_superlu(monkeypatch):
+    """cvxopt (CHOLMOD) is an optional accelerator: where it does not import, SuperLU solves, to the same answer."""
+    import sys
+
+    from seatkit.structure import solvers
+
+    pytest.importorskip("cvxopt")
+    t = 0.01
+    _, with_cholmod, _ = _clamped_plate(t)
+    monkeypatch.setitem(sys.modules, "cvxopt", None)  # import cvxopt now raises ImportError
+    assert solvers.SOLVER == "auto" and solvers.factorise_name() == "SuperLU (scipy)"
+    _, without, _ = _clamped_plate(t)
+    assert with_cholmod.solver == "CHOLMOD (cvxopt)" and without.solver == "SuperLU (scipy)"
+    scale = np.abs(without.displacement).max()
+    assert np.abs(with_cholmod.displacement - without.displacement).max() <= 1e-9 * scale
+    assert np.abs(with_cholmod.von_mises - without.von_mises).max() <= 1e-9 * without.von_mises.max()
 
 
 def _scordelis_lo_roof(n, assumed_strain=True):

@@ -37,6 +37,7 @@ from seatkit.constants import GRAVITY
 from seatkit.errors import StructureError
 from seatkit.structure.materials import Material
 from seatkit.structure.mesh import ShellMesh
+from seatkit.structure.solvers import blocks_to_csr, factorise
 
 __all__ = ["Elasticity", "Solution"]
 
@@ -210,6 +211,8 @@ class Solution:
         Von Mises stress at every quadrature point of every element, Pa.
     volume : float
         m^3.
+    solver : str
+        The factorisation that solved it (:func:`seatkit.structure.solvers.factorise`).
     """
 
     displacement: np.ndarray
@@ -217,6 +220,7 @@ class Solution:
     load: np.ndarray
     von_mises: np.ndarray
     volume: float
+    solver: str = ""
 
 
 class Elasticity:
@@ -443,10 +447,11 @@ class Elasticity:
         cov = np.empty((n, n_p, 6, 81))
         for part, comps in self._tying_parts():
             for i, j in comps:
-                # the tying points' base vectors g_i (and g_j) times the constant interpolated gradients
+                # the tying points' base vectors g_i (and g_j) times the constant interpolated gradients,
+                # every element's in one product: (P 27, T) x (T, e 3)
                 G = g_t[:, part, i] if i == j else np.concatenate([g_t[:, part, i], g_t[:, part, j]], axis=1)
-                rows = np.matmul(self._assumed_gradients(points, (i, j)), G)  # (e, P 27, 3)
-                cov[:, :, _COVARIANT.index((i, j))] = rows.reshape(n, n_p, 81)
+                rows = self._assumed_gradients(points, (i, j)) @ G.transpose(1, 0, 2).reshape(G.shape[1], -1)
+                cov[:, :, _COVARIANT.index((i, j))] = rows.reshape(n_p * 27, n, 3).transpose(1, 0, 2).reshape(n, n_p, 81)
         cov[:, :, 2] = _covariant(points.g[elements], points.ref, 2, 2)
         T = _to_cartesian(points.inv[elements])  # (e, P, 6, 6)
         if left is not None:
@@ -456,15 +461,23 @@ class Elasticity:
         return np.matmul(T, cov)
 
     def _assemble(self, kept: np.ndarray, element_matrices=None, element_nodes=None) -> sp.csr_matrix:
-        """The stiffness of the scalar degrees of freedom ``kept`` ((N,) bool; all 3 components of each).
+        """The stiffness of the scalar degrees of freedom ``kept`` ((N,) bool; all 3 components of each), in CSR.
+
+        See :meth:`_assemble_blocks`; rows and columns follow the kept
+        degrees of freedom in order, 3 per node.
+        """
+        return blocks_to_csr(*self._assemble_blocks(kept, element_matrices, element_nodes))
+
+    def _assemble_blocks(self, kept: np.ndarray, element_matrices=None, element_nodes=None):
+        """The stiffness of the scalar degrees of freedom ``kept`` in 3 x 3 blocks: (rows, cols, blocks, n).
 
         ``element_matrices`` (E, 3 m, 3 m) on the scalar degrees of freedom
         ``element_nodes`` (E, m): by default the element stiffness on all 27
-        nodes. Assembled in 3 x 3 blocks: the sparsity pattern is found among
-        the m x m node pairs of every element (9 times fewer than the entries),
-        each block component summed with ``np.bincount``, then converted once
-        to CSR. Rows and columns follow the kept degrees of freedom in order,
-        3 per node.
+        nodes. The sparsity pattern is found among the m x m node pairs of
+        every element (9 times fewer than the entries), and each block is
+        the sum of its pairs' by one sparse product with the pairs' incidence.
+        ``rows``, ``cols``: the blocks' positions among the ``n`` kept nodes,
+        sorted by row then column; ``blocks`` (B, 3, 3).
         """
         d = self._edofs.T if element_nodes is None else element_nodes  # (E, m)
         Ke = self.element_stiffness if element_matrices is None else element_matrices
@@ -482,9 +495,7 @@ class Elasticity:
         # (in CSC, one entry per pair's column: no sorting needed)
         S = sp.csc_matrix((np.ones(len(block)), block, np.arange(len(block) + 1)), shape=(len(keys), len(block)))
         data = (S @ K.reshape(-1, 9)).reshape(-1, 3, 3)
-        indptr = np.searchsorted(keys // n, np.arange(n + 1)) if n else np.zeros(1, np.int64)
-        A = sp.bsr_matrix((data, keys % n if n else keys, indptr), shape=(3 * n, 3 * n))
-        return A.tocsr()
+        return (keys // n, keys % n, data, n) if n else (keys, keys, data, n)
 
     def weight_load(self, g: float = GRAVITY) -> np.ndarray:
         """(N, 3) nodal forces of the shell's own weight (along -Y), N."""
@@ -500,16 +511,15 @@ class Elasticity:
         The nodes that belong to one element only, at the same place in
         every element (the centre, and with one layer the centres of the
         top and bottom faces: a quarter of the unknowns), are eliminated
-        element by element first (static condensation, exact), SuperLU
-        factorises what remains, and they are recovered from it. One step
+        element by element first (static condensation, exact), what remains
+        is factorised (CHOLMOD or SuperLU, :mod:`seatkit.structure.solvers`),
+        and they are recovered from it. One step
         of iterative refinement follows, its residual from the stable
         element product (:meth:`_element_product`), and the reactions are
         that product less the load at the held nodes; a solution whose
         reaction misses the load by more than :data:`IMBALANCE_LIMIT` is
         refused (:meth:`_check_equilibrium`).
         """
-        import scipy.sparse.linalg as sla
-
         self._check_held(np.asarray(held_nodes, dtype=np.int64))
         n = self.n_dofs
         f = np.zeros(n)
@@ -533,28 +543,19 @@ class Elasticity:
         Kio[fixed] = 0.0
         X = np.linalg.solve(Kii, Kio)  # Kii^-1 Kio
         Koo = Ke[:, :no, :no] - np.matmul(Kio.transpose(0, 2, 1), X)
+        Koo = 0.5 * (Koo + Koo.transpose(0, 2, 1))  # symmetric but for rounding: exactly, so every solver has the same matrix
         kept = ~held_node
         kept[d[:, self.n_outer :].ravel()] = False
         free = np.flatnonzero(np.repeat(kept, 3))
-        # the free outer block only, assembled directly (symmetric: its CSR arrays are its CSC arrays)
-        Kff = self._assemble(kept, Koo, d[:, : self.n_outer])
-        Kff = sp.csc_matrix((Kff.data, Kff.indices, Kff.indptr), shape=Kff.shape)
-        # symmetric positive definite: a symmetric ordering without pivoting
-        try:
-            lu = sla.splu(Kff, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        except (MemoryError, SystemError, RuntimeError) as e:  # SuperLU reports a failed allocation as invalid arguments
-            if "singular" in str(e).lower():
-                msg = "a part of the shell is not connected to where it is held: nothing holds it (singular stiffness)"
-            else:
-                msg = f"the sparse solver failed on {len(free)} unknowns ({e}); out of memory? try a lower --level"
-            raise StructureError(msg) from None
+        # the free outer block only, assembled directly, and factorised (symmetric positive definite)
+        factor = factorise(*self._assemble_blocks(kept, Koo, d[:, : self.n_outer]))
 
         def condensed_solve(rhs: np.ndarray) -> np.ndarray:
             """``u`` with ``K u = rhs`` at the free unknowns (0 at the held ones), through the condensation."""
             y = np.linalg.solve(Kii, np.where(fixed, 0.0, rhs[dofs[:, bi]])[:, :, None])  # Kii^-1 f_i
             ro = rhs - np.bincount(dofs[:, bo].ravel(), weights=np.matmul(Kio.transpose(0, 2, 1), y).ravel(), minlength=n)
             out = np.zeros(n)
-            out[free] = lu.solve(ro[free])
+            out[free] = factor.solve(ro[free])
             # the inner unknowns: Kii u_i = f_i - Kio u_o
             out[dofs[:, bi]] = y[:, :, 0] - np.matmul(X, out[dofs[:, bo]][:, :, None])[:, :, 0]
             return out
@@ -571,7 +572,8 @@ class Elasticity:
         reaction[~held] = 0.0
         self._check_equilibrium(reaction, f)
         disp = u.reshape(-1, 3)[self.dof]
-        return Solution(disp, reaction.reshape(-1, 3)[self.dof], np.asarray(load, dtype=np.float64), self.von_mises(u), self.volume)
+        load = np.asarray(load, dtype=np.float64)
+        return Solution(disp, reaction.reshape(-1, 3)[self.dof], load, self.von_mises(u), self.volume, factor.name)
 
     @functools.cached_property
     def _rigid(self) -> np.ndarray:
