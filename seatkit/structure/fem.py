@@ -543,7 +543,8 @@ class Elasticity:
         Kio[fixed] = 0.0
         X = np.linalg.solve(Kii, Kio)  # Kii^-1 Kio
         Koo = Ke[:, :no, :no] - np.matmul(Kio.transpose(0, 2, 1), X)
-        Koo = 0.5 * (Koo + Koo.transpose(0, 2, 1))  # symmetric but for rounding: exactly, so every solver has the same matrix
+        Koo += Koo.transpose(0, 2, 1).copy()  # symmetric but for rounding: exactly, so every solver has the same matrix
+        Koo *= 0.5
         kept = ~held_node
         kept[d[:, self.n_outer :].ravel()] = False
         free = np.flatnonzero(np.repeat(kept, 3))
