@@ -106,6 +106,7 @@ def _cholmod_factor(cholmod, rows, cols, blocks, n) -> Factor:
     row = np.repeat(np.arange(3 * n), np.diff(L.indptr))
     keep = L.indices <= row  # a diagonal block's upper entries are left out
     A = spmatrix(L.data[keep], L.indices[keep].astype(np.int64), row[keep], (3 * n, 3 * n))
+    del L, row, keep  # before the factor is allocated
     try:
         F = cholmod.symbolic(A, uplo="U")
         cholmod.numeric(A, F)
