@@ -23,7 +23,8 @@ said so.
 ``auto`` (CHOLMOD through cvxopt where installed, else SuperLU),
 ``cholmod`` or ``superlu``.
 
-    python benchmarks/bench_structure.py [--repeat 5] [--material petg --thickness 0.003] [--level 1] [--solver auto] [--convergence] [--against REV]
+    python benchmarks/bench_structure.py [--repeat 5] [--material petg --thickness 0.003] [--level 1] [--solver auto]
+        [--template chair] [--pose P ...] [--convergence] [--against REV]
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ def main() -> None:
     ap.add_argument("--material", default="birch-plywood")
     ap.add_argument("--thickness", type=float, default=0.02)
     ap.add_argument("--template", default="chair")
+    ap.add_argument("--pose", action="append", help="library pose (repeat for several people; default: the template's)")
     ap.add_argument("--level", type=int, default=None, help="mesh level (default: the analysis' default, 2)")
     ap.add_argument("--convergence", action="store_true")
     ap.add_argument("--against", metavar="REV", help="also time seatkit/structure/fem.py of this git revision, alternating")
@@ -55,7 +57,7 @@ def main() -> None:
     from seatkit.pipeline import build
     from seatkit.recipe import apply_overrides, load_recipe
 
-    recipe = apply_overrides(load_recipe(None)[0], template=args.template, baseline="")
+    recipe = apply_overrides(load_recipe(None)[0], template=args.template, poses=args.pose, baseline="")
     result = build(recipe, write=False)
     people = result.contact_pressures
 
