@@ -15,9 +15,16 @@ process' peak resident memory so far: the table in docs/structure.md.
 ``--against REV`` times the FEM module (seatkit/structure/fem.py) of a git
 revision side by side with the working tree's, alternating the two in each
 round (on a shared machine the load drifts: alternating keeps the
-comparison fair), and prints how far their figures differ.
+comparison fair), and prints how far their figures differ. A side whose
+solve is refused (seatkit.errors.StructureError) is timed all the same, and
+said so.
 
-    python benchmarks/bench_structure.py [--repeat 5] [--material petg --thickness 0.003] [--level 1] [--convergence] [--against REV]
+``--solver`` picks the factorisation (seatkit.structure.solvers.SOLVER):
+``auto`` (CHOLMOD through cvxopt where installed, else SuperLU),
+``cholmod`` or ``superlu``.
+
+    python benchmarks/bench_structure.py [--repeat 5] [--material petg --thickness 0.003] [--level 1] [--solver auto]
+        [--template chair] [--pose P ...] [--convergence] [--against REV]
 """
 
 from __future__ import annotations
@@ -34,17 +41,23 @@ def main() -> None:
     ap.add_argument("--material", default="birch-plywood")
     ap.add_argument("--thickness", type=float, default=0.02)
     ap.add_argument("--template", default="chair")
+    ap.add_argument("--pose", action="append", help="library pose (repeat for several people; default: the template's)")
     ap.add_argument("--level", type=int, default=None, help="mesh level (default: the analysis' default, 2)")
     ap.add_argument("--convergence", action="store_true")
     ap.add_argument("--against", metavar="REV", help="also time seatkit/structure/fem.py of this git revision, alternating")
+    ap.add_argument("--solver", choices=("auto", "cholmod", "superlu"), default="auto")
     args = ap.parse_args()
+
+    from seatkit.structure import solvers
+
+    solvers.SOLVER = args.solver
 
     from threadpoolctl import threadpool_limits
 
     from seatkit.pipeline import build
     from seatkit.recipe import apply_overrides, load_recipe
 
-    recipe = apply_overrides(load_recipe(None)[0], template=args.template, baseline="")
+    recipe = apply_overrides(load_recipe(None)[0], template=args.template, poses=args.pose, baseline="")
     result = build(recipe, write=False)
     people = result.contact_pressures
 
@@ -72,7 +85,7 @@ def main() -> None:
     s = first.summary
     m = s["mesh"]
     print(f"{args.template}, {args.material} {args.thickness * 1000:g} mm: level {m['level']}, {m['layers']} layer(s), "
-          f"{m['elements']} elements, {m['nodes']} nodes, {m['dofs']} dofs")
+          f"{m['elements']} elements, {m['nodes']} nodes, {m['dofs']} dofs; factorisation {solvers.factorise_name()}")
     print(f"  first call (imports included) {cold:.2f} s wall, {cold_cpu:.2f} s CPU; then median {statistics.median(warm):.2f} s wall "
           f"(min {min(warm):.2f}, max {max(warm):.2f}, {args.repeat} runs), {statistics.median(cpu):.2f} s CPU")
     print(f"  peak memory allocated by one analysis: {peak / 2**20:.0f} MiB")
@@ -121,16 +134,23 @@ def _against(rev: str, run, repeat: int) -> None:
         spec.loader.exec_module(old)
     if not hasattr(old.Elasticity, "det"):  # before 052f275 the analysis read the Jacobian from scikit-fem's basis
         old.Elasticity.det = property(lambda self: self.basis.mapping.detDF(self.basis.X))
+    if "solver" not in old.Solution.__dataclass_fields__:  # before the factorisation was named in structure.json
+        old.Solution.solver = "SuperLU (scipy)"
     models = {rev: old.Elasticity, "working tree": fem.Elasticity}
     times = {k: [] for k in models}
     out, loads = {}, []
+    from seatkit.errors import StructureError
+
     try:
         with threadpool_limits(limits=1):
             for r in range(repeat + 1):  # round 0 warms both up
                 for name in models if r % 2 == 0 else list(models)[::-1]:
                     analysis.Elasticity = models[name]
                     t0, c0 = time.perf_counter(), time.process_time()
-                    out[name] = run()
+                    try:
+                        out[name] = run()
+                    except StructureError as e:
+                        out[name] = e
                     if r:
                         times[name].append((time.process_time() - c0, time.perf_counter() - t0))
                 loads.append(os.getloadavg()[0])
@@ -141,7 +161,12 @@ def _against(rev: str, run, repeat: int) -> None:
         cpu, wall = np.array(v).T
         print(f"    {name:>14}: median {np.median(cpu):.2f} s CPU (min {cpu.min():.2f}, max {cpu.max():.2f}), "
               f"{np.median(wall):.2f} s wall (min {wall.min():.2f}, max {wall.max():.2f})")
+    for name, result in out.items():
+        if isinstance(result, Exception):
+            print(f"    {name} refused the solve: {result}")
     a, b = out[rev], out["working tree"]
+    if isinstance(a, Exception) or isinstance(b, Exception):
+        return
     keys = ("max_von_mises_pa", "safety_factor", "max_deflection_m", "applied_load_n", "floor_reaction_n", "mass_kg")
     figures = max(abs(a.summary[k] - b.summary[k]) / abs(a.summary[k]) for k in keys)
     field = np.abs(a.solution.displacement - b.solution.displacement).max() / np.abs(a.solution.displacement).max()

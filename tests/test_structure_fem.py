@@ -156,17 +156,24 @@ def test_a_shell_held_nowhere_is_one_clear_error():
         model.solve(_pressure(mesh, 100.0), np.zeros(0, np.int64))
 
 
+@pytest.mark.parametrize("solver", ["cholmod", "superlu"])
 @pytest.mark.parametrize("layers", [1, 2])
-def test_condensed_solve_equals_the_global_solve(layers):
+def test_condensed_solve_equals_the_global_solve(layers, solver, monkeypatch):
     """Eliminating each element's own nodes first (held ones among them) changes nothing but rounding.
 
     A curved plate held on one edge and on its whole underside near it (the
     bottom-face centre nodes there are held: with one layer they belong to
     one element only) under a uniform pressure, against a direct solve of
-    the global stiffness with the held rows and columns taken out.
+    the global stiffness with the held rows and columns taken out; with
+    either factorisation of the condensed stiffness.
     """
     import scipy.sparse.linalg as sla
 
+    from seatkit.structure import solvers
+
+    if solver == "cholmod":
+        pytest.importorskip("cvxopt")
+    monkeypatch.setattr(solvers, "SOLVER", solver)
     V, N, q9 = plate_quads9(3, 4, 0.3, 0.4)
     V = V + np.c_[0 * V[:, 0], 0.2 * V[:, 0] ** 2 + 0.1 * V[:, 2] ** 2, 0 * V[:, 0]]
     mesh = ShellMesh.extrude(V, N, q9, 0.01, layers)
@@ -176,6 +183,7 @@ def test_condensed_solve_equals_the_global_solve(layers):
     load = _pressure(mesh, 1000.0)
     load[:, 0] += 0.3 * load[:, 1]  # a friction-like shear too
     sol = model.solve(load, held_nodes)
+    assert sol.solver.lower().startswith(solver)
     f = np.zeros(model.n_dofs)
     f.reshape(-1, 3)[model.dof] = load
     held = np.zeros(model.n_dofs, bool)
@@ -188,6 +196,24 @@ def test_condensed_solve_equals_the_global_solve(layers):
     reaction = (model.stiffness @ u - f).reshape(-1, 3)[model.dof]
     reaction[np.setdiff1d(np.arange(len(mesh.nodes)), held_nodes)] = 0.0
     assert np.abs(sol.reaction - reaction).max() <= 1e-8 * np.abs(reaction).max()
+
+
+def test_without_cvxopt_the_analysis_falls_back_to_superlu(monkeypatch):
+    """cvxopt (CHOLMOD) is an optional accelerator: where it does not import, SuperLU solves, to the same answer."""
+    import sys
+
+    from seatkit.structure import solvers
+
+    pytest.importorskip("cvxopt")
+    t = 0.01
+    _, with_cholmod, _ = _clamped_plate(t)
+    monkeypatch.setitem(sys.modules, "cvxopt", None)  # import cvxopt now raises ImportError
+    assert solvers.SOLVER == "auto" and solvers.factorise_name() == "SuperLU (scipy)"
+    _, without, _ = _clamped_plate(t)
+    assert with_cholmod.solver == "CHOLMOD (cvxopt)" and without.solver == "SuperLU (scipy)"
+    scale = np.abs(without.displacement).max()
+    assert np.abs(with_cholmod.displacement - without.displacement).max() <= 1e-9 * scale
+    assert np.abs(with_cholmod.von_mises - without.von_mises).max() <= 1e-9 * without.von_mises.max()
 
 
 def _scordelis_lo_roof(n, assumed_strain=True):
@@ -290,6 +316,55 @@ def test_a_nearly_singular_stiffness_is_refused_not_answered():
     sol = model.solve(_pressure(mesh, 2000.0) + model.weight_load(), ends)
     applied = sol.load.sum(axis=0)
     assert np.abs(sol.reaction.sum(axis=0) + applied).max() <= 1e-6 * np.abs(applied).max()
+
+
+def _pinched_plate(shift, t=0.01):
+    """The clamped plate with one element's centre node moved ``shift`` along x: that element's mapping nearly vanishes."""
+    V, N, q9 = plate_quads9(SPAN_ELEMENTS, SPAN_ELEMENTS, 1.0, 1.0)
+    V[(2 * 3 + 1) * (2 * SPAN_ELEMENTS + 1) + (2 * 4 + 1), 0] += shift  # the surface centre of element (3, 4)
+    mesh = ShellMesh.extrude(V, N, q9, t)
+    x, z = mesh.nodes[:, 0], mesh.nodes[:, 2]
+    edge = np.flatnonzero((x < 1e-9) | (x > 1.0 - 1e-9) | (z < 1e-9) | (z > 1.0 - 1e-9))
+    return mesh, edge
+
+
+def test_one_nearly_folded_element_among_sound_ones_is_capped_and_solved(monkeypatch):
+    """A single element whose mapping all but vanishes is rigid to its neighbours: capped, the plate solves and balances.
+
+    Its stiffness grows as the inverse cube of the vanishing determinant
+    (millions of times a sound element's): uncapped, no displacement in
+    double precision balances it and the solve is refused, as the default
+    chair in 2 cm plywood was. Capped at STIFFNESS_CAP times a typical
+    element (its eigenvalues on its deformations), the plate balances to
+    1e-6, and the figures do not depend on the cap: rigid is rigid.
+    """
+    from seatkit.structure import StructureError, fem
+
+    lo, hi = 0.0, 0.0625  # sound, folded
+    assert Elasticity(_pinched_plate(hi)[0], NU03).det.min() < 0
+    for _ in range(80):
+        model = Elasticity(_pinched_plate(lo)[0], NU03)
+        if model.det.min() < 1e-7 * model.det.max():
+            break
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if Elasticity(_pinched_plate(mid)[0], NU03).det.min() > 0 else (lo, mid)
+    mesh, edge = _pinched_plate(lo)
+    figures = {}
+    for cap in (np.inf, fem.STIFFNESS_CAP / 10, fem.STIFFNESS_CAP, fem.STIFFNESS_CAP * 10):
+        monkeypatch.setattr(fem, "STIFFNESS_CAP", cap)
+        model = Elasticity(mesh, NU03)
+        assert 0 < model.det.min() < 1e-7 * model.det.max()
+        load = _pressure(mesh, 1000.0) + model.weight_load()
+        if cap == np.inf:
+            with pytest.raises(StructureError, match="floor reaction misses the applied load"):
+                model.solve(load, edge)
+            continue
+        sol = model.solve(load, edge)
+        applied = sol.load.sum(axis=0)
+        assert np.abs(sol.reaction.sum(axis=0) + applied).max() <= 1e-6 * np.abs(applied).max()
+        figures[cap] = np.abs(sol.displacement).max(), sol.von_mises.max()
+    deflection, stress = np.array(list(figures.values())).T
+    assert np.ptp(deflection) <= 1e-6 * deflection.max() and np.ptp(stress) <= 1e-6 * stress.max()
 
 
 def test_strains_of_u_equal_the_strain_rows_times_u():

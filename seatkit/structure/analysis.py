@@ -194,6 +194,7 @@ def analyse(
             "nodes": int(len(mesh.nodes)),
             "dofs": int(model.n_dofs),
             "element": "27-node hexahedron (scikit-fem ElementHex2, MeshHex2)",
+            "solver": solution.solver,
         },
         "distorted_elements": int(folded.sum()),
         "distorted_volume_fraction": float(model.dx[folded].sum() / model.dx.sum()),

@@ -37,6 +37,7 @@ from seatkit.constants import GRAVITY
 from seatkit.errors import StructureError
 from seatkit.structure.materials import Material
 from seatkit.structure.mesh import ShellMesh
+from seatkit.structure.solvers import blocks_to_csr, factorise
 
 __all__ = ["Elasticity", "Solution"]
 
@@ -67,6 +68,10 @@ _TYING_OF = {comp: grid for grid, comps in _TYING_SETS.items() for comp in comps
 IMBALANCE_LIMIT = 1e-4
 #: Elements per chunk when building the assumed-strain stiffness and stresses.
 CHUNK = 128
+#: No element is stiffer than this many times a typical one (the median over the elements of
+#: their largest diagonal entry): beyond it an element is rigid to its neighbours, and more only
+#: costs digits (docs/structure.md, "Solve"; :meth:`Elasticity._cap_stiffness`).
+STIFFNESS_CAP = 1e7
 
 
 def _full_rule() -> tuple[np.ndarray, np.ndarray]:
@@ -206,6 +211,8 @@ class Solution:
         Von Mises stress at every quadrature point of every element, Pa.
     volume : float
         m^3.
+    solver : str
+        The factorisation that solved it (:func:`seatkit.structure.solvers.factorise`).
     """
 
     displacement: np.ndarray
@@ -213,6 +220,7 @@ class Solution:
     load: np.ndarray
     von_mises: np.ndarray
     volume: float
+    solver: str = ""
 
 
 class Elasticity:
@@ -255,7 +263,7 @@ class Elasticity:
         self.volume = float(self.dx.sum())
         self.stress_points = self._points(*_stress_rule()) if assumed_strain else self.full
         self._tying = None
-        self.element_stiffness = self._element_stiffness()  # (E, 81, 81)
+        self.element_stiffness = self._cap_stiffness(self._element_stiffness())  # (E, 81, 81)
 
     def _points(self, X: np.ndarray, W: np.ndarray) -> _Points:
         shapes = [self.element.lbasis(X, a) for a in self.slots]
@@ -309,6 +317,40 @@ class Elasticity:
         del H
         for i in range(3):
             K5[:, :, i, :, i] += mu * trace
+        return K
+
+    def _cap_stiffness(self, K: np.ndarray) -> np.ndarray:
+        """``K`` (E, 81, 81) with every element's stiffness above :data:`STIFFNESS_CAP` times a typical one's cut to it.
+
+        An element whose mapping nearly vanishes at a quadrature point (the
+        offset folded through itself) has a stiffness growing as the inverse
+        cube of that point's determinant (the assumed strains are carried to
+        Cartesian ones by the inverse mapping twice): 4.8e12 times a typical
+        element's on one build of the default chair in 2 cm plywood. No displacement
+        in double precision balances such a matrix (the rounding of ``u``
+        alone, times it, is newtons), and ten million times its neighbours'
+        stiffness is rigid to them already (the figures do not move, to 1e-8,
+        with the cap anywhere from 1e5 to 1e10). So its
+        stiffness on its deformations (the complement of its rigid motions,
+        which stay exactly free) has its eigenvalues above the cap set to the
+        cap: rigid stays rigid, its soft directions are untouched. Elements
+        with no eigenvalue above the cap (every one, on a sound mesh) are
+        left as they are.
+        """
+        if not np.isfinite(STIFFNESS_CAP) or not len(K):
+            return K
+        diagonal = np.einsum("eii->ei", K)
+        cap = STIFFNESS_CAP * float(np.median(diagonal.max(axis=1)))
+        candidates = np.flatnonzero(diagonal.sum(axis=1) > cap)  # the trace bounds the largest eigenvalue
+        if not candidates.size:
+            return K
+        # an orthonormal basis of each element's deformations: the complement of its rigid motions
+        N = np.linalg.qr(self._rigid[candidates], mode="complete")[0][:, :, 6:]  # (c, 81, 75)
+        Kd = np.matmul(N.transpose(0, 2, 1), np.matmul(K[candidates], N))
+        w, V = np.linalg.eigh(0.5 * (Kd + Kd.transpose(0, 2, 1)))
+        over = (w > cap).any(axis=1)
+        NV = np.matmul(N[over], V[over])
+        K[candidates[over]] = np.matmul(NV * np.minimum(w[over], cap)[:, None, :], NV.transpose(0, 2, 1))
         return K
 
     def _assumed_strain_stiffness(self) -> np.ndarray:
@@ -406,10 +448,11 @@ class Elasticity:
         cov = np.empty((n, n_p, 6, 81))
         for part, comps in self._tying_parts():
             for i, j in comps:
-                # the tying points' base vectors g_i (and g_j) times the constant interpolated gradients
+                # the tying points' base vectors g_i (and g_j) times the constant interpolated gradients,
+                # every element's in one product: (P 27, T) x (T, e 3)
                 G = g_t[:, part, i] if i == j else np.concatenate([g_t[:, part, i], g_t[:, part, j]], axis=1)
-                rows = np.matmul(self._assumed_gradients(points, (i, j)), G)  # (e, P 27, 3)
-                cov[:, :, _COVARIANT.index((i, j))] = rows.reshape(n, n_p, 81)
+                rows = self._assumed_gradients(points, (i, j)) @ G.transpose(1, 0, 2).reshape(G.shape[1], -1)
+                cov[:, :, _COVARIANT.index((i, j))] = rows.reshape(n_p * 27, n, 3).transpose(1, 0, 2).reshape(n, n_p, 81)
         cov[:, :, 2] = _covariant(points.g[elements], points.ref, 2, 2)
         T = _to_cartesian(points.inv[elements])  # (e, P, 6, 6)
         if left is not None:
@@ -419,15 +462,23 @@ class Elasticity:
         return np.matmul(T, cov)
 
     def _assemble(self, kept: np.ndarray, element_matrices=None, element_nodes=None) -> sp.csr_matrix:
-        """The stiffness of the scalar degrees of freedom ``kept`` ((N,) bool; all 3 components of each).
+        """The stiffness of the scalar degrees of freedom ``kept`` ((N,) bool; all 3 components of each), in CSR.
+
+        See :meth:`_assemble_blocks`; rows and columns follow the kept
+        degrees of freedom in order, 3 per node.
+        """
+        return blocks_to_csr(*self._assemble_blocks(kept, element_matrices, element_nodes))
+
+    def _assemble_blocks(self, kept: np.ndarray, element_matrices=None, element_nodes=None):
+        """The stiffness of the scalar degrees of freedom ``kept`` in 3 x 3 blocks: (rows, cols, blocks, n).
 
         ``element_matrices`` (E, 3 m, 3 m) on the scalar degrees of freedom
         ``element_nodes`` (E, m): by default the element stiffness on all 27
-        nodes. Assembled in 3 x 3 blocks: the sparsity pattern is found among
-        the m x m node pairs of every element (9 times fewer than the entries),
-        each block component summed with ``np.bincount``, then converted once
-        to CSR. Rows and columns follow the kept degrees of freedom in order,
-        3 per node.
+        nodes. The sparsity pattern is found among the m x m node pairs of
+        every element (9 times fewer than the entries), and each block is
+        the sum of its pairs' by one sparse product with the pairs' incidence.
+        ``rows``, ``cols``: the blocks' positions among the ``n`` kept nodes,
+        sorted by row then column; ``blocks`` (B, 3, 3).
         """
         d = self._edofs.T if element_nodes is None else element_nodes  # (E, m)
         Ke = self.element_stiffness if element_matrices is None else element_matrices
@@ -445,9 +496,7 @@ class Elasticity:
         # (in CSC, one entry per pair's column: no sorting needed)
         S = sp.csc_matrix((np.ones(len(block)), block, np.arange(len(block) + 1)), shape=(len(keys), len(block)))
         data = (S @ K.reshape(-1, 9)).reshape(-1, 3, 3)
-        indptr = np.searchsorted(keys // n, np.arange(n + 1)) if n else np.zeros(1, np.int64)
-        A = sp.bsr_matrix((data, keys % n if n else keys, indptr), shape=(3 * n, 3 * n))
-        return A.tocsr()
+        return (keys // n, keys % n, data, n) if n else (keys, keys, data, n)
 
     def weight_load(self, g: float = GRAVITY) -> np.ndarray:
         """(N, 3) nodal forces of the shell's own weight (along -Y), N."""
@@ -463,16 +512,15 @@ class Elasticity:
         The nodes that belong to one element only, at the same place in
         every element (the centre, and with one layer the centres of the
         top and bottom faces: a quarter of the unknowns), are eliminated
-        element by element first (static condensation, exact), SuperLU
-        factorises what remains, and they are recovered from it. One step
+        element by element first (static condensation, exact), what remains
+        is factorised (CHOLMOD or SuperLU, :mod:`seatkit.structure.solvers`),
+        and they are recovered from it. One step
         of iterative refinement follows, its residual from the stable
         element product (:meth:`_element_product`), and the reactions are
         that product less the load at the held nodes; a solution whose
         reaction misses the load by more than :data:`IMBALANCE_LIMIT` is
         refused (:meth:`_check_equilibrium`).
         """
-        import scipy.sparse.linalg as sla
-
         self._check_held(np.asarray(held_nodes, dtype=np.int64))
         n = self.n_dofs
         f = np.zeros(n)
@@ -496,28 +544,24 @@ class Elasticity:
         Kio[fixed] = 0.0
         X = np.linalg.solve(Kii, Kio)  # Kii^-1 Kio
         Koo = Ke[:, :no, :no] - np.matmul(Kio.transpose(0, 2, 1), X)
+        Koo += Koo.transpose(0, 2, 1).copy()  # symmetric but for rounding: exactly, so every solver has the same matrix
+        Koo *= 0.5
         kept = ~held_node
         kept[d[:, self.n_outer :].ravel()] = False
         free = np.flatnonzero(np.repeat(kept, 3))
-        # the free outer block only, assembled directly (symmetric: its CSR arrays are its CSC arrays)
-        Kff = self._assemble(kept, Koo, d[:, : self.n_outer])
-        Kff = sp.csc_matrix((Kff.data, Kff.indices, Kff.indptr), shape=Kff.shape)
-        # symmetric positive definite: a symmetric ordering without pivoting
-        try:
-            lu = sla.splu(Kff, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-        except (MemoryError, SystemError, RuntimeError) as e:  # SuperLU reports a failed allocation as invalid arguments
-            if "singular" in str(e).lower():
-                msg = "a part of the shell is not connected to where it is held: nothing holds it (singular stiffness)"
-            else:
-                msg = f"the sparse solver failed on {len(free)} unknowns ({e}); out of memory? try a lower --level"
-            raise StructureError(msg) from None
+        # the free outer block only, assembled directly, and factorised (symmetric positive definite);
+        # the condensed element matrices freed first (50 MB on the default chair: the factorisation is the peak)
+        blocks = self._assemble_blocks(kept, Koo, d[:, : self.n_outer])
+        del Koo
+        factor = factorise(*blocks)
+        del blocks
 
         def condensed_solve(rhs: np.ndarray) -> np.ndarray:
             """``u`` with ``K u = rhs`` at the free unknowns (0 at the held ones), through the condensation."""
             y = np.linalg.solve(Kii, np.where(fixed, 0.0, rhs[dofs[:, bi]])[:, :, None])  # Kii^-1 f_i
             ro = rhs - np.bincount(dofs[:, bo].ravel(), weights=np.matmul(Kio.transpose(0, 2, 1), y).ravel(), minlength=n)
             out = np.zeros(n)
-            out[free] = lu.solve(ro[free])
+            out[free] = factor.solve(ro[free])
             # the inner unknowns: Kii u_i = f_i - Kio u_o
             out[dofs[:, bi]] = y[:, :, 0] - np.matmul(X, out[dofs[:, bo]][:, :, None])[:, :, 0]
             return out
@@ -534,7 +578,8 @@ class Elasticity:
         reaction[~held] = 0.0
         self._check_equilibrium(reaction, f)
         disp = u.reshape(-1, 3)[self.dof]
-        return Solution(disp, reaction.reshape(-1, 3)[self.dof], np.asarray(load, dtype=np.float64), self.von_mises(u), self.volume)
+        load = np.asarray(load, dtype=np.float64)
+        return Solution(disp, reaction.reshape(-1, 3)[self.dof], load, self.von_mises(u), self.volume, factor.name)
 
     @functools.cached_property
     def _rigid(self) -> np.ndarray:
