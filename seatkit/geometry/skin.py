@@ -143,6 +143,11 @@ class SkinDistance:
         """
         return _CACHE.get((vertices, faces), lambda: cls(vertices, faces), tag=cls)
 
+    def prepare(self) -> "SkinDistance":
+        """Build now what is otherwise built on first use (the open-space grid); return self."""
+        self._open_space()
+        return self
+
     def query(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Depth below the skin, closest skin point and outward direction.
 

@@ -141,12 +141,24 @@ class _ObservedTemplate:
 
     def fits(self, bodies, pressures, *, params=None, seed=0):
         """The template's cages (``seatkit.stages.template_cages``), each shown as the template preview when it is made."""
+        from seatkit.side import beside
         from seatkit.stages import template_cages
 
         self._observe("posed", bodies=bodies, pressures=pressures)
+        # the surface fit's skin distances of the new bodies, made beside the
+        # template fit (on the side thread, where it runs)
+        beside(_prepare_skins, bodies)
         for mesh in template_cages(self._template, bodies, pressures, params=params, seed=seed):
             self._observe("template", mesh=mesh)
             yield mesh
+
+
+def _prepare_skins(bodies) -> None:
+    """Build each body's skin distance (cached by its arrays, seatkit.geometry.skin) before the surface fit asks."""
+    from seatkit.geometry.skin import SkinDistance
+
+    for body in bodies:
+        SkinDistance.of(body.vertices, body.faces).prepare()
 
 
 class _ObservedRefiner:
