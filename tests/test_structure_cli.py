@@ -125,6 +125,7 @@ def test_a_design_off_the_floor_is_one_line(chair_dir, tmp_path):
     done = runner.invoke(app, ["structure", str(lifted), "--level", "1"])
     lines = done.output.strip().splitlines()
     assert done.exit_code == 1 and len(lines) == 1 and "does not meet the floor" in lines[0], done.output
+    assert lines[0].startswith(f"seatkit: error: {lifted / 'design.npz'}: the design does not meet the floor"), done.output
 
 
 _values = st.one_of(st.none(), st.booleans(), st.integers(-5, 5), st.floats(allow_nan=True), st.text(max_size=8), st.lists(st.integers(), max_size=2))

@@ -39,7 +39,10 @@ def structure_folder(directory: Path, *, pm, out: Path | None = None, **flags):
     for key, message in check(section):
         raise StructureError(f"--{key.replace('_', '-')}: {message}")
     result = evaluate_folder(directory, pm=pm, baseline=None)
-    analysis = analyse_result(result, section)
+    try:
+        analysis = analyse_result(result, section)
+    except StructureError as e:  # the design cannot be analysed (off the floor, ...): name its file
+        raise StructureError(f"{directory / 'design.npz'}: {e}") from None
     out.mkdir(parents=True, exist_ok=True)
     files = write_structure(analysis, out, title=title_of(result))
     if section["size_thickness"]:
