@@ -18,7 +18,8 @@ from scipy.spatial import cKDTree
 from seatkit.cache import IdentityCache
 from seatkit.errors import UnsupportedPoseError
 from seatkit.geometry.normals import vertex_normals as _triangle_normals
-from seatkit.model import Body, ControlMesh
+from seatkit.geometry.surface import SurfaceQuery, inside_furniture
+from seatkit.model import Body, ControlMesh, Surface
 from seatkit.skeleton import PARENTS, SEGMENT_INDEX, SEGMENTS
 from seatkit.template.grid import NOT_HELD
 from seatkit.template.planes import unit
@@ -34,6 +35,10 @@ __all__ = [
     "cast_parallel",
     "segments_cross_triangles",
     "body_vertex_normals",
+    "held_segments",
+    "enclosed_vertices",
+    "enclosed_parts",
+    "free_segments",
 ]
 
 
@@ -469,6 +474,105 @@ def check_cage(mesh: ControlMesh, bodies, *, tolerance: float) -> None:
             names = sorted({mesh.face_labels[i] for i in bad})
             msg = f"{person_label(person, body)}: the fitted cage crosses the body at faces {', '.join(names)}: this topology cannot support the pose"
             raise UnsupportedPoseError(msg, parts=_parts(mesh, bad), diagnostics={"crossing_faces": bad.tolist(), **mesh.meta})
+
+
+#: Subdivision level of the limit surface the enclosure check reads (16 quads per cage face).
+ENCLOSURE_LEVEL = 2
+
+
+def held_segments(meta: dict, face_segments) -> set:
+    """Segments a cage holds: every segment a fitted face lists (``meta["supported_segments"]``), carries (``face_segments``), or an armrest holds.
+
+    The rest (hands, forearms and arms without an armrest, the head...) is
+    what the cage does not hold: it must stay outside the furniture.
+    """
+    held = {int(s) for s in meta.get("supported_segments", [])}
+    held |= {int(s) for s in np.asarray(face_segments).ravel() if s >= 0}
+    for case in meta.get("special_cases", []):
+        if case.get("case") == "armrests":
+            held |= {SEGMENT_INDEX[n] for side in case.get("sides", []) if side.get("taken") for n in side.get("segments", [])}
+    return held
+
+
+def enclosed_vertices(vertices: np.ndarray, quads: np.ndarray, body: Body, free: np.ndarray, *, level: int = ENCLOSURE_LEVEL) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Body vertices of ``free`` segments inside the furniture the cage's limit surface closes with the floor.
+
+    The furniture is read as the refiners' final check reads it
+    (:func:`seatkit.geometry.surface.inside_furniture`: a vertex is inside
+    when the ray from it straight up crosses the surface an odd number of
+    times), on the limit surface of the cage ``(vertices, quads)`` (no
+    creases: a template's cage) at ``level``: the refiners start from the
+    limit surface, not from the faces, and where the cage dips under a
+    hanging hand between two vertices the limit surface does not follow.
+
+    Parameters
+    ----------
+    free : (s,) bool
+        Per segment, whether it is checked (the segments the cage does not hold).
+
+    Returns
+    -------
+    index : (k,) int64
+        The enclosed body vertices.
+    depth : (k,) float64
+        Their distance to the limit surface, m.
+    face : (k,) int64
+        The cage face whose limit patch is nearest to each.
+    """
+    from seatkit.subdivision import Cage, build_operators
+
+    none = np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64)
+    seg = np.asarray(body.weights).argmax(1)
+    cand = np.flatnonzero(np.asarray(free)[seg])
+    if not len(cand):
+        return none
+    ops = build_operators(Cage(np.asarray(vertices, dtype=np.float64), np.asarray(quads, dtype=np.int64)), level)
+    X = ops.limit_points(vertices)
+    surface = Surface(X, np.zeros_like(X), ops.faces, level)
+    points = np.asarray(body.vertices, dtype=np.float64)[cand]
+    inside = inside_furniture(surface, points)
+    if not inside.any():
+        return none
+    depth, _ = SurfaceQuery(surface).query(points[inside])
+    _, nearest = cKDTree(X[ops.faces].mean(1)).query(points[inside])
+    return cand[inside], depth, ops.face_origin[nearest].astype(np.int64)
+
+
+def free_segments(held) -> np.ndarray:
+    """(s,) bool: the segments not in ``held``."""
+    return np.array([s not in held for s in range(len(SEGMENTS))])
+
+
+def enclosed_parts(mesh: ControlMesh, bodies, tolerance: float) -> list:
+    """Per body, the parts the cage does not hold that lie inside the furniture deeper than ``tolerance`` (:func:`enclosed_vertices`).
+
+    The crossing check finds cage faces that pass through the body; a hand
+    hanging beside the seat, under the wall that runs from the seat's edge
+    out and down to the ground rectangle, crosses no face: it is wholly
+    inside the solid the surface closes with the floor. The held parts are
+    left out: they rest on their faces and sink into the limit surface by
+    design until the surface fit.
+
+    Returns
+    -------
+    list of dict
+        ``vertices`` (the enclosed body vertices), ``depth_m`` (the deepest,
+        m), ``parts`` ({segment name: [vertices, depth in mm]}) and
+        ``faces`` (names of the cage faces nearest to them).
+    """
+    free = free_segments(held_segments(mesh.meta, mesh.face_segments))
+    out = []
+    for body in bodies:
+        index, depth, face = enclosed_vertices(mesh.vertices, mesh.faces, body, free)
+        deep = depth > tolerance
+        seg = np.asarray(body.weights).argmax(1)[index[deep]]
+        out.append({
+            "vertices": index[deep].tolist(),
+            "depth_m": float(depth[deep].max()) if deep.any() else 0.0,
+            "parts": {SEGMENTS[s]: [int((seg == s).sum()), round(1000 * float(depth[deep][seg == s].max()), 1)] for s in np.unique(seg)},
+            "faces": sorted({mesh.face_labels[i] for i in np.unique(face[deep])}),
+        })
+    return out
 
 
 def _parts(mesh: ControlMesh, faces) -> list:

@@ -181,7 +181,7 @@ def add_armrests(state: FitState, options) -> None:
     for side in ("right", "left"):
         names = options.get(side, [f"{side.capitalize()}Arm", f"{side.capitalize()}ForeArm"])
         segs = [SEGMENT_INDEX[n] for n in names]
-        rec = {"side": side, "taken": False}
+        rec = {"side": side, "taken": False, "segments": list(names)}
         records.append(rec)
         idx = block.vertices_of(segs)
         share = float(block.normal_force[idx].sum()) / total
