@@ -210,6 +210,104 @@ def _drop_beside(line: np.ndarray, edge: np.ndarray, out: np.ndarray, across: np
             line[i, 1] = low
 
 
+#: Share of the side face's width a wall keeps under the seat when it passes inside a hanging hand.
+_KEEP = 0.1
+#: Smallest gap between a wall and the body on either side of it, m (the surface fit keeps 6 mm; its limit is 5 mm).
+_MIN_GAP = 0.006
+
+
+def _nearest_vertex_along(plan: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(k,) index of the vertex of a polyline (m, 2) each point (k, 2) belongs to: the nearer end of its nearest segment."""
+    a, b = plan[:-1], plan[1:]
+    d = b - a
+    t = np.clip(np.einsum("kmi,mi->km", points[:, None, :] - a[None], d) / np.maximum((d * d).sum(1), 1e-12), 0.0, 1.0)
+    foot = a[None] + t[..., None] * d[None]
+    i = np.argmin(((points[:, None, :] - foot) ** 2).sum(2), axis=1)
+    return i + (t[np.arange(len(i)), i] > 0.5)
+
+
+def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, free: np.ndarray, trigger: np.ndarray, held: np.ndarray, gap: float, seat: np.ndarray, *, span: int = 1, skip=()) -> dict:
+    """Where one side of the seat has hands hanging beside or under it, the walls that pass inside them.
+
+    ``V[:, col]`` is the grid's side (the seat's edge, one vertex per row
+    line), ``V[:, col -+ 1]`` the vertices inside it, ``out`` the horizontal
+    direction out of that side, ``across`` the horizontal direction along
+    it. ``free`` are the body vertices the cage does not hold (hands,
+    forearms), ``trigger`` (bool per ``free`` vertex) those found inside the
+    furniture, ``held`` every other body vertex. ``seat`` (one per face row)
+    says which rows are seat-like (their planes face up, within 45 deg).
+
+    Seen from above, each free vertex belongs to the edge vertex nearest to
+    it along the side (the nearer end of the nearest edge segment). An edge
+    vertex ``k`` of the seat (a row line of a seat-like row or of the row
+    next to one; not the first or last, which the ring's corners follow)
+    with a triggering vertex belonging to ``k - span .. k + span`` (the limit
+    surface near ``k`` blends those ring vertices) gets a wall: its ring
+    vertex goes from the edge down, and in under the seat, to ``gap`` inside
+    the free vertices belonging to ``k`` that hang below the edge (so that a
+    hand under the thigh's flank is outside the furniture: the seat
+    overhangs it, as any seat narrower than its sitter; at most to
+    ``_KEEP`` of the side face's width from its inner vertex), and to
+    ``gap`` below everything outside the wall in its strip (the free
+    vertices of ``k - span .. k + span`` too), at least to the floor: the
+    outer face, from the wall's foot to the ground, passes under them. Where
+    there is no room for ``gap`` the wall stands ``_MIN_GAP`` inside the
+    hand. No wall cuts the held body (within ``_MIN_GAP`` of it, in the
+    vertex's strip between the midpoints to its neighbours) or passes
+    inside a grid vertex under the edge (a backrest over the seat's back).
+    The edge vertices in ``skip`` get no wall.
+
+    Returns
+    -------
+    dict
+        ``{k: (height, position)}``: the ring vertex ``k``'s height (m) and
+        its position along ``out`` (m).
+    """
+    edge, inner = V[:, col], V[:, 1 if col == 0 else col - 1]
+    n = len(edge)
+    plan = np.stack([edge @ out, edge @ across], 1)
+    fo, fc, fy = free @ out, free @ across, free[:, 1]
+    own = _nearest_vertex_along(plan, np.stack([fo, fc], 1)) if len(free) else np.zeros(0, np.int64)
+    lo_strip, hi_strip = _strips(edge @ across)
+    ho, hc, hy = held @ out, held @ across, held[:, 1]
+    grid = V.reshape(-1, 3)
+    go, gc, gy = grid @ out, grid @ across, grid[:, 1]
+    walls = {}
+    for k in range(1, n - 1):
+        if k in skip or not seat[max(k - 2, 0) : k + 2].any():
+            continue
+        # this side's: outside the side face's inner line
+        near = (own >= k - span) & (own <= k + span) & (fo > float(inner[k] @ out))
+        below = edge[k, 1] - gap
+        mine = near & (fy < below)
+        if not (near & trigger).any() or not mine.any():
+            continue
+        e = float(edge[k] @ out)
+        keep = float((_KEEP * edge[k] + (1.0 - _KEEP) * inner[k]) @ out)
+        own_k = mine & (own == k)
+        hand = float(fo[own_k].min()) if own_k.any() else e + gap
+        strip = (hc >= lo_strip[k]) & (hc <= hi_strip[k]) & (hy >= 0.02) & (hy < below)
+        under = (gc >= lo_strip[k]) & (gc <= hi_strip[k]) & (gy < below)
+        beside = (fc >= lo_strip[k]) & (fc <= hi_strip[k])
+        for wall in (min(hand - gap, e), min(hand - _MIN_GAP, e)):
+            outside = np.concatenate([fy[beside & (fo > wall)], hy[strip & (ho > wall)], fy[mine]])
+            drop = max(float(outside.min()) - gap, 0.0)
+            cut = strip & (_distance_to_segment(ho, hy, (e, float(edge[k, 1])), (wall, drop)) < _MIN_GAP)
+            blocked = under.any() and float(go[under].max()) > wall - gap
+            if wall >= keep and not cut.any() and not blocked:
+                walls[k] = (drop, wall)
+                break
+    return walls
+
+
+def _distance_to_segment(x: np.ndarray, y: np.ndarray, a: tuple, b: tuple) -> np.ndarray:
+    """Distance of the points (x, y) to the segment a -> b in a plane."""
+    d = np.array(b) - np.array(a)
+    p = np.stack([x - a[0], y - a[1]], 1)
+    t = np.clip(p @ d / max(float(d @ d), 1e-12), 0.0, 1.0)
+    return np.linalg.norm(p - t[:, None] * d, axis=1)
+
+
 def _set_back_front_edge(V: np.ndarray, points: np.ndarray, back: np.ndarray, across: np.ndarray, gap: float, *, most: float = 0.8) -> None:
     """Move the first vertex row back along the first face row until the legs hang in front of it, in place.
 
@@ -255,6 +353,8 @@ def add_border(
     front_drop: float = 0.08,
     body_clearance: float | None = None,
     drop_beside: bool = False,
+    hanging=None,
+    no_wall=None,
 ) -> GridMesh:
     """The grid with two border rings, the outer one on a ground rectangle.
 
@@ -290,6 +390,19 @@ def add_border(
         the ring vertex goes straight down from the edge, below that skin
         (:func:`_drop_beside`). The clearance step's repair rebuilds the
         border this way after the final check refused border faces.
+    hanging : sequence of ((n,) bool, (n,) bool) per body, optional
+        The body vertices the cage does not hold (a hand, a forearm), and of
+        those the ones found inside the furniture. Given, where one was
+        found the side ring goes from the seat's edge down and in under it,
+        inside the hands hanging beside or under that side
+        (:func:`_walls_inside`); the faces around those ring vertices weigh
+        as much as the most loaded face (``face_weight`` 1), so that the
+        mesh optimisation keeps the walls where they stand. The clearance
+        step's ``repair_enclosure`` rebuilds the border this way when a
+        cage that passed the checks encloses a hand.
+    no_wall : mapping, optional
+        ``{"right": [k, ...], "left": [...]}``: edge vertices that get no
+        wall (their wall crossed the cage or the body).
 
     Returns
     -------
@@ -314,6 +427,15 @@ def add_border(
     loose = np.concatenate([np.isin(segment_of_vertex(b), list(NOT_HELD)) for b in bodies]) if drop_beside and len(bodies) else None
     if behind:
         _set_back_front_edge(V, pts, -front, side, gap)
+    walls = {}
+    no_wall = no_wall or {}
+    if hanging is not None:
+        free = np.concatenate([np.asarray(h[0], bool) for h in hanging]) if len(hanging) else np.zeros(0, bool)
+        trigger = np.concatenate([np.asarray(h[1], bool) for h in hanging]) if len(hanging) else np.zeros(0, bool)
+        with np.errstate(invalid="ignore"):
+            seat = np.nanmean(grid.plane_normal[..., 1], axis=1) >= np.cos(np.pi / 4)
+        for col, out_dir in ((0, -side), (-1, side)):
+            walls[col] = _walls_inside(V, col, out_dir, front, pts[free], trigger[free], pts[~free], gap, seat, skip=set(no_wall.get("right" if col == 0 else "left", ())))
     ring = np.full((R + 3, C + 3, 3), np.nan)  # ring-1 grid: original at [1:-1, 1:-1]
     ring[1:-1, 1:-1] = V
     ring[1:-1, 0] = V[:, 0] - width * side
@@ -347,6 +469,13 @@ def add_border(
             _drop_beside(line, edge, out, front, pts, gap, loose)
             dropped += int(np.any(line != before, axis=1).sum())
             _clear_bodies(line, out, front, pts, gap)
+    for col, placed in walls.items():
+        out_dir = -side if col == 0 else side
+        for k, (height, wall) in placed.items():
+            ring[1 + k, col] = V[k, col] + (wall - float(V[k, col] @ out_dir)) * out_dir
+            ring[1 + k, col, 1] = min(height, V[k, col, 1])
+        if placed:
+            _clear_bodies(ring[1:-1, col], out_dir, front, pts, gap)
     for i, k, ii in ((0, 0, 1), (0, -1, 1), (-1, 0, -2), (-1, -1, -2)):
         kk = 1 if k == 0 else -2
         ring[i, k] = ring[i, kk] + (ring[ii, k] - ring[ii, kk])
@@ -398,6 +527,12 @@ def add_border(
         return res
 
     label = pad(grid.label, "border")
+    weight = pad(grid.face_weight, 0.0)
+    for col, placed in walls.items():
+        for k in placed:
+            # the four faces around the ring vertex (ring[1 + k, col] is out[2 + k, 1] or out[2 + k, C + 3])
+            j = 0 if col == 0 else C + 2
+            weight[1 + k : 3 + k, j : j + 2] = 1.0
     meta["border"] = {
         "rectangle": [[float(x) for x in point([s], [f])[0]] for s, f in ((s0, f1), (s1, f1), (s1, f0), (s0, f0))],
         "convex_sides": convex,
@@ -407,6 +542,8 @@ def add_border(
     }
     if drop_beside:
         meta["border"]["dropped_beside"] = dropped
+    if hanging is not None:
+        meta["border"]["walls_inside"] = {("right" if col == 0 else "left"): sorted(int(k) for k in placed) for col, placed in walls.items()}
     return GridMesh(
         out,
         pad(grid.segment, -1),
@@ -414,6 +551,6 @@ def add_border(
         label,
         pad(grid.plane_point, np.nan),
         pad(grid.plane_normal, np.nan),
-        pad(grid.face_weight, 0.0),
+        weight,
         ground,
     )
