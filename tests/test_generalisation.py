@@ -21,6 +21,7 @@ from seatkit.resources import template_path
 from seatkit.skeleton import N_SEGMENTS, SEGMENT_INDEX
 from seatkit.template import load_template
 from seatkit.template.pose_rule import assess_pose, template_rule
+from seatkit.template.checks import check_cage, enclosed_parts
 from seatkit.template.schema import resolve_parameters
 from seatkit.template.steps import BUILTIN_STEPS
 from test_template_chair import STOOL as CHAIR_TEST_STOOL
@@ -363,6 +364,95 @@ def test_hands_hanging_beside_the_seat_get_a_backrest_and_a_lowered_border_for_e
         assert border and border[0]["dropped_beside"] > 0 and border[0]["feasible"]
     with pytest.raises(UnsupportedPoseError):
         chair.fit([b], [p], seed=1, params={"steps": {"clearance": {"repair": False}}, "fit_attempts": 1})
+
+# -- hands inside the furniture ------------------------------------------------------
+
+
+def _seat_side(hand_x=(-0.26, -0.17), hand_y=(0.20, 0.40), held=()):
+    """A flat seat 0.45 m high, its right edge at x = -0.2 on five row lines along z, and a hand (a box of points) beside it."""
+    z = np.linspace(0.4, -0.1, 5)
+    V = np.stack([np.stack([np.full(5, x), np.full(5, 0.45), z], 1) for x in (-0.2, 0.0, 0.2)], 1)  # (5 row lines, 3 columns, 3)
+    g = np.stack(np.meshgrid(np.linspace(*hand_x, 5), np.linspace(*hand_y, 5), np.linspace(0.10, 0.20, 5), indexing="ij"), -1).reshape(-1, 3)
+    held = np.asarray(held, dtype=np.float64).reshape(-1, 3)
+    return V, g, held
+
+
+def test_a_wall_stands_inside_a_hand_beside_and_under_the_seats_edge():
+    """_walls_inside: the right ring vertex next to the hand goes down and in under the seat, gap inside the hand and below it."""
+    from seatkit.template.border import _walls_inside
+
+    seat = np.ones(4, bool)
+    out, across = np.array([-1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    V, hand, held = _seat_side()
+    walls = _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, seat)
+    # the hand (z 0.10-0.20) belongs to row line 2 (z = 0.15); its neighbours 1 and 3 drop under it too; the ends never move
+    assert set(walls) == {1, 2, 3}
+    drop, wall = walls[2]
+    assert wall == pytest.approx(0.17 - 0.02) and drop == pytest.approx(0.20 - 0.02)
+    # a hand under the edge (x -0.17 is inside the edge at -0.2): the wall undercuts the seat, up to 90% of the side face
+    V, hand, held = _seat_side(hand_x=(-0.16, -0.10))
+    assert _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, seat)[2][1] == pytest.approx(0.08)
+    V, hand, held = _seat_side(hand_x=(-0.05, 0.0))
+    assert 2 not in _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, seat)
+    # nothing found inside the furniture near the hand, not a seat-like row, or a held part the wall would cut: no wall
+    assert not _walls_inside(V.copy(), 0, out, across, hand, np.zeros(len(hand), bool), held, 0.02, seat)
+    V, hand, held = _seat_side()
+    assert not _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, np.zeros(4, bool))
+    V, hand, held = _seat_side(held=[[-0.176, 0.30, 0.15]])  # a held part where either wall would pass (a buttock against the hand)
+    assert 2 not in _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, seat)
+
+
+@pytest.mark.parametrize("index, family, body", [(12, "seated", "default-female"), (37, "reclined", "default-male")])
+def test_hands_hanging_under_the_thighs_flank_get_walls_inside_them(rigs, chair, index, family, body):
+    """seated-012 (female) and reclined-037 (male), draw seed 2026: arms hanging straight down, the hands under the thighs' outer flank.
+
+    The seed's first cage passes every check with the hands 50 and 25 mm
+    inside the furniture (under the border's side walls, which flare out to
+    the ground rectangle): the surface fit refused it, and the three cages
+    of the next starts too. The template's next cage is now the first one
+    with walls inside the hands (the clearance step's
+    ``repair_enclosure``): it passes the checks and encloses nothing.
+    """
+    b = pose_rig(rigs[body], draw_pose(np.random.default_rng([2026, index]), family).pose)
+    p = solve_pressure(b)
+    tolerance = chair._overrides(None)[0]["max_penetration"] + 1e-3
+    cages = chair.fits([b], [p], seed=0)
+    first, walled = next(cages), next(cages)
+    assert max(f["depth_m"] for f in enclosed_parts(first, [b], tolerance)) > 0.02
+    assert "enclosed" not in first.meta and "walls_inside" not in first.meta["fit_attempts"]
+    assert walled.meta["fit_attempts"]["attempt"] == 1 and walled.meta["fit_attempts"]["walls_inside"]
+    assert walled.meta["enclosed"]["before"]["depth_m"] > 0.02 and walled.meta["enclosed"]["after"]["depth_m"] == 0.0
+    assert any(r.get("walls_inside") for r in walled.meta["repairs"])
+    assert not any(f["vertices"] for f in enclosed_parts(walled, [b], tolerance))
+    check_cage(walled, [b], tolerance=tolerance)
+    # the first cage is what it was: the walls are only the next offer
+    np.testing.assert_array_equal(first.vertices, chair.fit([b], [p], seed=0).vertices)
+
+
+@pytest.mark.parametrize("body", BODIES)
+def test_no_library_chair_encloses_a_part_it_does_not_hold(rigs, chair, body):
+    """The library's seed-0 chairs enclose no hand (so a build of one never asks for walls)."""
+    tolerance = chair._overrides(None)[0]["max_penetration"] + 1e-3
+    for info in list_poses():
+        if info.supported:
+            b = pose_rig(rigs[body], load_pose(info.name))
+            mesh = chair.fit([b], [solve_pressure(b)], seed=0)
+            assert not any(f["vertices"] for f in enclosed_parts(mesh, [b], tolerance)), info.name
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("index, family, body", [(12, "seated", "default-female"), (37, "reclined", "default-male")])
+def test_hands_under_the_thighs_flank_build_from_the_walled_cage(tmp_path, index, family, body):
+    """The full build of both (refused after four cages before): the surface of the walled first cage is within the 5 mm limits."""
+    from seatkit.pipeline import build
+
+    path = tmp_path / "pose.yaml"
+    path.write_text(pose_yaml(draw_pose(np.random.default_rng([2026, index]), family, f"{family}-{index:03d}")))
+    r = build({"template": "chair", "seed": 0, "bodies": [{"model": body, "pose": str(path)}]}, write=False, processes=False)
+    assert len(r.initial_mesh.meta["refiner_refusals"]) == 1
+    assert r.initial_mesh.meta["fit_attempts"]["attempt"] == 1 and r.initial_mesh.meta["fit_attempts"]["walls_inside"]
+    ours = r.metrics["ours"][0]
+    assert ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005
 
 
 def _enclosed_depth(mesh, body, segments) -> float:

@@ -17,6 +17,8 @@ names the faces and body parts, with the fit's diagnostics.
 
 from __future__ import annotations
 
+import copy
+import functools
 from pathlib import Path
 from typing import Any, Iterator, Mapping, Sequence
 
@@ -24,7 +26,7 @@ import numpy as np
 
 from seatkit.errors import InputError, ParamError, RecipeError, UnsupportedPoseError
 from seatkit.model import Body, ControlMesh, PressureField
-from seatkit.template.checks import check_cage
+from seatkit.template.checks import check_cage, enclosed_parts
 from seatkit.template.grid import Block, FaceState, FitState, GridMesh, segment_of_vertex
 from seatkit.template.options import check_step_options, did_you_mean
 from seatkit.template.schema import TemplateSpec, read_template, resolve_parameters
@@ -156,8 +158,11 @@ class YamlTemplate:
         A generator: a start runs only when its cage is asked for. The first
         cage is :meth:`fit`'s; the build asks for the next only when a
         refiner refuses the one before (docs/templates.md, "Seed-independent
-        success"). Raises the first start's refusal when no start gives a
-        valid cage, and a refusal of the pose rule at once.
+        success"). When the first cage encloses a hand, the next is the same
+        cage with walls inside the hand, if that one is valid and encloses
+        less (docs/templates.md, "Hands inside the furniture"). Raises the
+        first start's refusal when no start gives a valid cage, and a
+        refusal of the pose rule at once.
         """
         bodies, pressures = list(bodies), list(pressures)
         lo, hi = self.spec.people
@@ -185,7 +190,7 @@ class YamlTemplate:
         first, found = None, False
         for attempt, (rng, dropped) in enumerate(plan):
             try:
-                mesh = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
+                mesh, walled = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
             except UnsupportedPoseError as e:
                 if getattr(e, "seed_independent", False):
                     raise
@@ -195,14 +200,25 @@ class YamlTemplate:
             mesh.meta["fit_attempts"] = {"attempt": attempt + 1, "of": len(plan), "stream": stream, "optional_steps_dropped": bool(dropped)}
             if first is not None:
                 mesh.meta["fit_attempts"]["first_refusal"] = str(first)
-            found = True
             yield mesh
+            if not found:
+                # the refiners refused the first cage: the same with walls inside the hands it encloses, if any
+                # (docs/templates.md, "Hands inside the furniture"), before the next start's
+                mesh = walled()
+                if mesh is not None:
+                    mesh.meta["fit_attempts"] = {**mesh.meta["fit_attempts"], "walls_inside": True}
+                    yield mesh
+            found = True
         if not found:
             first.diagnostics["fit_attempts"] = len(plan)
             raise first
 
-    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset()) -> ControlMesh:
-        """One run of the bound steps and the final check with one random stream."""
+    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset()) -> tuple:
+        """One run of the bound steps and the final check with one random stream.
+
+        Returns the cage and a callable that gives the same cage with walls
+        inside the hands it encloses, or None (:func:`_hands_outside`).
+        """
         state = FitState(self.spec, p, [self._block(i, b, pr) for i, (b, pr) in enumerate(zip(bodies, pressures))], rng)
         state.meta["template"] = self.name
         state.meta["seed"] = int(seed)
@@ -217,22 +233,11 @@ class YamlTemplate:
         if state.grid is None:
             state.grid = join_blocks(state)
         state.meta["faces"] = _face_report(state)
-        state.meta["supported_segments"] = _supported_segments(state)
+        state.meta["supported_segments"] = state.supported_segments()
         repairs = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and hasattr(step, "repair")]
-        for round_ in range(_REPAIR_ROUNDS + 1):
-            mesh = grid_to_mesh(state.grid, meta=state.meta)
-            try:
-                check_cage(mesh, bodies, tolerance=p["max_penetration"] + 1e-3)
-                return mesh
-            except UnsupportedPoseError as e:
-                # repair the faces the check names (docs/templates.md, "Seed-independent success")
-                faces = e.diagnostics.get("crossing_faces")
-                if faces is None and e.diagnostics.get("self_intersections"):
-                    # a fold: the faces of every intersecting pair (the border's repair lowers a ring folded over a hanging hand)
-                    faces = sorted({int(f) for pair in e.diagnostics["self_intersections"] for f in pair})
-                if faces is None or round_ == _REPAIR_ROUNDS or not any(step.repair(state, faces, options=o) for step, o in repairs):
-                    raise
-        raise AssertionError("unreachable")
+        mesh = _checked_cage(state, bodies, p, repairs)
+        fixers = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and hasattr(step, "repair_enclosure")]
+        return mesh, functools.partial(_hands_outside, state, mesh, bodies, p, fixers, repairs)
 
     def _block(self, person: int, body: Body, pressure: PressureField) -> Block:
         faces = {key: FaceState(spec, spec.segments) for key, spec in self.spec.faces.items()}
@@ -308,14 +313,59 @@ def _plan(spec: TemplateSpec, steps: Mapping[str, Any], *, missing_hint: str = "
     return plan
 
 
-def _supported_segments(state: FitState) -> list[int]:
-    """Every segment listed by a fitted ('fit' or 'outer') face of a kept row, of any person."""
-    segs = set()
-    for block in state.blocks:
-        for (r, _c), f in block.faces.items():
-            if r in block.rows and f.plane is not None and f.spec.role in ("fit", "outer"):
-                segs.update(int(s) for s in f.segments)
-    return sorted(segs)
+def _checked_cage(state: FitState, bodies, p: dict, repairs: list) -> ControlMesh:
+    """The fit's cage once it passes :func:`check_cage`; the faces the check names repaired first, up to ``_REPAIR_ROUNDS`` times.
+
+    Raises the check's last refusal when no repair helps (docs/templates.md,
+    "Seed-independent success").
+    """
+    for round_ in range(_REPAIR_ROUNDS + 1):
+        mesh = grid_to_mesh(state.grid, meta=state.meta)
+        try:
+            check_cage(mesh, bodies, tolerance=p["max_penetration"] + 1e-3)
+            return mesh
+        except UnsupportedPoseError as e:
+            # repair the faces the check names
+            faces = e.diagnostics.get("crossing_faces")
+            if faces is None and e.diagnostics.get("self_intersections"):
+                # a fold: the faces of every intersecting pair (the border's repair lowers a ring folded over a hanging hand)
+                faces = sorted({int(f) for pair in e.diagnostics["self_intersections"] for f in pair})
+            if faces is None or round_ == _REPAIR_ROUNDS or not any(step.repair(state, faces, options=o) for step, o in repairs):
+                raise
+    raise AssertionError("unreachable")
+
+
+def _hands_outside(state: FitState, mesh: ControlMesh, bodies, p: dict, fixers: list, repairs: list) -> ControlMesh | None:
+    """The cage ``mesh`` that passed the checks, with walls inside the hands it encloses; None when there are none or it gives no better cage.
+
+    The body parts the cage does not hold (a hand, a forearm) that lie more
+    than ``max_penetration`` + 1 mm inside the furniture its limit surface
+    closes with the floor (:func:`seatkit.template.checks.enclosed_parts`)
+    are handed to the steps that can put walls inside them
+    (``repair_enclosure``: the clearance step's). Their cage goes through the
+    checks and their repairs (:func:`_checked_cage`) and is returned when it
+    passes and encloses less (its deepest enclosed vertex shallower), with
+    ``meta["enclosed"]`` saying what was found before and after. ``mesh``
+    itself is left as it is (the state works on a copy of its ``meta``).
+    """
+    tolerance = p["max_penetration"] + 1e-3
+    found = enclosed_parts(mesh, bodies, tolerance)
+    if not any(f["vertices"] for f in found) or not fixers:
+        return None
+    state.meta = copy.deepcopy(mesh.meta)
+    before = max(f["depth_m"] for f in found)
+    if not any(step.repair_enclosure(state, [f["vertices"] for f in found], options=o) for step, o in fixers):
+        return None
+    try:
+        walled = _checked_cage(state, bodies, p, repairs)
+    except UnsupportedPoseError:
+        return None
+    after = enclosed_parts(walled, bodies, tolerance)
+    depth = max(f["depth_m"] for f in after)
+    if depth >= before:
+        return None
+    walled.meta["enclosed"] = {"before": {"depth_m": before, "parts": [f["parts"] for f in found]}, "after": {"depth_m": depth, "parts": [f["parts"] for f in after]}}
+    return walled
 
 
 def _face_report(state: FitState) -> list:

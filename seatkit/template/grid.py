@@ -390,6 +390,12 @@ class FitState:
         Set by the ``border`` step: builds the border again from the grid it
         started from, with the side rings lowered beside hanging hands (the
         clearance step's repair; docs/templates.md, "Seed-independent success").
+    rebuild_walls : callable or None
+        Set by the ``border`` step: builds the border again from the grid it
+        started from, with its side ring inside the hands hanging beside or
+        under the seat that were found inside the furniture (the clearance
+        step's ``repair_enclosure``; docs/templates.md, "Hands inside the
+        furniture").
     """
 
     spec: TemplateSpec
@@ -399,6 +405,16 @@ class FitState:
     grid: GridMesh | None = None
     meta: dict = field(default_factory=dict)
     rebuild_border: object = None
+    rebuild_walls: object = None
+
+    def supported_segments(self) -> list[int]:
+        """Every segment listed by a fitted ('fit' or 'outer') face of a kept row, of any person (``meta["supported_segments"]``)."""
+        segs = set()
+        for block in self.blocks:
+            for (r, _c), f in block.faces.items():
+                if r in block.rows and f.plane is not None and f.spec.role in ("fit", "outer"):
+                    segs.update(int(s) for s in f.segments)
+        return sorted(segs)
 
     def face_name(self, face: FaceState) -> str:
         """``thigh.right`` style name of a face."""

@@ -20,7 +20,7 @@ import numpy as np
 
 from seatkit.errors import RecipeError
 from seatkit.template.border import add_border
-from seatkit.template.checks import check_supportability
+from seatkit.template.checks import check_supportability, crossing_faces, enclosed_vertices, free_segments, held_segments, self_intersecting_faces
 from seatkit.template.clearance import lift_off_bodies
 from seatkit.template.grid import FitState, GridMesh
 from seatkit.template.options import Option, options_table
@@ -405,17 +405,34 @@ class BorderStep:
             width=float(options.get("width", 0.05)),
             margin=float(options.get("margin", 0.05)),
             min_spacing=float(options.get("min_spacing", 0.02)),
-            meta=state.meta,
             bodies=[b.body for b in state.blocks],
             front_wall=options.get("front_wall", "before-feet"),
             front_drop=float(options.get("front_drop", 0.08)),
             body_clearance=options.get("body_clearance"),
         )
-        state.grid = border()
+        state.grid = border(meta=state.meta)
         # the clearance step's repair may rebuild it with the side rings lowered beside a hanging hand
-        state.rebuild_border = functools.partial(border, drop_beside=True)
+        state.rebuild_border = lambda **kw: border(meta=state.meta, drop_beside=True, **kw)
+        # ... or with its side walls inside the hands the cage encloses (the clearance step's repair_enclosure)
+        state.rebuild_walls = functools.partial(_border_with_walls, state, border)
         if options.get("clearance", True):
             lift_grid(state, {})
+
+
+def _free_segments(state: FitState) -> np.ndarray:
+    """(s,) bool: the segments the cage does not hold (:func:`seatkit.template.checks.held_segments`), from the fit so far."""
+    return free_segments(held_segments({"supported_segments": state.supported_segments(), "special_cases": state.meta.get("special_cases", [])}, state.grid.segment))
+
+
+def _border_with_walls(state: FitState, border, enclosed, **kw) -> GridMesh:
+    """``border(hanging=...)``: the border again, its walls inside the body parts the cage does not hold where ``enclosed`` (per body, vertex indices) were found inside."""
+    free = _free_segments(state)
+    hanging = []
+    for block, found in zip(state.blocks, enclosed):
+        trigger = np.zeros(len(block.body.vertices), bool)
+        trigger[np.asarray(sorted(found), dtype=np.int64)] = True
+        hanging.append((free[block.segment], trigger))
+    return border(meta=state.meta, hanging=hanging, **kw)
 
 
 def grid_quads(shape: tuple[int, int]) -> np.ndarray:
@@ -527,6 +544,92 @@ class ClearanceStep:
                 return True
             state.grid, state.meta["border"] = lifted, border
         return lift_grid(state, options, faces=faces)["moved_vertices"] > 0
+
+    def repair_enclosure(self, state: FitState, enclosed, *, options: Mapping[str, Any]) -> bool:
+        """Put the border's side walls inside the parts the cage does not hold that lie inside the furniture (:func:`_repair_enclosure`)."""
+        if not options.get("repair", True) or state.grid is None:
+            return False
+        return _repair_enclosure(state, enclosed, options)
+
+
+#: Rounds of one enclosure repair: each adds what the last one left inside the furniture.
+_WALL_ROUNDS = 3
+#: Border rebuilds of one enclosure repair, at most (a wall that crosses the cage or a body is left out and the border built again).
+_WALL_BUILDS = 6
+
+
+def _wall_faces(shape: tuple[int, int], walls: dict) -> dict:
+    """{(side, k): indices into :func:`grid_quads` of the four border faces around that wall's ring vertex} (``meta["border"]["walls_inside"]``)."""
+    R, C = shape
+    out = {}
+    for side, ks in walls.items():
+        j = 0 if side == "right" else C - 2
+        for k in ks:
+            out[(side, k)] = [(1 + k + di) * C + j + dj for di in (0, 1) for dj in (0, 1)]
+    return out
+
+
+def _repair_enclosure(state: FitState, enclosed, options: Mapping[str, Any]) -> bool:
+    """The clearance step's ``repair_enclosure`` (docs/templates.md, "Hands inside the furniture").
+
+    The border is built again from the grid it started from with walls
+    inside the free parts hanging beside or under the seat's sides where
+    ``enclosed`` (per body, vertex indices) lie inside the furniture
+    (:func:`seatkit.template.border._walls_inside`), and the whole lift runs
+    again. A wall whose faces then cross the cage or a body is left out and
+    the border built again (at most ``_WALL_BUILDS`` builds). Up to ``_WALL_ROUNDS`` rounds, each with what the last one still
+    left inside added (the limit surface blends neighbouring ring vertices:
+    a hand under one wall's neighbour is found next). Once per start.
+    Returns whether a wall stands (the engine then checks the cage and
+    keeps it only if it is valid and encloses less).
+    """
+    rebuild = state.rebuild_walls
+    if rebuild is None:
+        return False
+    state.rebuild_walls = None
+    tolerance = state.params["max_penetration"] + 1e-3
+    bodies = [b.body for b in state.blocks]
+    found = [set(v) for v in enclosed]
+    start, border = state.grid, state.meta["border"]
+    no_wall = {"right": set(), "left": set()}
+    best, builds = None, 0
+    for _ in range(_WALL_ROUNDS):
+        more = False
+        while builds < _WALL_BUILDS:
+            builds += 1
+            state.grid, state.meta["border"] = start, border
+            grid = rebuild(found, no_wall=no_wall)
+            walls = state.meta["border"]["walls_inside"]
+            if not any(walls.values()):
+                break
+            state.grid = grid
+            faces = _wall_faces(grid.shape, walls)
+            report = lift_grid(state, options)
+            # a wall whose faces cross the cage or a body is left out
+            V, quads = state.grid.vertices.reshape(-1, 3), grid_quads(grid.shape)
+            bad = {int(f) for pair in self_intersecting_faces(V, quads) for f in pair}
+            for body in bodies:
+                bad |= {int(f) for f in crossing_faces(V, quads, body, tolerance)}
+            crossed = [key for key, fs in faces.items() if bad & set(fs)]
+            if not crossed:
+                best = (state.grid, state.meta["border"], state.meta["clearance"], {"step": "border", "walls_inside": walls, **report})
+                free = _free_segments(state)
+                for person, body in enumerate(bodies):
+                    index, depth, _ = enclosed_vertices(V, quads, body, free)
+                    deep = set(index[depth > tolerance].tolist())
+                    more |= bool(deep - found[person])
+                    found[person] |= deep
+                break
+            for side, k in crossed:
+                no_wall[side].add(k)
+        if not more:
+            break
+    if best is None:
+        state.grid, state.meta["border"] = start, border
+        return False
+    state.grid, state.meta["border"], state.meta["clearance"], record = best
+    state.meta.setdefault("repairs", []).append(record)
+    return True
 
 
 def builtin_steps() -> list:
