@@ -400,6 +400,10 @@ def test_a_wall_stands_inside_a_hand_beside_and_under_the_seats_edge():
     assert not _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, np.zeros(4, bool))
     V, hand, held = _seat_side(held=[[-0.176, 0.30, 0.15]])  # a held part where either wall would pass (a buttock against the hand)
     assert 2 not in _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, seat)
+    # a wall that crossed the cage: again straight down from the edge (level 1), then none (level 2)
+    V, hand, held = _seat_side(hand_x=(-0.16, -0.10))
+    assert _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, seat, skip={2: 1})[2][1] == pytest.approx(0.2)
+    assert 2 not in _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, seat, skip={2: 2})
 
 
 @pytest.mark.parametrize("index, family, body", [(12, "seated", "default-female"), (37, "reclined", "default-male")])

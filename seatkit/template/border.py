@@ -226,7 +226,7 @@ def _nearest_vertex_along(plan: np.ndarray, points: np.ndarray) -> np.ndarray:
     return i + (t[np.arange(len(i)), i] > 0.5)
 
 
-def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, free: np.ndarray, trigger: np.ndarray, held: np.ndarray, gap: float, seat: np.ndarray, *, span: int = 1, skip=()) -> dict:
+def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, free: np.ndarray, trigger: np.ndarray, held: np.ndarray, gap: float, seat: np.ndarray, *, span: int = 1, skip=None) -> dict:
     """Where one side of the seat has hands hanging beside or under it, the walls that pass inside them.
 
     ``V[:, col]`` is the grid's side (the seat's edge, one vertex per row
@@ -255,7 +255,8 @@ def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, 
     hand. No wall cuts the held body (within ``_MIN_GAP`` of it, in the
     vertex's strip between the midpoints to its neighbours) or passes
     inside a grid vertex under the edge (a backrest over the seat's back).
-    The edge vertices in ``skip`` get no wall.
+    ``skip`` maps edge vertices to 1 (the wall only drops, straight down
+    from the edge) or 2 (no wall).
 
     Returns
     -------
@@ -263,6 +264,7 @@ def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, 
         ``{k: (height, position)}``: the ring vertex ``k``'s height (m) and
         its position along ``out`` (m).
     """
+    skip = skip or {}
     edge, inner = V[:, col], V[:, 1 if col == 0 else col - 1]
     n = len(edge)
     plan = np.stack([edge @ out, edge @ across], 1)
@@ -274,7 +276,7 @@ def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, 
     go, gc, gy = grid @ out, grid @ across, grid[:, 1]
     walls = {}
     for k in range(1, n - 1):
-        if k in skip or not seat[max(k - 2, 0) : k + 2].any():
+        if skip.get(k, 0) >= 2 or not seat[max(k - 2, 0) : k + 2].any():
             continue
         # this side's: outside the side face's inner line
         near = (own >= k - span) & (own <= k + span) & (fo > float(inner[k] @ out))
@@ -289,7 +291,7 @@ def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, 
         strip = (hc >= lo_strip[k]) & (hc <= hi_strip[k]) & (hy >= 0.02) & (hy < below)
         under = (gc >= lo_strip[k]) & (gc <= hi_strip[k]) & (gy < below)
         beside = (fc >= lo_strip[k]) & (fc <= hi_strip[k])
-        for wall in (min(hand - gap, e), min(hand - _MIN_GAP, e)):
+        for wall in (min(hand - gap, e), min(hand - _MIN_GAP, e)) if not skip.get(k) else (e,):
             outside = np.concatenate([fy[beside & (fo > wall)], hy[strip & (ho > wall)], fy[mine]])
             drop = max(float(outside.min()) - gap, 0.0)
             cut = strip & (_distance_to_segment(ho, hy, (e, float(edge[k, 1])), (wall, drop)) < _MIN_GAP)
@@ -401,8 +403,9 @@ def add_border(
         step's ``repair_enclosure`` rebuilds the border this way when a
         cage that passed the checks encloses a hand.
     no_wall : mapping, optional
-        ``{"right": [k, ...], "left": [...]}``: edge vertices that get no
-        wall (their wall crossed the cage or the body).
+        ``{"right": {k: level}, "left": {...}}``: edge vertices whose wall
+        only drops (level 1) or that get none (2): their wall crossed the
+        cage or the body.
 
     Returns
     -------
@@ -435,7 +438,7 @@ def add_border(
         with np.errstate(invalid="ignore"):
             seat = np.nanmean(grid.plane_normal[..., 1], axis=1) >= np.cos(np.pi / 4)
         for col, out_dir in ((0, -side), (-1, side)):
-            walls[col] = _walls_inside(V, col, out_dir, front, pts[free], trigger[free], pts[~free], gap, seat, skip=set(no_wall.get("right" if col == 0 else "left", ())))
+            walls[col] = _walls_inside(V, col, out_dir, front, pts[free], trigger[free], pts[~free], gap, seat, skip=no_wall.get("right" if col == 0 else "left", {}))
     ring = np.full((R + 3, C + 3, 3), np.nan)  # ring-1 grid: original at [1:-1, 1:-1]
     ring[1:-1, 1:-1] = V
     ring[1:-1, 0] = V[:, 0] - width * side

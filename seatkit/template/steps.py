@@ -554,8 +554,8 @@ class ClearanceStep:
 
 #: Rounds of one enclosure repair: each adds what the last one left inside the furniture.
 _WALL_ROUNDS = 3
-#: Border rebuilds of one enclosure repair, at most (a wall that crosses the cage or a body is left out and the border built again).
-_WALL_BUILDS = 6
+#: Border rebuilds of one enclosure repair, at most (a wall that crosses the cage or a body is built again without undercut, then left out).
+_WALL_BUILDS = 8
 
 
 def _wall_faces(shape: tuple[int, int], walls: dict) -> dict:
@@ -576,8 +576,9 @@ def _repair_enclosure(state: FitState, enclosed, options: Mapping[str, Any]) -> 
     inside the free parts hanging beside or under the seat's sides where
     ``enclosed`` (per body, vertex indices) lie inside the furniture
     (:func:`seatkit.template.border._walls_inside`), and the whole lift runs
-    again. A wall whose faces then cross the cage or a body is left out and
-    the border built again (at most ``_WALL_BUILDS`` builds). Up to ``_WALL_ROUNDS`` rounds, each with what the last one still
+    again. A wall whose faces then cross the cage or a body is built again
+    straight down from the seat's edge, without undercutting it, and if it
+    still crosses, left out (at most ``_WALL_BUILDS`` builds). Up to ``_WALL_ROUNDS`` rounds, each with what the last one still
     left inside added (the limit surface blends neighbouring ring vertices:
     a hand under one wall's neighbour is found next). Once per start.
     Returns whether a wall stands (the engine then checks the cage and
@@ -591,14 +592,16 @@ def _repair_enclosure(state: FitState, enclosed, options: Mapping[str, Any]) -> 
     bodies = [b.body for b in state.blocks]
     found = [set(v) for v in enclosed]
     start, border = state.grid, state.meta["border"]
-    no_wall = {"right": set(), "left": set()}
+    # a border the check's repair rebuilt with its side ring lowered beside the hands keeps that too
+    lowered = "dropped_beside" in border
+    no_wall = {"right": {}, "left": {}}
     best, builds = None, 0
     for _ in range(_WALL_ROUNDS):
         more = False
         while builds < _WALL_BUILDS:
             builds += 1
             state.grid, state.meta["border"] = start, border
-            grid = rebuild(found, no_wall=no_wall)
+            grid = rebuild(found, no_wall=no_wall, drop_beside=lowered)
             walls = state.meta["border"]["walls_inside"]
             if not any(walls.values()):
                 break
@@ -621,7 +624,8 @@ def _repair_enclosure(state: FitState, enclosed, options: Mapping[str, Any]) -> 
                     found[person] |= deep
                 break
             for side, k in crossed:
-                no_wall[side].add(k)
+                # first without undercutting the seat (straight down from its edge), then none
+                no_wall[side][k] = no_wall[side].get(k, 0) + 1
         if not more:
             break
     if best is None:
