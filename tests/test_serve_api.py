@@ -249,7 +249,7 @@ def test_uploads(client, tmp_path):
     assert r.status_code == 422
     r = client.post("/api/upload", params={"filename": "broken.bvh"}, content=b"HIERARCHY\nROOT Hips\n{\n")
     assert r.status_code == 422
-    assert "broken.bvh" in r.json()["error"] and ".part-" not in r.json()["error"]
+    assert "broken.bvh" in r.json()["error"] and ".tmp" not in r.json()["error"]
     r = client.post("/api/upload", params={"filename": "bad.yaml"}, content=b"joints:\n  Knee: {x: 3}\n")
     assert r.status_code == 422
     assert "bad.yaml:2" in r.json()["error"] and "unknown joint" in r.json()["error"]
@@ -260,6 +260,41 @@ def test_uploads(client, tmp_path):
         assert "upload folder" in r.json()["error"]
     r = client.post(FAST, json={"bodies": [{"model": "file", "params": {"path": "/etc/passwd"}}]})
     assert r.status_code == 422
+
+
+def test_the_same_pose_made_at_once_by_several_requests(designer):
+    """The page asks for its pose as it loads and again when a slider moves: the same file, at once.
+
+    Each writer has a temporary file of its own (a shared one was renamed away under the other: a 500 in CI).
+    """
+    from seatkit.body.poses import find_pose
+
+    angles = np.round(np.random.default_rng(7).uniform(-20, 20, (21, 3)), 3).tolist()
+    text = find_pose("upright-sitting").read_bytes()
+    errors, names = [], []
+    barrier = threading.Barrier(8)
+
+    def make(i):
+        try:
+            barrier.wait()
+            if i % 2:
+                names.append(designer.make_pose(angles, [0.0, 0.0, 0.0])["pose"])
+            else:
+                names.append(designer.upload("same.yaml", text)["pose"])
+        except Exception as e:  # noqa: BLE001 - any failure is the test's failure
+            errors.append(repr(e))
+
+    for _ in range(5):
+        for f in designer.uploads.iterdir():
+            f.unlink()
+        threads = [threading.Thread(target=make, args=(i,)) for i in range(8)]
+        for th in threads:
+            th.start()
+        for th in threads:
+            th.join()
+        assert errors == []
+        assert sorted(f.name for f in designer.uploads.iterdir()) == sorted(set(names))  # no temporary file left
+        names.clear()
 
 
 def test_a_bvh_upload_is_retargeted_onto_the_body(client, designer, tmp_path):

@@ -52,6 +52,7 @@ import numpy as np
 import yaml
 
 from seatkit.errors import RecipeError, SeatkitError
+from seatkit.io import atomic_path, write_bytes_atomic, write_text_atomic
 
 #: Largest upload (a BVH capture, a pose YAML), bytes.
 MAX_UPLOAD_BYTES = 4 * 1024 * 1024
@@ -337,17 +338,14 @@ class Designer:
         name = f"upload-{_digest(data)}{'.yaml' if suffix == '.yml' else suffix}"
         path = self.uploads / name
         if not path.exists():
-            tmp = self.uploads / f".part-{name}"  # the same suffix: the loaders go by it
-            tmp.write_bytes(data)
+            # a temporary name of its own (two requests may send the same file at once), with the same
+            # suffix: the loaders go by it; renamed onto the final name only once it reads as a pose
             try:
-                self._read_pose(tmp)
+                with atomic_path(path) as tmp:
+                    tmp.write_bytes(data)
+                    self._read_pose(tmp)
             except SeatkitError as e:  # the loader's message, naming the file the user sent
-                tmp.unlink(missing_ok=True)
                 raise UploadError(str(e).replace(str(tmp.resolve()), Path(filename).name).replace(str(tmp), Path(filename).name)) from None
-            except BaseException:
-                tmp.unlink(missing_ok=True)
-                raise
-            tmp.replace(path)
         return {"pose": name, "original": Path(filename).name}
 
     def _read_pose(self, path: Path) -> None:
@@ -413,10 +411,8 @@ class Designer:
         text = yaml.safe_dump(doc, sort_keys=False)
         name = f"pose-{_digest(text.encode())}.yaml"
         path = self.uploads / name
-        if not path.exists():
-            tmp = path.with_name(f".{name}.part")
-            tmp.write_text(text, encoding="utf-8")
-            tmp.replace(path)
+        if not path.exists():  # two requests may make the same pose at once: each writes its own temporary file
+            write_text_atomic(path, text)
         return {"pose": name}
 
     def confine_pose(self, spec: str, where: str) -> str:
@@ -699,9 +695,7 @@ class Designer:
             for name, data in members.items():
                 z.writestr(f"seatkit-design/{name}", data)
         for name, data in {**members, "recipe.zip": buffer.getvalue()}.items():
-            tmp = folder / f".{name}.part"
-            tmp.write_bytes(data)
-            tmp.replace(folder / name)
+            write_bytes_atomic(folder / name, data)
 
     # ---------------------------------------------------------------- answers
     def file_path(self, ident: str, name: str) -> Path | None:
