@@ -11,6 +11,9 @@ poses them on every ``--bodies`` body, and for each pose and body:
 - checks that a refusal is the pose rule's (the ``pose-rule`` step, decided
   from the skeleton before fitting): any other refusal, of a pose the rule
   calls supportable, is a failure;
+- with ``--library-builds``, builds every supported library pose in full
+  (``seatkit build``'s default build, no files) with each of the
+  ``--library-seeds`` seeds too, not only its template fit;
 - with ``--table1`` (default on), runs one full default build (seed of the
   first ``--seeds``, both refiners, the evaluation against the flat patch)
   and records the paper's Table 1 figures, the surface's deepest
@@ -82,12 +85,14 @@ def reason_kind(message: str) -> str:
 
 
 def run_library(task):
-    """Fit one library pose on one body with seeds 0..n-1 (template only)."""
+    """Fit one library pose on one body with seeds 0..n-1; with ``builds``, also build it in full with each seed."""
     from seatkit.body import load_pose, pose_rig
-    from seatkit.errors import UnsupportedPoseError
+    from seatkit.errors import SeatkitError, UnsupportedPoseError
+    from seatkit.pipeline import build
     from seatkit.pressure.qp import solve_pressure
 
-    name, body_name, n = task
+    name, body_name, n, *rest = task
+    builds = bool(rest and rest[0])
     body = pose_rig(_STATE["rigs"][body_name], load_pose(name))
     pressure = solve_pressure(body)
     out = {"pose": name, "body": body_name, "ok": 0, "fallback": 0, "refusals": []}
@@ -98,6 +103,16 @@ def run_library(task):
             out["fallback"] += mesh.meta["fit_attempts"]["attempt"] > 1
         except UnsupportedPoseError as e:
             out["refusals"].append(f"seed {seed}: {e}")
+    if builds:
+        # the whole default build, as `seatkit build --pose NAME --body BODY --seed S` runs it (no files)
+        out["built"], out["build_refusals"] = 0, []
+        for seed in range(n):
+            recipe = {"template": "chair", "seed": seed, "bodies": [{"model": body_name, "pose": name}]}
+            try:
+                build(recipe, pm=_STATE["pm"], write=False, processes=False)
+                out["built"] += 1
+            except SeatkitError as e:
+                out["build_refusals"].append(f"seed {seed}: {type(e).__name__}: {e}")
     return out
 
 
@@ -322,10 +337,19 @@ def _draw_cages(args, rig) -> None:
 def _library_rows(library, args) -> str:
     if not library:
         return ""
-    rows = ["", "", f"Library poses marked supported, template fit with seeds 0-{args.library_seeds - 1}:", "", "| pose | body | built | needed a fallback start |", "|---|---|---|---|"]
+    builds = all("built" in r for r in library)
+    what = "template fit and full build" if builds else "template fit"
+    rows = ["", "", f"Library poses marked supported, {what} with seeds 0-{args.library_seeds - 1}:", ""]
+    rows += ["| pose | body | fitted | needed a fallback start | full builds that finished |", "|---|---|---|---|---|"] if builds else ["| pose | body | built | needed a fallback start |", "|---|---|---|---|"]
     for r in library:
-        rows.append(f"| {r['pose']} | {r['body']} | {r['ok']} of {args.library_seeds} | {r['fallback']} |")
-        rows += [f"| | | {x[:120]} | |" for x in r["refusals"]]
+        cells = [r["pose"], r["body"], f"{r['ok']} of {args.library_seeds}", str(r["fallback"])]
+        if builds:
+            cells.append(f"{r['built']} of {args.library_seeds}")
+        rows.append("| " + " | ".join(cells) + " |")
+        rows += [f"| | | {x[:120]} | |" for x in r["refusals"] + r.get("build_refusals", [])]
+    if builds:
+        total = sum(r["built"] for r in library)
+        rows += ["", f"Full builds of the library poses: {total} of {args.library_seeds * len(library)}."]
     return "\n".join(rows)
 
 
@@ -345,6 +369,7 @@ def main() -> None:
     ap.add_argument("--summarise-only", action="store_true", help="run nothing: print the summary of what --results holds (marked partial when cases are missing)")
     ap.add_argument("--library-seeds", type=int, default=10, help="also fit every supported library pose with seeds 0..N-1 (0: skip)")
     ap.add_argument("--library-bodies", nargs="+", help="bodies for the library poses (default: the first of --bodies, the build's default)")
+    ap.add_argument("--library-builds", action="store_true", help="also build every supported library pose in full with each of those seeds")
     ap.add_argument("--images", type=Path, help="only draw DIR/generated-<family>.png (the first draw of each family) and stop")
     ap.add_argument("--cages", type=Path, help="with --images: also draw the chair on a supportable draw of each family, DIR/chair-<family>.png")
     args = ap.parse_args()
@@ -356,14 +381,15 @@ def main() -> None:
 
     todo = [("case", t) for t in tasks(args)]
     if args.library_seeds:
-        todo += [("library", (i.name, b, args.library_seeds)) for i in list_poses() if i.supported for b in (args.library_bodies or args.bodies[:1])]
+        extra = (True,) if args.library_builds else ()
+        todo += [("library", (i.name, b, args.library_seeds, *extra)) for i in list_poses() if i.supported for b in (args.library_bodies or args.bodies[:1])]
     done = {}
     if args.results and args.results.exists():
         for line in args.results.read_text().splitlines():
             if line.strip():
                 rec = json.loads(line)
                 done[(rec["kind"], rec["key"])] = rec["result"]
-    key = {"case": lambda t: f"{t[0]}:{t[1]}:{t[2]}:{t[3]}:{','.join(map(str, t[4]))}:{t[5]}", "library": lambda t: f"{t[0]}:{t[1]}:{t[2]}"}
+    key = {"case": lambda t: f"{t[0]}:{t[1]}:{t[2]}:{t[3]}:{','.join(map(str, t[4]))}:{t[5]}", "library": lambda t: f"{t[0]}:{t[1]}:{t[2]}" + (":builds" if t[3:] else "")}
     results = [done[("case", key["case"](t))] for kind, t in todo if kind == "case" and ("case", key["case"](t)) in done]
     library = [done[("library", key["library"](t))] for kind, t in todo if kind == "library" and ("library", key["library"](t)) in done]
     todo = [(kind, t) for kind, t in todo if (kind, key[kind](t)) not in done]
@@ -391,10 +417,11 @@ def main() -> None:
                     fh.write(json.dumps({"kind": kind, "key": key[kind](t), "result": r}) + "\n")
             if kind == "library":
                 library.append(r)
-                status = f"library, {r['ok']} of {t[2]} seeds built"
+                status = f"library, {r['ok']} of {t[2]} seeds fitted" + (f", {r['built']} built in full" if "built" in r else "")
             else:
                 results.append(r)
-                status = "refused (rule)" if not r["rule_ok"] else ("ok" if all(f["ok"] for f in r["fits"]) else "FAILED")
+                ok = all(f["ok"] for f in r["fits"]) and r.get("build", {"ok": True})["ok"]
+                status = "refused (rule)" if not r["rule_ok"] else ("ok" if ok else "FAILED")
                 if args.failures and "yaml" in r:
                     args.failures.mkdir(parents=True, exist_ok=True)
                     (args.failures / f"{r['pose']}-{r['body']}.yaml").write_text(r["yaml"])
@@ -403,12 +430,13 @@ def main() -> None:
     results.sort(key=lambda r: (r["pose"], r["body"]))
     text = summarise(results, args, time.perf_counter() - t0)
     text += _library_rows(library, args)
-    bad_library = [r for r in library if r["refusals"]]
+    bad_library = [r for r in library if r["refusals"] or r.get("build_refusals")]
     print()
     print(text)
     if args.markdown:
         args.markdown.write_text(text + "\n")
-    bad = [r for r in results if r["rule_ok"] and not all(f["ok"] for f in r["fits"])]
+    # a failure: a supportable case whose fit (any seed) or full build was refused
+    bad = [r for r in results if r["rule_ok"] and not (all(f["ok"] for f in r["fits"]) and r.get("build", {"ok": True})["ok"])]
     sys.exit(1 if bad or bad_library else 0)
 
 
