@@ -74,10 +74,12 @@ body vertices inside the furniture); deeper than ``surface_limit`` (5 mm),
 it is refitted with a tighter probe target (and, when a body vertex lies
 too deep inside the furniture, with every body vertex guarded: one the fit
 does not pull to, a hand hanging under the edge of the seat, pushes the
-surface back past it like a probe inside the body), then, still too deep,
-locally repaired (the offending spots' control points pushed away from the
-body, without the pull to the skin), and refused with a ``SolverError`` if
-it stays too deep, never returned as a success.
+surface back past it like a probe inside the body), and refused with a
+``SolverError`` if it stays too deep, never returned as a success. The
+refusal carries a last local repair (the offending spots' control points
+pushed away from the body, without the pull to the skin;
+:class:`SurfaceLimitRefusal`), which the build engine tries only when every
+cage of the template has been refused.
 """
 
 from __future__ import annotations
@@ -109,6 +111,7 @@ __all__ = [
     "fit_report",
     "fit_cage",
     "CatmullClarkFitRefiner",
+    "SurfaceLimitRefusal",
 ]
 
 #: Default parameters of ``catmull-clark-fit`` (lengths in m).
@@ -408,11 +411,11 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     firmly as a probe inside the body. (The closest sample's side alone
     calls about 2,000 vertices of a seated body "behind" the surface, up to
     23 cm deep, and those rows pushed the surface into the body.)
-    Last, before the refusal, the refit closest to the limit gets a local
-    repair (:func:`_push_out`): its offending spots pushed away from the
-    body without the fit's pull to the skin, accepted only when the result
-    measures within the limit. A fit that meets the limit earlier never
-    runs the repair: its result is the same as without it.
+    The refusal (:class:`SurfaceLimitRefusal`) carries a last local repair
+    of the refit closest to the limit (:func:`_push_out`: its offending
+    spots pushed away from the body without the fit's pull to the skin,
+    accepted only when the result measures within the limit), which the
+    engine tries once every cage of the template has been refused.
     """
     p = refiner_params("catmull-clark-fit", CCFIT_DEFAULTS, mesh.meta, params)
     params = dict(params or {})
@@ -440,23 +443,47 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
         if target <= _MIN_PROBE_TARGET:
             break
         target = max(target - excess - 0.001, _MIN_PROBE_TARGET)
-    # the last local repair: the refit closest to the limit, its offending spots pushed out
-    pushed = _push_out(closest, bodies, p)
-    if pushed is not None:
-        out, final, steps = pushed
-        report = dict(closest.meta["catmull-clark-fit"])
-        report["repair_rounds"] = rounds
-        report["pushed_out"] = {"steps": steps, "from": dict(report["final_depth"])}
-        report["final_depth"] = final
-        report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
-        return replace(out, meta={**out.meta, "catmull-clark-fit": report})
     msg = (
         f"catmull-clark-fit: the fitted surface reaches {final['surface_in_body'] * 1000:.1f} mm into the body "
         f"and a body vertex lies {final['body_in_surface'] * 1000:.1f} mm inside the furniture, above the "
         f"{p['surface_limit'] * 1000:.1f} mm limit (surface_limit), after {report['iterations']} iteration(s) "
         f"and {len(rounds) - 1} refit(s) with tighter probes; the design is refused rather than returned sinking into the person"
     )
-    raise SolverError(msg)
+    raise SurfaceLimitRefusal(msg, lambda: _repaired(closest, bodies, p, rounds))
+
+
+class SurfaceLimitRefusal(SolverError):
+    """The fit's refusal of a surface over ``surface_limit``, with its last local repair.
+
+    ``repair()`` runs :func:`_push_out` on the refit closest to the limit:
+    the repaired cage (its ``meta["catmull-clark-fit"]["pushed_out"]`` says
+    from which depths, in how many steps), or ``None``. The engine calls it
+    only once every cage the template offers has been refused
+    (:func:`seatkit.stages.refine_first_accepted`), so that a design that
+    builds without it is the same as before. Pickled (a refusal crossing a
+    process), it is a plain :class:`~seatkit.errors.SolverError`.
+    """
+
+    def __init__(self, message: str, repair=None):
+        super().__init__(message)
+        self.repair = repair or (lambda: None)
+
+    def __reduce__(self):
+        return (SolverError, self.args)
+
+
+def _repaired(closest: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any], rounds: list) -> ControlMesh | None:
+    """The refit ``closest`` to the limit after :func:`_push_out`, its report updated; ``None`` when that fails."""
+    pushed = _push_out(closest, bodies, p)
+    if pushed is None:
+        return None
+    out, final, steps = pushed
+    report = dict(closest.meta["catmull-clark-fit"])
+    report["repair_rounds"] = rounds
+    report["pushed_out"] = {"steps": steps, "from": dict(report["final_depth"])}
+    report["final_depth"] = final
+    report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
+    return replace(out, meta={**out.meta, "catmull-clark-fit": report})
 
 
 #: Steps of the last local repair (:func:`_push_out`).
