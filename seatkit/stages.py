@@ -227,7 +227,10 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
         refined.meta["refiner_refusals"] = list(refusals)
         refined.meta["repaired_refusal"] = refusals[[c for c, _ in refused].index(cage)]
         return cage, refined
-    raise refused[0][1] from None
+    first = refused[0][1]
+    if getattr(first, "repair", None) is not None:
+        first = SolverError(*first.args)  # the refusal as before: a SolverError, its repair let go
+    raise first from None
 
 
 def baseline_components(recipe: Mapping, registry) -> tuple:

@@ -150,9 +150,10 @@ def test_a_refusal_is_repaired_only_when_every_cage_is_refused():
     # no repair works: the first refusal, as before
     refiner = _Repairable(refuse={"a", "b"}, repairs=set())
     cages = iter([_Cage(n) for n in ["a", "b"]])
-    with pytest.raises(SolverError, match="cage a reaches"):
+    with pytest.raises(SolverError, match="cage a reaches") as refusal:
         refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [])
     assert refiner.repaired == ["a", "b"]
+    assert type(refusal.value) is SolverError  # what a build refused before raised
 
 
 def test_a_repairable_refusal_crosses_a_process_as_a_plain_solver_error():
