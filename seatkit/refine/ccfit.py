@@ -506,7 +506,9 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
     ``_final_depths`` measures, a limit sample closest to a body vertex
     inside the furniture, or a probe (sample or quad centre) inside a body,
     deeper than ``max_penetration`` minus 1 mm; it asks to move back by its
-    depth beyond that, along minus its surface normal. A limit sample below
+    depth beyond that, along minus its surface normal (a probe whose way
+    out of the skin is against that, by more than ``retreat_agreement``:
+    along the skin's way out, as the fit's retreat). A limit sample below
     the floor asks to come back up to it. Each moving control point moves
     along minus the surface normal at its own limit point (one unknown per
     control point); the least-squares step weighs the spots' rows
@@ -565,12 +567,17 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
                     if deep.any():
                         _, s = tree.query(held[deep])
                         np.maximum.at(need, s, d[deep] - settle)
-            # probes inside a body: back out of it
-            depth, _, _ = skin_depth_near(skins, Y, p["clearance"])
+            # probes inside a body: back out of it, along minus the normal as
+            # the fit's retreat, unless that is against the skin's nearest
+            # way out (the surface faces away from the body there: a flap
+            # beside the hip), then that way
+            depth, _, out = skin_depth_near(skins, Y, p["clearance"])
+            against = (depth > need) & (np.einsum("kc,kc->k", out, -NY) < -p["retreat_agreement"])
+            way = np.where(against[:, None], out, -NY)
             need = np.maximum(need, depth - settle)
             k = np.flatnonzero(need > 0)
             if k.size:
-                rows.append((probes[k][:, cols].toarray(), -NY[k]))
+                rows.append((probes[k][:, cols].toarray(), way[k]))
                 needs.append(need[k])
             # the floor is an obstacle too: a spot below it goes back up to it
             k = np.flatnonzero(Y[:, 1] < 0.0)
