@@ -210,7 +210,7 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
             refined.meta["refiner_refusals"] = list(refusals)
         return cage, refined
     # every cage refused: the refusals' last local repairs, in the cages' order
-    for cage, e in refused:
+    for (cage, e), why in zip(refused, refusals):
         repair = getattr(e, "repair", None)
         if repair is None:
             continue
@@ -225,7 +225,7 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
             continue
         cage.meta["refiner_refusals"] = list(refusals)
         refined.meta["refiner_refusals"] = list(refusals)
-        refined.meta["repaired_refusal"] = refusals[[c for c, _ in refused].index(cage)]
+        refined.meta["repaired_refusal"] = why
         return cage, refined
     first = refused[0][1]
     if getattr(first, "repair", None) is not None:

@@ -490,8 +490,8 @@ def _repaired(closest: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]
 _PUSH_STEPS = 6
 #: Weight of the displacement's fairness over the cage's edges in the local repair, against a unit damping.
 _PUSH_FAIRNESS = 1.0
-#: Weight of an offending spot's row in the local repair, against a unit damping (1e4 asked the rows
-#: exactly and moved control points up to 44 cm to take a fingertip 5 mm out; 100 moves them 5-12 mm).
+#: Weight of an offending spot's row in the local repair, against a unit damping (1e4 asks the rows
+#: almost exactly: one step moved the surface 22 cm to take a fingertip 5 mm out; 100: 3-13 mm).
 _PUSH_WEIGHT = 100.0
 
 
@@ -586,7 +586,7 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
                 needs.append(-Y[k, 1])
         if not rows:
             break
-        # each spot's displacement along minus its normal, per control point's move along ``away``
+        # each spot's displacement along its way, per control point's move along ``away``
         A = np.concatenate([r * (g @ away.T) for r, g in rows])
         need = np.concatenate(needs)
         t = np.linalg.solve(base + _PUSH_WEIGHT * (A.T @ A), _PUSH_WEIGHT * (A.T @ need))
