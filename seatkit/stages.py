@@ -130,10 +130,16 @@ def solve_importance(recipe: Mapping, bodies, registry) -> list:
 
 def refine(mesh, refiners, bodies, pressures, timer: StageTimer | None = None):
     """``mesh`` after each ``(name, refiner, params)`` in turn, each timed as ``refine:NAME``."""
+    from seatkit.errors import SolverError
+
     timer = timer or StageTimer()
-    for name, refiner, params in refiners:
+    for i, (name, refiner, params) in enumerate(refiners):
         with timer.stage(f"refine:{name}"):
-            mesh = refiner.refine(mesh, bodies, pressures, params=params)
+            try:
+                mesh = refiner.refine(mesh, bodies, pressures, params=params)
+            except SolverError as e:
+                e.refiner_index = i  # where a repair of its refusal continues (refine_first_accepted)
+                raise
     return mesh
 
 
@@ -171,30 +177,60 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
     the first refusal. The refusals of earlier cages are kept in the accepted
     cage's ``meta["refiner_refusals"]`` (and the refined cage's). The seed
     thus picks among designs the whole build accepts, not only the template.
+
+    When every cage is refused, a refusal that carries a last local repair
+    (the surface fit's, :class:`seatkit.refine.ccfit.SurfaceLimitRefusal`:
+    its refit closest to the limit with the offending spots pushed away
+    from the body) is tried, in the cages' order; the first repaired cage
+    that the rest of the refiners accept is the design (its refusal in
+    ``meta["repaired_refusal"]``). Only a build that would otherwise be
+    refused runs a repair: every design that builds without one is the same.
     """
     from seatkit.errors import SolverError
 
     timer = timer or StageTimer()
     refusals: list[str] = []
-    first_error = None
+    refused: list = []  # (cage, its refusal)
     while True:
         try:
             refined = refine(cage, refiners, bodies, pressures, timer)
         except SolverError as e:
-            first_error = first_error or e
+            refused.append((cage, e))
             refusals.append(str(e))
             nxt = None
             if len(refusals) < MAX_REFINED_CAGES:
                 with timer.stage("template"):
                     nxt = next(cages, None)
             if nxt is None:
-                raise first_error from None
+                break
             cage = nxt
             continue
         if refusals:
             cage.meta["refiner_refusals"] = list(refusals)
             refined.meta["refiner_refusals"] = list(refusals)
         return cage, refined
+    # every cage refused: the refusals' last local repairs, in the cages' order
+    for (cage, e), why in zip(refused, refusals):
+        repair = getattr(e, "repair", None)
+        if repair is None:
+            continue
+        name = refiners[e.refiner_index][0]
+        with timer.stage(f"refine:{name}"):
+            repaired = repair()
+        if repaired is None:
+            continue
+        try:
+            refined = refine(repaired, refiners[e.refiner_index + 1 :], bodies, pressures, timer)
+        except SolverError:
+            continue
+        cage.meta["refiner_refusals"] = list(refusals)
+        refined.meta["refiner_refusals"] = list(refusals)
+        refined.meta["repaired_refusal"] = why
+        return cage, refined
+    first = refused[0][1]
+    if getattr(first, "repair", None) is not None:
+        first = SolverError(*first.args)  # the refusal as before: a SolverError, its repair let go
+    raise first from None
 
 
 def baseline_components(recipe: Mapping, registry) -> tuple:

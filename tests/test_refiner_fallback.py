@@ -107,3 +107,59 @@ def test_a_seed_whose_surface_the_fit_refuses_builds_from_the_templates_next_sta
     assert ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005
     for key in ("avg_distance_m", "avg_pressure_pa", "max_pressure_pa"):
         assert ours[key] < flat[key], key
+
+
+class _Repairable(_Refiner):
+    """Refuses as ``_Refiner`` does, each refusal carrying a repair that succeeds for the cages in ``repairs``."""
+
+    def __init__(self, refuse, repairs):
+        super().__init__(refuse)
+        self.repairs = set(repairs)
+        self.repaired = []
+
+    def refine(self, mesh, bodies, pressures, *, params=None):
+        from seatkit.refine.ccfit import SurfaceLimitRefusal
+
+        try:
+            return super().refine(mesh, bodies, pressures, params=params)
+        except SolverError as e:
+
+            def repair(name=mesh.name):
+                self.repaired.append(name)
+                return _Cage(name + "+pushed") if name in self.repairs else None
+
+            raise SurfaceLimitRefusal(str(e), repair) from None
+
+
+def test_a_refusal_is_repaired_only_when_every_cage_is_refused():
+    # a later cage accepted: no repair runs, the design is that cage as before
+    refiner = _Repairable(refuse={"a"}, repairs={"a"})
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    cage, refined = refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [])
+    assert refined.name == "b+refined" and refiner.repaired == []
+    # every cage refused: the repairs in the cages' order, the first that works is the design,
+    # and the refiners after the refusing one still run on it
+    refiner = _Repairable(refuse={"a", "b", "c"}, repairs={"b", "c"})
+    after = _Refiner(refuse=set())
+    cages = iter([_Cage(n) for n in ["a", "b", "c"]])
+    cage, refined = refine_first_accepted(cages, next(cages), [("fit", refiner, {}), ("after", after, {})], [], [])
+    assert refiner.repaired == ["a", "b"]
+    assert cage.name == "b" and refined.name == "b+pushed+refined"
+    assert refined.meta["repaired_refusal"] == "catmull-clark-fit: the surface of cage b reaches 9.0 mm into the body"
+    assert len(refined.meta["refiner_refusals"]) == 3
+    # no repair works: the first refusal, as before
+    refiner = _Repairable(refuse={"a", "b"}, repairs=set())
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    with pytest.raises(SolverError, match="cage a reaches") as refusal:
+        refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [])
+    assert refiner.repaired == ["a", "b"]
+    assert type(refusal.value) is SolverError  # what a build refused before raised
+
+
+def test_a_repairable_refusal_crosses_a_process_as_a_plain_solver_error():
+    import pickle
+
+    from seatkit.refine.ccfit import SurfaceLimitRefusal
+
+    e = pickle.loads(pickle.dumps(SurfaceLimitRefusal("catmull-clark-fit: 9.0 mm", lambda: None)))
+    assert type(e) is SolverError and str(e) == "catmull-clark-fit: 9.0 mm"

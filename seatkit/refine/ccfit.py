@@ -75,7 +75,11 @@ it is refitted with a tighter probe target (and, when a body vertex lies
 too deep inside the furniture, with every body vertex guarded: one the fit
 does not pull to, a hand hanging under the edge of the seat, pushes the
 surface back past it like a probe inside the body), and refused with a
-``SolverError`` if it stays too deep, never returned as a success.
+``SolverError`` if it stays too deep, never returned as a success. The
+refusal carries a last local repair (the offending spots' control points
+pushed away from the body, without the pull to the skin;
+:class:`SurfaceLimitRefusal`), which the build engine tries only when every
+cage of the template has been refused.
 """
 
 from __future__ import annotations
@@ -107,6 +111,7 @@ __all__ = [
     "fit_report",
     "fit_cage",
     "CatmullClarkFitRefiner",
+    "SurfaceLimitRefusal",
 ]
 
 #: Default parameters of ``catmull-clark-fit`` (lengths in m).
@@ -406,12 +411,18 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     firmly as a probe inside the body. (The closest sample's side alone
     calls about 2,000 vertices of a seated body "behind" the surface, up to
     23 cm deep, and those rows pushed the surface into the body.)
+    The refusal (:class:`SurfaceLimitRefusal`) carries a last local repair
+    of the refit closest to the limit (:func:`_push_out`: its offending
+    spots pushed away from the body without the fit's pull to the skin,
+    accepted only when the result measures within the limit), which the
+    engine tries once every cage of the template has been refused.
     """
     p = refiner_params("catmull-clark-fit", CCFIT_DEFAULTS, mesh.meta, params)
     params = dict(params or {})
     target = p["max_penetration"]
     rounds = []
     guard = False
+    closest = None
     for round_ in range(_REPAIR_ROUNDS + 1):
         out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target}, guard=guard)
         report = out.meta["catmull-clark-fit"]
@@ -422,6 +433,8 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
                 report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
             return out
         rounds.append({"probe_target": target, "guard": guard, **final})
+        if closest is None or max(final.values()) < max(closest.meta["catmull-clark-fit"]["final_depth"].values()):
+            closest = out
         # a body part the cage does not support inside the furniture (a
         # hanging hand under the edge of the seat): the refits keep every
         # body vertex out, not only the supported ones
@@ -436,7 +449,156 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
         f"{p['surface_limit'] * 1000:.1f} mm limit (surface_limit), after {report['iterations']} iteration(s) "
         f"and {len(rounds) - 1} refit(s) with tighter probes; the design is refused rather than returned sinking into the person"
     )
-    raise SolverError(msg)
+    raise SurfaceLimitRefusal(msg, lambda: _repaired(closest, bodies, p, rounds))
+
+
+class SurfaceLimitRefusal(SolverError):
+    """The fit's refusal of a surface over ``surface_limit``, with its last local repair.
+
+    ``repair()`` runs :func:`_push_out` on the refit closest to the limit:
+    the repaired cage (its ``meta["catmull-clark-fit"]["pushed_out"]`` says
+    from which depths, in how many steps), or ``None``. The engine calls it
+    only once every cage the template offers has been refused
+    (:func:`seatkit.stages.refine_first_accepted`), so that a design that
+    builds without it is the same as before. Pickled (a refusal crossing a
+    process), it is a plain :class:`~seatkit.errors.SolverError`.
+    """
+
+    def __init__(self, message: str, repair=None):
+        super().__init__(message)
+        self.repair = repair or (lambda: None)
+
+    def __reduce__(self):
+        return (SolverError, self.args)
+
+
+def _repaired(closest: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any], rounds: list) -> ControlMesh | None:
+    """The refit ``closest`` to the limit after :func:`_push_out`, its report updated; ``None`` when that fails."""
+    pushed = _push_out(closest, bodies, p)
+    if pushed is None:
+        return None
+    out, final, steps = pushed
+    report = dict(closest.meta["catmull-clark-fit"])
+    report["repair_rounds"] = rounds
+    report["pushed_out"] = {"steps": steps, "from": dict(report["final_depth"])}
+    report["final_depth"] = final
+    report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
+    return replace(out, meta={**out.meta, "catmull-clark-fit": report})
+
+
+#: Steps of the last local repair (:func:`_push_out`).
+_PUSH_STEPS = 6
+#: Weight of the displacement's fairness over the cage's edges in the local repair, against a unit damping.
+_PUSH_FAIRNESS = 1.0
+#: Weight of an offending spot's row in the local repair, against a unit damping (1e4 asks the rows
+#: almost exactly: one step moved the surface 22 cm to take a fingertip 5 mm out; 100: 3-13 mm).
+_PUSH_WEIGHT = 100.0
+
+
+def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -> tuple | None:
+    """The last local repair of a fit over the limit: push the offending spots out, or ``None``.
+
+    The fit balances its pull to the supported skin against its probes;
+    where that balance leaves a spot over ``surface_limit`` (fingertips on a
+    thigh reaching the seat under it, a hand under the seat's side wall),
+    this moves the control points under the offending spots away from the
+    body, with no pull to the skin. A spot is, on each tessellation
+    ``_final_depths`` measures, a limit sample closest to a body vertex
+    inside the furniture, or a probe (sample or quad centre) inside a body,
+    deeper than ``max_penetration`` minus 1 mm; it asks to move back by its
+    depth beyond that, along minus its surface normal (a probe whose way
+    out of the skin is against that, by more than ``retreat_agreement``:
+    along the skin's way out, as the fit's retreat). A limit sample below
+    the floor asks to come back up to it. Each moving control point moves
+    along minus the surface normal at its own limit point (one unknown per
+    control point); the least-squares step weighs the spots' rows
+    (:data:`_PUSH_WEIGHT`) against a unit damping of the moves and their
+    fairness over the cage's edges (:data:`_PUSH_FAIRNESS`), so that control
+    points no spot depends on stay where they are. The cage is measured as
+    the guarantee measures it after each step: the first within the limit
+    is returned with its depths and the steps taken, ``(mesh, final_depth,
+    steps)``; ``None`` when a step does not bring the deepest figure down
+    (the spots push against each other: a hand squeezed between the thigh
+    and the side wall) or after :data:`_PUSH_STEPS` steps.
+    """
+    from seatkit.subdivision import Cage, build_operators
+
+    settle = max(p["max_penetration"] - 0.001, 0.0)
+    P = np.array(mesh.vertices, dtype=np.float64)
+    n = len(P)
+    cols = np.flatnonzero(~(np.asarray(mesh.fixed, bool) | np.asarray(mesh.ground, bool)))
+    m = cols.size
+    if m == 0:
+        return None
+    cage = Cage.from_control_mesh(mesh)
+    levels = []
+    for lv in sorted({p["level"], 4}):
+        ops = build_operators(cage, lv)
+        q = ops.faces
+        centres = sp.csr_matrix(
+            (np.full(q.size, 0.25), (np.repeat(np.arange(len(q)), 4), q.ravel())), shape=(len(q), ops.n_points)
+        )
+        spots = sp.vstack([sp.identity(ops.n_points, format="csr"), centres]).tocsr()
+        levels.append((lv, ops, spots, (spots @ ops.limit).tocsr()))
+    skins = [SkinDistance.of(bd.vertices, bd.faces) for bd in bodies]
+    lap = _graph_laplacian(mesh.faces, n)[:, cols]
+    base = (sp.identity(m, format="csr") + _PUSH_FAIRNESS * (lap.T @ lap)).toarray()
+    worst = max((mesh.meta.get("catmull-clark-fit", {}).get("final_depth") or {"": np.inf}).values())
+    for step_no in range(_PUSH_STEPS):
+        # each control point moves along minus the surface normal at its own
+        # limit point (the first limit points are the control points'), away
+        # from the body: one unknown per control point
+        away = -levels[-1][1].limit_normals(P)[cols]
+        rows, needs = [], []
+        for lv, ops, spots, probes in levels:
+            X, N = ops.limit_points(P), ops.limit_normals(P)
+            Y = probes @ P
+            NY = spots @ N
+            NY /= np.maximum(np.linalg.norm(NY, axis=1, keepdims=True), 1e-300)
+            surface = Surface(X, N, ops.faces, lv)
+            need = np.zeros(len(Y))
+            # body vertices inside the furniture: their closest sample goes back past them
+            tree = cKDTree(X)
+            for body in bodies:
+                held = body.vertices[inside_furniture(surface, body.vertices)]
+                if len(held):
+                    d, _ = SurfaceQuery(surface).query(held)
+                    deep = d > settle
+                    if deep.any():
+                        _, s = tree.query(held[deep])
+                        np.maximum.at(need, s, d[deep] - settle)
+            # probes inside a body: back out of it, along minus the normal as
+            # the fit's retreat, unless that is against the skin's nearest
+            # way out (the surface faces away from the body there: a flap
+            # beside the hip), then that way
+            depth, _, out = skin_depth_near(skins, Y, p["clearance"])
+            against = (depth > need) & (np.einsum("kc,kc->k", out, -NY) < -p["retreat_agreement"])
+            way = np.where(against[:, None], out, -NY)
+            need = np.maximum(need, depth - settle)
+            k = np.flatnonzero(need > 0)
+            if k.size:
+                rows.append((probes[k][:, cols].toarray(), way[k]))
+                needs.append(need[k])
+            # the floor is an obstacle too: a spot below it goes back up to it
+            k = np.flatnonzero(Y[:, 1] < 0.0)
+            if k.size:
+                rows.append((probes[k][:, cols].toarray(), np.tile([0.0, 1.0, 0.0], (k.size, 1))))
+                needs.append(-Y[k, 1])
+        if not rows:
+            break
+        # each spot's displacement along its way, per control point's move along ``away``
+        A = np.concatenate([r * (g @ away.T) for r, g in rows])
+        need = np.concatenate(needs)
+        t = np.linalg.solve(base + _PUSH_WEIGHT * (A.T @ A), _PUSH_WEIGHT * (A.T @ need))
+        P = P.copy()
+        P[cols] += t[:, None] * away
+        final = _final_depths(replace(mesh, vertices=P), bodies, p["level"])
+        if max(final.values()) <= p["surface_limit"]:
+            return replace(mesh, vertices=P), final, step_no + 1
+        if max(final.values()) >= worst:
+            return None
+        worst = max(final.values())
+    return None
 
 
 def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> ControlMesh:
