@@ -155,7 +155,9 @@ class SupportTemplate(Protocol):
         start that gives a valid cage). When a refiner refuses a cage
         (:class:`~seatkit.errors.SolverError`), a build refines the next one
         (:func:`seatkit.stages.refine_first_accepted`); without ``fits`` the
-        refusal ends the build.
+        template offers one cage. When every cage is refused, a refusal with a
+        ``repair()`` (the surface fit's last local repair) is tried before the
+        build is refused (docs/plugins.md).
         """
         ...
 

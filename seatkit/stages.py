@@ -189,33 +189,35 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
     from seatkit.errors import SolverError
 
     timer = timer or StageTimer()
-    refusals: list[str] = []
     refused: list = []  # (cage, its refusal)
+
+    def accepted(cage, refined, repaired=None):
+        if refused:
+            refusals = [str(e) for _, e in refused]
+            cage.meta["refiner_refusals"] = refusals
+            refined.meta["refiner_refusals"] = list(refusals)
+        if repaired is not None:
+            refined.meta["repaired_refusal"] = str(repaired)
+        return cage, refined
+
     while True:
         try:
-            refined = refine(cage, refiners, bodies, pressures, timer)
+            return accepted(cage, refine(cage, refiners, bodies, pressures, timer))
         except SolverError as e:
             refused.append((cage, e))
-            refusals.append(str(e))
-            nxt = None
-            if len(refusals) < MAX_REFINED_CAGES:
-                with timer.stage("template"):
-                    nxt = next(cages, None)
-            if nxt is None:
-                break
-            cage = nxt
-            continue
-        if refusals:
-            cage.meta["refiner_refusals"] = list(refusals)
-            refined.meta["refiner_refusals"] = list(refusals)
-        return cage, refined
+        nxt = None
+        if len(refused) < MAX_REFINED_CAGES:
+            with timer.stage("template"):
+                nxt = next(cages, None)
+        if nxt is None:
+            break
+        cage = nxt
     # every cage refused: the refusals' last local repairs, in the cages' order
-    for (cage, e), why in zip(refused, refusals):
+    for cage, e in refused:
         repair = getattr(e, "repair", None)
         if repair is None:
             continue
-        name = refiners[e.refiner_index][0]
-        with timer.stage(f"refine:{name}"):
+        with timer.stage(f"refine:{refiners[e.refiner_index][0]}"):
             repaired = repair()
         if repaired is None:
             continue
@@ -223,10 +225,7 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
             refined = refine(repaired, refiners[e.refiner_index + 1 :], bodies, pressures, timer)
         except SolverError:
             continue
-        cage.meta["refiner_refusals"] = list(refusals)
-        refined.meta["refiner_refusals"] = list(refusals)
-        refined.meta["repaired_refusal"] = why
-        return cage, refined
+        return accepted(cage, refined, repaired=e)
     first = refused[0][1]
     if getattr(first, "repair", None) is not None:
         first = SolverError(*first.args)  # the refusal as before: a SolverError, its repair let go

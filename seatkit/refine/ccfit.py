@@ -495,6 +495,14 @@ _PUSH_FAIRNESS = 1.0
 _PUSH_WEIGHT = 100.0
 
 
+def _samples_and_centres(quads: np.ndarray, n_samples: int) -> sp.csr_matrix:
+    """(n_samples + len(quads), n_samples): every limit sample, then each refined quad's centre (its corners' mean)."""
+    centres = sp.csr_matrix(
+        (np.full(quads.size, 0.25), (np.repeat(np.arange(len(quads)), 4), quads.ravel())), shape=(len(quads), n_samples)
+    )
+    return sp.vstack([sp.identity(n_samples, format="csr"), centres]).tocsr()
+
+
 def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -> tuple | None:
     """The last local repair of a fit over the limit: push the offending spots out, or ``None``.
 
@@ -534,11 +542,7 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
     levels = []
     for lv in sorted({p["level"], 4}):
         ops = build_operators(cage, lv)
-        q = ops.faces
-        centres = sp.csr_matrix(
-            (np.full(q.size, 0.25), (np.repeat(np.arange(len(q)), 4), q.ravel())), shape=(len(q), ops.n_points)
-        )
-        spots = sp.vstack([sp.identity(ops.n_points, format="csr"), centres]).tocsr()
+        spots = _samples_and_centres(ops.faces, ops.n_points)
         levels.append((lv, ops, spots, (spots @ ops.limit).tocsr()))
     skins = [SkinDistance.of(bd.vertices, bd.faces) for bd in bodies]
     lap = _graph_laplacian(mesh.faces, n)[:, cols]
@@ -657,13 +661,9 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
     # penetration probes: the limit points (a probe inside the body means the
     # surface passes through it); a polishing phase adds the centres of the
     # refined quads, which catch thin body parts poking through between them
-    q = ops.faces
-    centres = sp.csr_matrix(
-        (np.full(q.size, 0.25), (np.repeat(np.arange(len(q)), 4), q.ravel())), shape=(len(q), limit.shape[0])
-    )
     # probes as combinations of the limit samples (their normals are the
     # same combinations of the samples' normals), per phase
-    sample_probes = (sp.identity(limit.shape[0], format="csr"), sp.vstack([sp.identity(limit.shape[0], format="csr"), centres]).tocsr())
+    sample_probes = (sp.identity(limit.shape[0], format="csr"), _samples_and_centres(ops.faces, limit.shape[0]))
     with_centres = (sample_probes[1] @ limit).tocsr()
     phases = (
         (limit, limit_moving, p["max_iterations"]),
