@@ -545,11 +545,15 @@ class ClearanceStep:
             state.grid, state.meta["border"] = lifted, border
         return lift_grid(state, options, faces=faces)["moved_vertices"] > 0
 
-    def repair_enclosure(self, state: FitState, enclosed, *, options: Mapping[str, Any]) -> bool:
-        """Put the border's side walls inside the parts the cage does not hold that lie inside the furniture (:func:`_repair_enclosure`)."""
+    def repair_enclosure(self, state: FitState, enclosed, *, options: Mapping[str, Any], every_row: bool = False) -> bool:
+        """Put the border's side walls inside the parts the cage does not hold that lie inside the furniture (:func:`_repair_enclosure`).
+
+        ``every_row``: beside the backrest's rows too (the engine's walls
+        against a surface the refiners refused, :func:`seatkit.template.engine._walls_against`).
+        """
         if not options.get("repair", True) or state.grid is None:
             return False
-        return _repair_enclosure(state, enclosed, options)
+        return _repair_enclosure(state, enclosed, options, every_row=every_row)
 
 
 #: Rounds of one enclosure repair: each adds what the last one left inside the furniture.
@@ -569,7 +573,7 @@ def _wall_faces(shape: tuple[int, int], walls: dict) -> dict:
     return out
 
 
-def _repair_enclosure(state: FitState, enclosed, options: Mapping[str, Any]) -> bool:
+def _repair_enclosure(state: FitState, enclosed, options: Mapping[str, Any], *, every_row: bool = False) -> bool:
     """The clearance step's ``repair_enclosure`` (docs/templates.md, "Hands inside the furniture").
 
     The border is built again from the grid it started from with walls
@@ -581,6 +585,8 @@ def _repair_enclosure(state: FitState, enclosed, options: Mapping[str, Any]) -> 
     still crosses, left out (at most ``_WALL_BUILDS`` builds). Up to ``_WALL_ROUNDS`` rounds, each with what the last one still
     left inside added (the limit surface blends neighbouring ring vertices:
     a hand under one wall's neighbour is found next). Once per start.
+    ``every_row``: walls beside the backrest's rows too
+    (:func:`seatkit.template.border._walls_inside`).
     Returns whether a wall stands (the engine then checks the cage and
     keeps it only if it is valid and encloses less).
     """
@@ -601,7 +607,7 @@ def _repair_enclosure(state: FitState, enclosed, options: Mapping[str, Any]) -> 
         while builds < _WALL_BUILDS:
             builds += 1
             state.grid, state.meta["border"] = start, border
-            grid = rebuild(found, no_wall=no_wall, drop_beside=lowered)
+            grid = rebuild(found, no_wall=no_wall, drop_beside=lowered, every_row=every_row)
             walls = state.meta["border"]["walls_inside"]
             if not any(walls.values()):
                 break
