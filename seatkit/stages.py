@@ -244,6 +244,21 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
             refined = _repaired(again, refiners, bodies, pressures, timer)
             if refined is not None:
                 return accepted(walled, refined, repaired=again, against=e)
+    # last, the cages again with their seat's side edges pulled in past those hands
+    for cage, e in refused if walls is not None else ():
+        closest = getattr(e, "closest", None)
+        if closest is None:
+            continue
+        with timer.stage("template"):
+            pulled = walls(cage, closest.vertices, edge=True)
+        if pulled is None:
+            continue
+        try:
+            return accepted(pulled, refine(pulled, refiners, bodies, pressures, timer), against=e)
+        except SolverError as again:
+            refined = _repaired(again, refiners, bodies, pressures, timer)
+            if refined is not None:
+                return accepted(pulled, refined, repaired=again, against=e)
     first = refused[0][1]
     if getattr(first, "repair", None) is not None:
         first = SolverError(*first.args)  # the refusal as before: a SolverError, its repair let go

@@ -31,7 +31,7 @@ from seatkit.template.checks import check_cage, enclosed_parts
 from seatkit.template.grid import Block, FaceState, FitState, GridMesh, segment_of_vertex
 from seatkit.template.options import check_step_options, did_you_mean
 from seatkit.template.schema import TemplateSpec, read_template, resolve_parameters
-from seatkit.template.steps import BUILTIN_STEPS, join_blocks
+from seatkit.template.steps import BUILTIN_STEPS, join_blocks, lift_grid
 
 __all__ = ["YamlTemplate", "load_template", "grid_to_mesh"]
 
@@ -220,6 +220,7 @@ class YamlTemplate:
         *,
         params: Mapping[str, Any] | None = None,
         seed: int = 0,
+        edge: bool = False,
     ) -> ControlMesh | None:
         """The start of ``cage`` again, its side walls inside the hands the refused surface ``refused`` encloses; None when there is none.
 
@@ -236,6 +237,12 @@ class YamlTemplate:
         (docs/templates.md, "Walls against the refused surface"). The walled
         cage passes the template's checks and their repairs, as any cage;
         whether it is better is the refiners' to say.
+
+        ``edge``: instead of walls, the seat's side edges pulled in past
+        those hands at the row lines beside them, never across a supported
+        part (:func:`_edge_pulled`; docs/templates.md, "Edge pulled in past
+        the hand"). The build asks for this only after every walled cage
+        was refused too.
         """
         attempt = int(cage.meta.get("fit_attempts", {}).get("attempt", 0)) - 1
         if attempt < 0 or np.shape(refused) != np.shape(cage.vertices):
@@ -251,9 +258,14 @@ class YamlTemplate:
             _, start = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
         except UnsupportedPoseError:
             return None
-        walled = _walls_against(start, np.asarray(refused, dtype=np.float64))
+        if edge:
+            walled = _edge_pulled(start, np.asarray(refused, dtype=np.float64))
+            key = "edge_against_refusal"
+        else:
+            walled = _walls_against(start, np.asarray(refused, dtype=np.float64))
+            key = "walls_against_refusal"
         if walled is not None:
-            walled.meta["fit_attempts"] = {**cage.meta["fit_attempts"], "walls_against_refusal": True}
+            walled.meta["fit_attempts"] = {**cage.meta["fit_attempts"], key: True}
         return walled
 
     def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset()) -> tuple:
@@ -461,6 +473,46 @@ def _walls_against(start: _Start, refused: np.ndarray) -> ControlMesh | None:
         "after": {"depth_m": max(f["depth_m"] for f in after), "parts": [f["parts"] for f in after]},
     }
     return walled
+
+
+#: Depth of a body vertex inside a refused surface's furniture that makes it a hand to pull the seat's edge past, in ``max_penetration``:
+#: the clearance step's sink (half of it), deeper than a hand resting on the rim is meant to press.
+_PULL_DEPTH = 0.5
+
+
+def _edge_pulled(start: _Start, refused: np.ndarray) -> ControlMesh | None:
+    """The cage of ``start`` with its seat's side edges pulled in past the hands the refused surface ``refused`` encloses; None when none moves or it gives no valid cage.
+
+    The parts the cage does not hold that lie more than half of
+    ``max_penetration`` inside the furniture that ``refused`` closes with
+    the floor (a hand resting on the seat's rim, its fingertips inside the
+    sloping side wall) are handed to the border step's ``rebuild_pulled``
+    (:func:`seatkit.template.steps._border_pulled`: which edge vertices move
+    and how far), the border is built again from the pulled grid and the
+    lift runs again, then the checks and their repairs
+    (:func:`_checked_cage`). ``meta["enclosed"]`` as :func:`_walls_against`.
+    """
+    state, mesh, bodies, p, _fixers, repairs = start
+    found = enclosed_parts(dataclasses.replace(mesh, vertices=refused), bodies, _PULL_DEPTH * p["max_penetration"])
+    rebuild = state.rebuild_pulled
+    if not any(f["vertices"] for f in found) or rebuild is None:
+        return None
+    state.meta = copy.deepcopy(mesh.meta)
+    grid = rebuild([f["vertices"] for f in found])
+    if grid is None:
+        return None
+    state.grid = grid
+    lift_grid(state, {})
+    try:
+        pulled = _checked_cage(state, bodies, p, repairs)
+    except UnsupportedPoseError:
+        return None
+    after = enclosed_parts(pulled, bodies, p["max_penetration"] + 1e-3)
+    pulled.meta["enclosed"] = {
+        "refused": {"depth_m": max(f["depth_m"] for f in found), "parts": [f["parts"] for f in found]},
+        "after": {"depth_m": max(f["depth_m"] for f in after), "parts": [f["parts"] for f in after]},
+    }
+    return pulled
 
 
 def _face_report(state: FitState) -> list:
