@@ -185,9 +185,12 @@ class _Closest(_Repairable):
 
 
 def test_walls_against_the_refused_surfaces_come_after_every_repair():
-    asked = []
+    asked, pulled = [], []
 
-    def walls(cage, refused):
+    def walls(cage, refused, edge=False):
+        if edge:  # the pulled edges come after every walled cage (test below); here none is offered
+            pulled.append(cage.name)
+            return None
         asked.append((cage.name, refused))
         return _Cage(cage.name + "+walls") if cage.name != "a" else None
 
@@ -215,4 +218,36 @@ def test_walls_against_the_refused_surfaces_come_after_every_repair():
     with pytest.raises(SolverError, match="cage a reaches") as refusal:
         refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)
     assert asked == [("a", "a"), ("b", "b")] and refiner.repaired == ["a", "b", "b+walls"]
+    assert type(refusal.value) is SolverError
+    assert pulled == ["a", "b"]
+
+
+def test_edges_pulled_against_the_refused_surfaces_come_after_every_walled_cage():
+    """The seat's edge pulled in past the hands (``walls(cage, refused, edge=True)``) is asked for last, cage by cage, only when every walled cage was refused too."""
+    asked = []
+
+    def walls(cage, refused, edge=False):
+        asked.append((cage.name, refused, edge))
+        return _Cage(cage.name + ("+edge" if edge else "+walls")) if cage.name != "a" else None
+
+    # a walled cage accepted: no edge is pulled
+    refiner = _Closest(refuse={"a", "b"}, repairs=set())
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    assert refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)[1].name == "b+walls+refined"
+    assert asked == [("a", "a", False), ("b", "b", False)]
+    # every walled cage refused: the edges pulled, in the cages' order, refined by every refiner
+    asked.clear()
+    refiner = _Closest(refuse={"a", "b", "b+walls"}, repairs=set())
+    after = _Refiner(refuse=set())
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    cage, refined = refine_first_accepted(cages, next(cages), [("fit", refiner, {}), ("after", after, {})], [], [], walls=walls)
+    assert asked == [("a", "a", False), ("b", "b", False), ("a", "a", True), ("b", "b", True)]
+    assert cage.name == "b+edge" and refined.name == "b+edge+refined+refined"
+    assert refined.meta["walls_against"] == "catmull-clark-fit: the surface of cage b reaches 9.0 mm into the body"
+    # the pulled cage refused too, its repair as well: the first refusal, as before
+    refiner = _Closest(refuse={"a", "b", "b+walls", "b+edge"}, repairs=set())
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    with pytest.raises(SolverError, match="cage a reaches") as refusal:
+        refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)
+    assert refiner.repaired == ["a", "b", "b+walls", "b+edge"]
     assert type(refusal.value) is SolverError
