@@ -8,6 +8,7 @@ the plugin registry by the names the recipe gives.
 
 from __future__ import annotations
 
+import inspect
 import time
 from contextlib import contextmanager
 from typing import Callable, Iterator, Mapping
@@ -194,7 +195,11 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
     first accepted is the design (``meta["fit_attempts"]["walls_against_refusal"]``,
     and the refusal it answers in ``meta["walls_against"]``). It too runs
     only in a build that would otherwise be refused
-    (docs/templates.md, "Walls against the refused surface").
+    (docs/templates.md, "Walls against the refused surface"). After every
+    walled cage was refused too, a ``walls`` that takes ``edge`` is asked
+    again, cage by cage, with ``edge=True``: the cage with its seat's side
+    edges pulled in past those hands (``meta["fit_attempts"]["edge_against_refusal"]``;
+    docs/templates.md, "Edge pulled in past the hand"), refined the same way.
     """
     from seatkit.errors import SolverError
 
@@ -244,8 +249,8 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
             refined = _repaired(again, refiners, bodies, pressures, timer)
             if refined is not None:
                 return accepted(walled, refined, repaired=again, against=e)
-    # last, the cages again with their seat's side edges pulled in past those hands
-    for cage, e in refused if walls is not None else ():
+    # last, the cages again with their seat's side edges pulled in past those hands (a template whose walls take ``edge``)
+    for cage, e in refused if walls is not None and "edge" in inspect.signature(walls).parameters else ():
         closest = getattr(e, "closest", None)
         if closest is None:
             continue

@@ -484,7 +484,7 @@ def test_an_edge_pulled_in_past_a_hand_on_the_rim(rigs, chair):
     assert pulled.meta["fit_attempts"] == {**first.meta["fit_attempts"], "edge_against_refusal": True}
     assert "RightHand" in pulled.meta["enclosed"]["refused"]["parts"][0]
     # the right edge only, at the row lines beside the hand (2: knee, 3: hip), by 1-3 cm (min_spacing past the fingertips)
-    moved = pulled.meta["border"]["edge_pulled"]
+    moved = pulled.meta["edge_pulled"]
     assert set(moved) == {"right"} and set(moved["right"]) == {2, 3}
     assert all(0.005 < m < 0.03 for m in moved["right"].values())
     check_cage(pulled, [b], tolerance=tolerance)
@@ -512,7 +512,7 @@ def test_a_hand_on_the_seat_rim_gets_its_chair(tmp_path):
     path.write_text(pose_yaml(draw_pose(np.random.default_rng([2026, 45]), "reclined", "reclined-045")))
     r = build({"template": "chair", "seed": 0, "bodies": [{"model": "default-female", "pose": str(path)}]}, write=False, processes=False)
     assert r.initial_mesh.meta["fit_attempts"]["edge_against_refusal"]
-    assert "right" in r.initial_mesh.meta["border"]["edge_pulled"]
+    assert "right" in r.initial_mesh.meta["edge_pulled"]
     assert len(r.initial_mesh.meta["refiner_refusals"]) == 4 and "walls_against" in r.control_mesh.meta
     ours = r.metrics["ours"][0]
     assert ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005

@@ -251,3 +251,14 @@ def test_edges_pulled_against_the_refused_surfaces_come_after_every_walled_cage(
         refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)
     assert refiner.repaired == ["a", "b", "b+walls", "b+edge"]
     assert type(refusal.value) is SolverError
+    # a template whose walls_against does not take ``edge`` (a plugin's, written before it) is not asked for it
+    asked.clear()
+
+    def walls_only(cage, refused):
+        asked.append((cage.name, refused))
+        return None
+
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    with pytest.raises(SolverError, match="cage a reaches"):
+        refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls_only)
+    assert asked == [("a", "a"), ("b", "b")]

@@ -457,7 +457,7 @@ def _border_pulled(state: FitState, border, surface: GridMesh, enclosed, *, marg
     rests against) or more than ``_PULL_MAX`` of the row line's outer face.
     ``surface`` (this start's own grid, built for this call) is changed in
     place so that every later rebuild of the border (the checks' repairs)
-    starts from the pulled edge. ``meta["border"]["edge_pulled"]``:
+    starts from the pulled edge. ``meta["edge_pulled"]`` (kept through the checks' border rebuilds):
     {side: {row line: metres}}.
     """
     margin = float(border.keywords.get("min_spacing", 0.02) if margin is None else margin)
@@ -501,7 +501,7 @@ def _border_pulled(state: FitState, border, surface: GridMesh, enclosed, *, marg
     if not pulled:
         return None
     grid = border(meta=state.meta)
-    state.meta["border"]["edge_pulled"] = pulled
+    state.meta["edge_pulled"] = pulled
     return grid
 
 
