@@ -8,6 +8,7 @@ the plugin registry by the names the recipe gives.
 
 from __future__ import annotations
 
+import functools
 import inspect
 import time
 from contextlib import contextmanager
@@ -234,36 +235,26 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
         refined = _repaired(e, refiners, bodies, pressures, timer)
         if refined is not None:
             return accepted(cage, refined, repaired=e)
-    # then the cages again with walls inside the hands their refused surfaces enclose
-    for cage, e in refused if walls is not None else ():
-        closest = getattr(e, "closest", None)
-        if closest is None:
-            continue
-        with timer.stage("template"):
-            walled = walls(cage, closest.vertices)
-        if walled is None:
-            continue
-        try:
-            return accepted(walled, refine(walled, refiners, bodies, pressures, timer), against=e)
-        except SolverError as again:
-            refined = _repaired(again, refiners, bodies, pressures, timer)
-            if refined is not None:
-                return accepted(walled, refined, repaired=again, against=e)
-    # last, the cages again with their seat's side edges pulled in past those hands (a template whose walls take ``edge``)
-    for cage, e in refused if walls is not None and "edge" in inspect.signature(walls).parameters else ():
-        closest = getattr(e, "closest", None)
-        if closest is None:
-            continue
-        with timer.stage("template"):
-            pulled = walls(cage, closest.vertices, edge=True)
-        if pulled is None:
-            continue
-        try:
-            return accepted(pulled, refine(pulled, refiners, bodies, pressures, timer), against=e)
-        except SolverError as again:
-            refined = _repaired(again, refiners, bodies, pressures, timer)
-            if refined is not None:
-                return accepted(pulled, refined, repaired=again, against=e)
+    # then the cages again with walls inside the hands their refused surfaces enclose; last, with their
+    # seat's side edges pulled in past those hands (a template whose walls take ``edge``)
+    offers = [] if walls is None else [walls]
+    if walls is not None and "edge" in inspect.signature(walls).parameters:
+        offers.append(functools.partial(walls, edge=True))
+    for offer in offers:
+        for cage, e in refused:
+            closest = getattr(e, "closest", None)
+            if closest is None:
+                continue
+            with timer.stage("template"):
+                offered = offer(cage, closest.vertices)
+            if offered is None:
+                continue
+            try:
+                return accepted(offered, refine(offered, refiners, bodies, pressures, timer), against=e)
+            except SolverError as again:
+                refined = _repaired(again, refiners, bodies, pressures, timer)
+                if refined is not None:
+                    return accepted(offered, refined, repaired=again, against=e)
     first = refused[0][1]
     if getattr(first, "repair", None) is not None:
         first = SolverError(*first.args)  # the refusal as before: a SolverError, its repair let go

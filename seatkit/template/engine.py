@@ -463,16 +463,21 @@ def _walls_against(start: _Start, refused: np.ndarray) -> ControlMesh | None:
     state.meta = copy.deepcopy(mesh.meta)
     if not any(step.repair_enclosure(state, [f["vertices"] for f in found], options=o, every_row=True) for step, o in fixers):
         return None
+    return _checked_against(state, bodies, p, repairs, found)
+
+
+def _checked_against(state: FitState, bodies, p: dict, repairs: list, found: list) -> ControlMesh | None:
+    """The state's cage through the checks and their repairs (:func:`_checked_cage`), None when refused; ``meta["enclosed"]``: what the refused surface enclosed (``found``) and what its limit surface encloses."""
     try:
-        walled = _checked_cage(state, bodies, p, repairs)
+        mesh = _checked_cage(state, bodies, p, repairs)
     except UnsupportedPoseError:
         return None
-    after = enclosed_parts(walled, bodies, p["max_penetration"] + 1e-3)
-    walled.meta["enclosed"] = {
+    after = enclosed_parts(mesh, bodies, p["max_penetration"] + 1e-3)
+    mesh.meta["enclosed"] = {
         "refused": {"depth_m": max(f["depth_m"] for f in found), "parts": [f["parts"] for f in found]},
         "after": {"depth_m": max(f["depth_m"] for f in after), "parts": [f["parts"] for f in after]},
     }
-    return walled
+    return mesh
 
 
 #: Depth of a body vertex inside a refused surface's furniture that makes it a hand to pull the seat's edge past, in ``max_penetration``:
@@ -503,16 +508,7 @@ def _edge_pulled(start: _Start, refused: np.ndarray) -> ControlMesh | None:
         return None
     state.grid = grid
     lift_grid(state, {})
-    try:
-        pulled = _checked_cage(state, bodies, p, repairs)
-    except UnsupportedPoseError:
-        return None
-    after = enclosed_parts(pulled, bodies, p["max_penetration"] + 1e-3)
-    pulled.meta["enclosed"] = {
-        "refused": {"depth_m": max(f["depth_m"] for f in found), "parts": [f["parts"] for f in found]},
-        "after": {"depth_m": max(f["depth_m"] for f in after), "parts": [f["parts"] for f in after]},
-    }
-    return pulled
+    return _checked_against(state, bodies, p, repairs, found)
 
 
 def _face_report(state: FitState) -> list:
