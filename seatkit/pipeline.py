@@ -19,6 +19,7 @@ beside the others (docs/architecture.md, "Processes of one build").
 
 from __future__ import annotations
 
+import functools
 from concurrent.futures import wait
 from contextlib import ExitStack, nullcontext
 from pathlib import Path
@@ -163,7 +164,11 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
     # the template's next cage when the refiners refuse one (stages.refine_first_accepted)
     refiners = [(r["name"], registry.get("refiner", r["name"]), r["params"]) for r in recipe["refiners"]]
-    initial, mesh = refine_first_accepted(cages, initial, refiners, bodies, pressures, timer)
+    template = registry.get("template", recipe["template"])
+    walls = getattr(template, "walls_against", None)
+    if walls is not None:
+        walls = functools.partial(walls, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
+    initial, mesh = refine_first_accepted(cages, initial, refiners, bodies, pressures, timer, walls=walls)
     if baseline is not None and design_segments(initial) != segments:
         baseline = None  # a later cage supports other segments: its baseline is fitted here, in evaluate_result
 

@@ -8,6 +8,8 @@ the plugin registry by the names the recipe gives.
 
 from __future__ import annotations
 
+import functools
+import inspect
 import time
 from contextlib import contextmanager
 from typing import Callable, Iterator, Mapping
@@ -163,7 +165,7 @@ def template_cages(template, bodies, pressures, *, params, seed) -> Iterator:
         yield from fits(bodies, pressures, params=params, seed=seed)
 
 
-def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, timer: StageTimer | None = None) -> tuple:
+def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, timer: StageTimer | None = None, *, walls=None) -> tuple:
     """``(cage, refined)``: the first of the template's cages that the refiners accept, and it refined.
 
     ``cage`` is the template's first cage, ``cages`` the rest of
@@ -185,13 +187,29 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
     that the rest of the refiners accept is the design (its refusal in
     ``meta["repaired_refusal"]``). Only a build that would otherwise be
     refused runs a repair: every design that builds without one is the same.
+
+    Last, ``walls`` (a callable ``(cage, refused control points) -> cage or
+    None``: the template's :meth:`~seatkit.template.YamlTemplate.walls_against`)
+    is asked, cage by cage in their order, for the cage rebuilt with walls
+    inside the hands the refused surface (a refusal's ``closest``) encloses,
+    and that cage is refined, its own refusal repaired locally as above; the
+    first accepted is the design (``meta["fit_attempts"]["walls_against_refusal"]``,
+    and the refusal it answers in ``meta["walls_against"]``). It too runs
+    only in a build that would otherwise be refused
+    (docs/templates.md, "Walls against the refused surface"). After every
+    walled cage was refused too, a ``walls`` that takes ``edge`` is asked
+    again, cage by cage, with ``edge=True``: the cage with its seat's side
+    edges pulled in past those hands (``meta["fit_attempts"]["edge_against_refusal"]``;
+    docs/templates.md, "Edge pulled in past the hand"), refined the same way.
     """
     from seatkit.errors import SolverError
 
     timer = timer or StageTimer()
     refused: list = []  # (cage, its refusal)
 
-    def accepted(cage, refined, repaired=None):
+    def accepted(cage, refined, repaired=None, against=None):
+        if against is not None:
+            cage.meta["walls_against"] = refined.meta["walls_against"] = str(against)
         if refused:
             refusals = [str(e) for _, e in refused]
             cage.meta["refiner_refusals"] = refusals
@@ -214,22 +232,50 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
         cage = nxt
     # every cage refused: the refusals' last local repairs, in the cages' order
     for cage, e in refused:
-        repair = getattr(e, "repair", None)
-        if repair is None:
-            continue
-        with timer.stage(f"refine:{refiners[e.refiner_index][0]}"):
-            repaired = repair()
-        if repaired is None:
-            continue
-        try:
-            refined = refine(repaired, refiners[e.refiner_index + 1 :], bodies, pressures, timer)
-        except SolverError:
-            continue
-        return accepted(cage, refined, repaired=e)
+        refined = _repaired(e, refiners, bodies, pressures, timer)
+        if refined is not None:
+            return accepted(cage, refined, repaired=e)
+    # then the cages again with walls inside the hands their refused surfaces enclose; last, with their
+    # seat's side edges pulled in past those hands (a template whose walls take ``edge``)
+    offers = [] if walls is None else [walls]
+    if walls is not None and "edge" in inspect.signature(walls).parameters:
+        offers.append(functools.partial(walls, edge=True))
+    for offer in offers:
+        for cage, e in refused:
+            closest = getattr(e, "closest", None)
+            if closest is None:
+                continue
+            with timer.stage("template"):
+                offered = offer(cage, closest.vertices)
+            if offered is None:
+                continue
+            try:
+                return accepted(offered, refine(offered, refiners, bodies, pressures, timer), against=e)
+            except SolverError as again:
+                refined = _repaired(again, refiners, bodies, pressures, timer)
+                if refined is not None:
+                    return accepted(offered, refined, repaired=again, against=e)
     first = refused[0][1]
     if getattr(first, "repair", None) is not None:
         first = SolverError(*first.args)  # the refusal as before: a SolverError, its repair let go
     raise first from None
+
+
+def _repaired(refusal, refiners, bodies, pressures, timer: StageTimer):
+    """The refusal's last local repair (its ``repair()``), refined by the refiners after the one that refused; None when it fails."""
+    from seatkit.errors import SolverError
+
+    repair = getattr(refusal, "repair", None)
+    if repair is None:
+        return None
+    with timer.stage(f"refine:{refiners[refusal.refiner_index][0]}"):
+        repaired = repair()
+    if repaired is None:
+        return None
+    try:
+        return refine(repaired, refiners[refusal.refiner_index + 1 :], bodies, pressures, timer)
+    except SolverError:
+        return None
 
 
 def baseline_components(recipe: Mapping, registry) -> tuple:

@@ -398,6 +398,8 @@ def test_a_wall_stands_inside_a_hand_beside_and_under_the_seats_edge():
     assert not _walls_inside(V.copy(), 0, out, across, hand, np.zeros(len(hand), bool), held, 0.02, seat)
     V, hand, held = _seat_side()
     assert not _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, np.zeros(4, bool))
+    # ... unless walls are asked beside every row (the build's walls against a refused surface: a hand beside the backrest)
+    assert _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, np.zeros(4, bool), every_row=True) == walls
     V, hand, held = _seat_side(held=[[-0.176, 0.30, 0.15]])  # a held part where either wall would pass (a buttock against the hand)
     assert 2 not in _walls_inside(V.copy(), 0, out, across, hand, np.ones(len(hand), bool), held, 0.02, seat)
     # a wall that crossed the cage: again straight down from the edge (level 1), then none (level 2)
@@ -431,6 +433,106 @@ def test_hands_hanging_under_the_thighs_flank_get_walls_inside_them(rigs, chair,
     check_cage(walled, [b], tolerance=tolerance)
     # the first cage is what it was: the walls are only the next offer
     np.testing.assert_array_equal(first.vertices, chair.fit([b], [p], seed=0).vertices)
+
+
+def test_walls_against_a_refused_surface_stand_beside_the_backrest(rigs, chair):
+    """seated-144 (female, draw seed 2026): the left hand hangs beside the hips, behind the seat, 9 cm below it.
+
+    Every cage the surface fit was given and their local repairs were
+    refused, the left hand 10-17 mm inside the side wall beside the
+    backrest's lowest rows, where the walls of "Hands inside the furniture"
+    are never put (they stand beside seat-like rows only). The build's last
+    fallback asks the template for the refused cage's start again with
+    walls inside the hands that the refused surface encloses, beside every
+    row (``YamlTemplate.walls_against``); here the template's own first
+    cage stands in for the refused surface (it encloses the left hand
+    14.6 mm deep).
+    """
+    b = pose_rig(rigs["default-female"], draw_pose(np.random.default_rng([2026, 144]), "seated").pose)
+    p = solve_pressure(b)
+    tolerance = chair._overrides(None)[0]["max_penetration"] + 1e-3
+    first = chair.fit([b], [p], seed=0)
+    assert "LeftHand" in enclosed_parts(first, [b], tolerance)[0]["parts"]
+    walled = chair.walls_against([b], [p], first, first.vertices, seed=0)
+    assert walled.meta["fit_attempts"] == {**first.meta["fit_attempts"], "walls_against_refusal": True}
+    assert walled.meta["border"]["walls_every_row"]
+    # walls beside the lumbar and lower back rows (row lines 5 and 6 of the 7-row chair), which no seat-side wall reaches
+    assert {5, 6} & set(walled.meta["border"]["walls_inside"]["left"])
+    assert walled.meta["enclosed"]["refused"]["depth_m"] > 0.01
+    check_cage(walled, [b], tolerance=tolerance)
+    # the start's own cage is unchanged, and a surface that encloses nothing gets no walls
+    np.testing.assert_array_equal(first.vertices, chair.fit([b], [p], seed=0).vertices)
+    assert chair.walls_against([b], [p], first, first.vertices + np.array([0.0, -2.0, 0.0]), seed=0) is None
+
+
+def test_an_edge_pulled_in_past_a_hand_on_the_rim(rigs, chair):
+    """reclined-045 (female, draw seed 2026): the right hand rests on the seat's side rim, its fingertips inside the sloping side wall.
+
+    Every cage, every local repair and every walled cage was refused (a
+    wall inside a hand that rests on the rim has no room). The very last
+    offer pulls the seat's side edge in past the hand at the row lines
+    beside it (``YamlTemplate.walls_against(..., edge=True)``; here the
+    template's own first cage stands in for the refused surface: it
+    encloses the fingertips 4.1 mm deep, over half of ``max_penetration``).
+    """
+    b = pose_rig(rigs["default-female"], draw_pose(np.random.default_rng([2026, 45]), "reclined").pose)
+    p = solve_pressure(b)
+    tolerance = chair._overrides(None)[0]["max_penetration"] + 1e-3
+    first = chair.fit([b], [p], seed=0)
+    assert chair.walls_against([b], [p], first, first.vertices, seed=0) is None  # no walls for it
+    pulled = chair.walls_against([b], [p], first, first.vertices, seed=0, edge=True)
+    assert pulled.meta["fit_attempts"] == {**first.meta["fit_attempts"], "edge_against_refusal": True}
+    assert "RightHand" in pulled.meta["enclosed"]["refused"]["parts"][0]
+    # the right edge only, at the row lines beside the hand (2: knee, 3: hip), by 1-3 cm (min_spacing past the fingertips)
+    moved = pulled.meta["edge_pulled"]
+    assert set(moved) == {"right"} and set(moved["right"]) == {2, 3}
+    assert all(0.005 < m < 0.03 for m in moved["right"].values())
+    check_cage(pulled, [b], tolerance=tolerance)
+    # the seat's vertices at the edge moved inward (+x on the body's right); the rest of its edges where they were
+    # (within 1 mm: the lift that follows is one linear programme over the whole cage)
+    W = 8  # vertices per row line of the bordered 3-column chair
+    for k in range(8):
+        right, left = (k + 2) * W + 2, (k + 2) * W + 5
+        np.testing.assert_allclose(pulled.vertices[left], first.vertices[left], atol=1e-3)
+        if k in (2, 3):
+            assert pulled.vertices[right, 0] > first.vertices[right, 0] + 0.01
+        else:
+            np.testing.assert_allclose(pulled.vertices[right], first.vertices[right], atol=1e-3)
+    # the start's own cage is unchanged, and a surface that encloses nothing pulls no edge
+    np.testing.assert_array_equal(first.vertices, chair.fit([b], [p], seed=0).vertices)
+    assert chair.walls_against([b], [p], first, first.vertices + np.array([0.0, -2.0, 0.0]), seed=0, edge=True) is None
+
+
+@pytest.mark.slow
+def test_a_hand_on_the_seat_rim_gets_its_chair(tmp_path):
+    """reclined-045, draw seed 2026, female: every cage, repair and walled cage refused; the edge pulled in past the hand builds."""
+    from seatkit.pipeline import build
+
+    path = tmp_path / "reclined-045.yaml"
+    path.write_text(pose_yaml(draw_pose(np.random.default_rng([2026, 45]), "reclined", "reclined-045")))
+    r = build({"template": "chair", "seed": 0, "bodies": [{"model": "default-female", "pose": str(path)}]}, write=False, processes=False)
+    assert r.initial_mesh.meta["fit_attempts"]["edge_against_refusal"]
+    assert "right" in r.initial_mesh.meta["edge_pulled"]
+    assert len(r.initial_mesh.meta["refiner_refusals"]) == 4 and "walls_against" in r.control_mesh.meta
+    ours = r.metrics["ours"][0]
+    assert ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("body", BODIES)
+def test_a_hand_beside_the_backrest_gets_its_chair(tmp_path, body):
+    """seated-144, draw seed 2026, both default bodies: every cage and every local repair refused; the walls against the refused surface build."""
+    from seatkit.pipeline import build
+
+    path = tmp_path / "seated-144.yaml"
+    path.write_text(pose_yaml(draw_pose(np.random.default_rng([2026, 144]), "seated", "seated-144")))
+    r = build({"template": "chair", "seed": 0, "bodies": [{"model": body, "pose": str(path)}]}, write=False, processes=False)
+    assert r.initial_mesh.meta["fit_attempts"]["walls_against_refusal"]
+    assert len(r.initial_mesh.meta["refiner_refusals"]) == 4 and "walls_against" in r.control_mesh.meta
+    ours, flat = r.metrics["ours"][0], r.metrics["baseline"][0]
+    assert ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005
+    for key in ("avg_distance_m", "avg_pressure_pa", "max_pressure_pa"):
+        assert ours[key] < flat[key], key
 
 
 @pytest.mark.parametrize("body", BODIES)

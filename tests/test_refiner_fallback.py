@@ -163,3 +163,102 @@ def test_a_repairable_refusal_crosses_a_process_as_a_plain_solver_error():
 
     e = pickle.loads(pickle.dumps(SurfaceLimitRefusal("catmull-clark-fit: 9.0 mm", lambda: None)))
     assert type(e) is SolverError and str(e) == "catmull-clark-fit: 9.0 mm"
+
+
+class _Refused:
+    """The surface a refusal keeps (``SurfaceLimitRefusal.closest``): only its control points are used."""
+
+    def __init__(self, name):
+        self.vertices = name
+
+
+class _Closest(_Repairable):
+    """Refuses as ``_Repairable`` does, each refusal keeping its refused surface (its control points: the cage's name)."""
+
+    def refine(self, mesh, bodies, pressures, *, params=None):
+        from seatkit.refine.ccfit import SurfaceLimitRefusal
+
+        try:
+            return super().refine(mesh, bodies, pressures, params=params)
+        except SurfaceLimitRefusal as e:
+            raise SurfaceLimitRefusal(str(e), e.repair, closest=_Refused(mesh.name)) from None
+
+
+def test_walls_against_the_refused_surfaces_come_after_every_repair():
+    asked, pulled = [], []
+
+    def walls(cage, refused, edge=False):
+        if edge:  # the pulled edges come after every walled cage (test below); here none is offered
+            pulled.append(cage.name)
+            return None
+        asked.append((cage.name, refused))
+        return _Cage(cage.name + "+walls") if cage.name != "a" else None
+
+    # a cage accepted, or a local repair that works: no walls are asked for
+    refiner = _Closest(refuse={"a"}, repairs=set())
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    assert refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)[1].name == "b+refined"
+    refiner = _Closest(refuse={"a", "b"}, repairs={"b"})
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    assert refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)[1].name == "b+pushed"
+    assert asked == []
+    # every cage and every repair refused: each cage's walls against its refused surface, in order, refined by every refiner
+    refiner = _Closest(refuse={"a", "b", "c"}, repairs=set())
+    after = _Refiner(refuse=set())
+    cages = iter([_Cage(n) for n in ["a", "b", "c"]])
+    cage, refined = refine_first_accepted(cages, next(cages), [("fit", refiner, {}), ("after", after, {})], [], [], walls=walls)
+    assert asked == [("a", "a"), ("b", "b")]
+    assert cage.name == "b+walls" and refined.name == "b+walls+refined+refined"
+    assert refined.meta["walls_against"] == cage.meta["walls_against"] == "catmull-clark-fit: the surface of cage b reaches 9.0 mm into the body"
+    assert len(refined.meta["refiner_refusals"]) == 3
+    # the walled cages refused too (and their repairs): the first refusal, as before
+    asked.clear()
+    refiner = _Closest(refuse={"a", "b", "b+walls"}, repairs=set())
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    with pytest.raises(SolverError, match="cage a reaches") as refusal:
+        refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)
+    assert asked == [("a", "a"), ("b", "b")] and refiner.repaired == ["a", "b", "b+walls"]
+    assert type(refusal.value) is SolverError
+    assert pulled == ["a", "b"]
+
+
+def test_edges_pulled_against_the_refused_surfaces_come_after_every_walled_cage():
+    """The seat's edge pulled in past the hands (``walls(cage, refused, edge=True)``) is asked for last, cage by cage, only when every walled cage was refused too."""
+    asked = []
+
+    def walls(cage, refused, edge=False):
+        asked.append((cage.name, refused, edge))
+        return _Cage(cage.name + ("+edge" if edge else "+walls")) if cage.name != "a" else None
+
+    # a walled cage accepted: no edge is pulled
+    refiner = _Closest(refuse={"a", "b"}, repairs=set())
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    assert refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)[1].name == "b+walls+refined"
+    assert asked == [("a", "a", False), ("b", "b", False)]
+    # every walled cage refused: the edges pulled, in the cages' order, refined by every refiner
+    asked.clear()
+    refiner = _Closest(refuse={"a", "b", "b+walls"}, repairs=set())
+    after = _Refiner(refuse=set())
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    cage, refined = refine_first_accepted(cages, next(cages), [("fit", refiner, {}), ("after", after, {})], [], [], walls=walls)
+    assert asked == [("a", "a", False), ("b", "b", False), ("a", "a", True), ("b", "b", True)]
+    assert cage.name == "b+edge" and refined.name == "b+edge+refined+refined"
+    assert refined.meta["walls_against"] == "catmull-clark-fit: the surface of cage b reaches 9.0 mm into the body"
+    # the pulled cage refused too, its repair as well: the first refusal, as before
+    refiner = _Closest(refuse={"a", "b", "b+walls", "b+edge"}, repairs=set())
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    with pytest.raises(SolverError, match="cage a reaches") as refusal:
+        refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)
+    assert refiner.repaired == ["a", "b", "b+walls", "b+edge"]
+    assert type(refusal.value) is SolverError
+    # a template whose walls_against does not take ``edge`` (a plugin's, written before it) is not asked for it
+    asked.clear()
+
+    def walls_only(cage, refused):
+        asked.append((cage.name, refused))
+        return None
+
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    with pytest.raises(SolverError, match="cage a reaches"):
+        refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls_only)
+    assert asked == [("a", "a"), ("b", "b")]

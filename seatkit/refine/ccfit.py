@@ -449,7 +449,7 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
         f"{p['surface_limit'] * 1000:.1f} mm limit (surface_limit), after {report['iterations']} iteration(s) "
         f"and {len(rounds) - 1} refit(s) with tighter probes; the design is refused rather than returned sinking into the person"
     )
-    raise SurfaceLimitRefusal(msg, lambda: _repaired(closest, bodies, p, rounds))
+    raise SurfaceLimitRefusal(msg, lambda: _repaired(closest, bodies, p, rounds), closest=closest)
 
 
 class SurfaceLimitRefusal(SolverError):
@@ -462,11 +462,15 @@ class SurfaceLimitRefusal(SolverError):
     (:func:`seatkit.stages.refine_first_accepted`), so that a design that
     builds without it is the same as before. Pickled (a refusal crossing a
     process), it is a plain :class:`~seatkit.errors.SolverError`.
+    ``closest`` is that refit itself (or None): the build's last fallback
+    asks the template for walls inside the hands it encloses
+    (:meth:`seatkit.template.YamlTemplate.walls_against`).
     """
 
-    def __init__(self, message: str, repair=None):
+    def __init__(self, message: str, repair=None, *, closest: ControlMesh | None = None):
         super().__init__(message)
         self.repair = repair or (lambda: None)
+        self.closest = closest
 
     def __reduce__(self):
         return (SolverError, self.args)

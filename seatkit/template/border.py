@@ -226,7 +226,7 @@ def _nearest_vertex_along(plan: np.ndarray, points: np.ndarray) -> np.ndarray:
     return i + (t[np.arange(len(i)), i] > 0.5)
 
 
-def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, free: np.ndarray, trigger: np.ndarray, held: np.ndarray, gap: float, seat: np.ndarray, *, span: int = 1, skip=None) -> dict:
+def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, free: np.ndarray, trigger: np.ndarray, held: np.ndarray, gap: float, seat: np.ndarray, *, span: int = 1, skip=None, every_row: bool = False) -> dict:
     """Where one side of the seat has hands hanging beside or under it, the walls that pass inside them.
 
     ``V[:, col]`` is the grid's side (the seat's edge, one vertex per row
@@ -256,7 +256,10 @@ def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, 
     vertex's strip between the midpoints to its neighbours) or passes
     inside a grid vertex under the edge (a backrest over the seat's back).
     ``skip`` maps edge vertices to 1 (the wall only drops, straight down
-    from the edge) or 2 (no wall).
+    from the edge) or 2 (no wall). With ``every_row``, the row lines of the
+    backrest get walls too (a hand hanging beside the hips behind the
+    seat): the refusal fallback's walls (docs/templates.md, "Walls against
+    the refused surface").
 
     Returns
     -------
@@ -276,7 +279,7 @@ def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, 
     go, gc, gy = grid @ out, grid @ across, grid[:, 1]
     walls = {}
     for k in range(1, n - 1):
-        if skip.get(k, 0) >= 2 or not seat[max(k - 2, 0) : k + 2].any():
+        if skip.get(k, 0) >= 2 or not (every_row or seat[max(k - 2, 0) : k + 2].any()):
             continue
         # this side's: outside the side face's inner line
         near = (own >= k - span) & (own <= k + span) & (fo > float(inner[k] @ out))
@@ -357,6 +360,7 @@ def add_border(
     drop_beside: bool = False,
     hanging=None,
     no_wall=None,
+    every_row: bool = False,
 ) -> GridMesh:
     """The grid with two border rings, the outer one on a ground rectangle.
 
@@ -406,6 +410,11 @@ def add_border(
         ``{"right": {k: level}, "left": {...}}``: edge vertices whose wall
         only drops (level 1) or that get none (2): their wall crossed the
         cage or the body.
+    every_row : bool
+        With ``hanging``: walls on the row lines of every row, the
+        backrest's too, not only beside the seat-like rows
+        (:func:`_walls_inside`; the build's fallback after the surface fit
+        refused every cage).
 
     Returns
     -------
@@ -438,7 +447,7 @@ def add_border(
         with np.errstate(invalid="ignore"):
             seat = np.nanmean(grid.plane_normal[..., 1], axis=1) >= np.cos(np.pi / 4)
         for col, out_dir in ((0, -side), (-1, side)):
-            walls[col] = _walls_inside(V, col, out_dir, front, pts[free], trigger[free], pts[~free], gap, seat, skip=no_wall.get("right" if col == 0 else "left", {}))
+            walls[col] = _walls_inside(V, col, out_dir, front, pts[free], trigger[free], pts[~free], gap, seat, skip=no_wall.get("right" if col == 0 else "left", {}), every_row=every_row)
     ring = np.full((R + 3, C + 3, 3), np.nan)  # ring-1 grid: original at [1:-1, 1:-1]
     ring[1:-1, 1:-1] = V
     ring[1:-1, 0] = V[:, 0] - width * side
@@ -547,6 +556,8 @@ def add_border(
         meta["border"]["dropped_beside"] = dropped
     if hanging is not None:
         meta["border"]["walls_inside"] = {("right" if col == 0 else "left"): sorted(int(k) for k in placed) for col, placed in walls.items()}
+        if every_row:
+            meta["border"]["walls_every_row"] = True
     return GridMesh(
         out,
         pad(grid.segment, -1),

@@ -18,7 +18,8 @@ names the faces and body parts, with the fit's diagnostics.
 from __future__ import annotations
 
 import copy
-import functools
+import dataclasses
+from collections import namedtuple
 from pathlib import Path
 from typing import Any, Iterator, Mapping, Sequence
 
@@ -30,7 +31,7 @@ from seatkit.template.checks import check_cage, enclosed_parts
 from seatkit.template.grid import Block, FaceState, FitState, GridMesh, segment_of_vertex
 from seatkit.template.options import check_step_options, did_you_mean
 from seatkit.template.schema import TemplateSpec, read_template, resolve_parameters
-from seatkit.template.steps import BUILTIN_STEPS, join_blocks
+from seatkit.template.steps import BUILTIN_STEPS, join_blocks, lift_grid
 
 __all__ = ["YamlTemplate", "load_template", "grid_to_mesh"]
 
@@ -183,14 +184,11 @@ class YamlTemplate:
         # last two (and the crossed-legs merge), and so on. The first valid
         # cage wins, so success does not depend on the seed; the seed only
         # picks among valid designs.
-        streams = [lambda: np.random.default_rng(seed)] + [lambda k=k: np.random.default_rng([_FALLBACK, k]) for k in range(1, p["fit_attempts"])]
-        optional = [i for i, (step, _) in enumerate(bound) if getattr(step, "optional", False)]
-        phases = [frozenset(optional[len(optional) - n :]) for n in range(len(optional) + 1)]
-        plan = [(stream(), dropped) for dropped in phases for stream in streams]
+        plan = _starts(p, bound, seed)
         first, found = None, False
         for attempt, (rng, dropped) in enumerate(plan):
             try:
-                mesh, walled = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
+                mesh, start = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
             except UnsupportedPoseError as e:
                 if getattr(e, "seed_independent", False):
                     raise
@@ -204,7 +202,7 @@ class YamlTemplate:
             if not found:
                 # the refiners refused the first cage: the same with walls inside the hands it encloses, if any
                 # (docs/templates.md, "Hands inside the furniture"), before the next start's
-                mesh = walled()
+                mesh = _hands_outside(*start)
                 if mesh is not None:
                     mesh.meta["fit_attempts"] = {**mesh.meta["fit_attempts"], "walls_inside": True}
                     yield mesh
@@ -213,11 +211,68 @@ class YamlTemplate:
             first.diagnostics["fit_attempts"] = len(plan)
             raise first
 
+    def walls_against(
+        self,
+        bodies: Sequence[Body],
+        pressures: Sequence[PressureField],
+        cage: ControlMesh,
+        refused: np.ndarray,
+        *,
+        params: Mapping[str, Any] | None = None,
+        seed: int = 0,
+        edge: bool = False,
+    ) -> ControlMesh | None:
+        """The start of ``cage`` again, its side walls inside the hands the refused surface ``refused`` encloses; None when there is none.
+
+        ``cage`` is one of :meth:`fits`' cages, ``refused`` (its vertices'
+        count, 3) the control points of the surface a refiner refused for
+        it (the surface fit's refit closest to its limit). The build asks
+        for this only when every cage it refined was refused and their last
+        local repairs failed (:func:`seatkit.stages.refine_first_accepted`),
+        so no design that builds otherwise changes. The cage's start is run
+        again (the same stream and dropped steps: the same cage), and the
+        parts it does not hold (hands, forearms) that lie inside the
+        furniture of the refused surface, deeper than ``max_penetration``,
+        get walls inside them, beside every row, the backrest's too
+        (docs/templates.md, "Walls against the refused surface"). The walled
+        cage passes the template's checks and their repairs, as any cage;
+        whether it is better is the refiners' to say.
+
+        ``edge``: instead of walls, the seat's side edges pulled in past
+        those hands at the row lines beside them, never across a supported
+        part (:func:`_edge_pulled`; docs/templates.md, "Edge pulled in past
+        the hand"). The build asks for this only after every walled cage
+        was refused too.
+        """
+        attempt = int(cage.meta.get("fit_attempts", {}).get("attempt", 0)) - 1
+        if attempt < 0 or np.shape(refused) != np.shape(cage.vertices):
+            return None
+        bodies, pressures = list(bodies), list(pressures)
+        p, per_step = self._overrides(params)
+        bound = self._bound_plan()
+        plan = _starts(p, bound, seed)
+        if attempt >= len(plan):
+            return None
+        rng, dropped = plan[attempt]
+        try:
+            _, start = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
+        except UnsupportedPoseError:
+            return None
+        if edge:
+            walled = _edge_pulled(start, np.asarray(refused, dtype=np.float64))
+            key = "edge_against_refusal"
+        else:
+            walled = _walls_against(start, np.asarray(refused, dtype=np.float64))
+            key = "walls_against_refusal"
+        if walled is not None:
+            walled.meta["fit_attempts"] = {**cage.meta["fit_attempts"], key: True}
+        return walled
+
     def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset()) -> tuple:
         """One run of the bound steps and the final check with one random stream.
 
-        Returns the cage and a callable that gives the same cage with walls
-        inside the hands it encloses, or None (:func:`_hands_outside`).
+        Returns the cage and its :class:`_Start` (what
+        :func:`_hands_outside` and :func:`_walls_against` build on).
         """
         state = FitState(self.spec, p, [self._block(i, b, pr) for i, (b, pr) in enumerate(zip(bodies, pressures))], rng)
         state.meta["template"] = self.name
@@ -237,7 +292,7 @@ class YamlTemplate:
         repairs = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and hasattr(step, "repair")]
         mesh = _checked_cage(state, bodies, p, repairs)
         fixers = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and hasattr(step, "repair_enclosure")]
-        return mesh, functools.partial(_hands_outside, state, mesh, bodies, p, fixers, repairs)
+        return mesh, _Start(state, mesh, bodies, p, fixers, repairs)
 
     def _block(self, person: int, body: Body, pressure: PressureField) -> Block:
         faces = {key: FaceState(spec, spec.segments) for key, spec in self.spec.faces.items()}
@@ -313,6 +368,23 @@ def _plan(spec: TemplateSpec, steps: Mapping[str, Any], *, missing_hint: str = "
     return plan
 
 
+def _starts(p: dict, bound: list, seed: int) -> list:
+    """[(random stream, indices of the steps dropped)] of every start, in order (docs/templates.md, "Seed-independent success").
+
+    The seed's own stream first; then the fixed fallback streams, the same
+    whatever the seed; all of them first with every step, then without the
+    last optional step, then without the last two, and so on.
+    """
+    streams = [lambda: np.random.default_rng(seed)] + [lambda k=k: np.random.default_rng([_FALLBACK, k]) for k in range(1, p["fit_attempts"])]
+    optional = [i for i, (step, _) in enumerate(bound) if getattr(step, "optional", False)]
+    phases = [frozenset(optional[len(optional) - n :]) for n in range(len(optional) + 1)]
+    return [(stream(), dropped) for dropped in phases for stream in streams]
+
+
+#: One start's fit once its cage passed the checks: what a second design of the same start builds on.
+_Start = namedtuple("_Start", "state mesh bodies p fixers repairs")
+
+
 def _checked_cage(state: FitState, bodies, p: dict, repairs: list) -> ControlMesh:
     """The fit's cage once it passes :func:`check_cage`; the faces the check names repaired first, up to ``_REPAIR_ROUNDS`` times.
 
@@ -366,6 +438,77 @@ def _hands_outside(state: FitState, mesh: ControlMesh, bodies, p: dict, fixers: 
         return None
     walled.meta["enclosed"] = {"before": {"depth_m": before, "parts": [f["parts"] for f in found]}, "after": {"depth_m": depth, "parts": [f["parts"] for f in after]}}
     return walled
+
+
+def _walls_against(start: _Start, refused: np.ndarray) -> ControlMesh | None:
+    """The cage of ``start`` with walls inside the hands that the refused surface ``refused`` encloses; None when it gives no valid cage.
+
+    ``refused`` are control points of the cage's topology, the surface a
+    refiner refused (the surface fit's refit closest to its limit). The
+    body parts the cage does not hold that lie more than ``max_penetration``
+    inside the furniture that surface closes with the floor
+    (:func:`seatkit.template.checks.enclosed_parts`) are handed to the
+    steps' ``repair_enclosure`` with walls allowed beside every row, the
+    backrest's too; the cage goes through the checks and their repairs
+    (:func:`_checked_cage`). Unlike :func:`_hands_outside`, the walled cage
+    need not enclose less than the template's cage: it answers a surface
+    the refiners refused, and they judge it. ``meta["enclosed"]`` says
+    what the refused surface enclosed and what the walled cage's limit
+    surface encloses.
+    """
+    state, mesh, bodies, p, fixers, repairs = start
+    found = enclosed_parts(dataclasses.replace(mesh, vertices=refused), bodies, p["max_penetration"])
+    if not any(f["vertices"] for f in found) or not fixers:
+        return None
+    state.meta = copy.deepcopy(mesh.meta)
+    if not any(step.repair_enclosure(state, [f["vertices"] for f in found], options=o, every_row=True) for step, o in fixers):
+        return None
+    return _checked_against(state, bodies, p, repairs, found)
+
+
+def _checked_against(state: FitState, bodies, p: dict, repairs: list, found: list) -> ControlMesh | None:
+    """The state's cage through the checks and their repairs (:func:`_checked_cage`), None when refused; ``meta["enclosed"]``: what the refused surface enclosed (``found``) and what its limit surface encloses."""
+    try:
+        mesh = _checked_cage(state, bodies, p, repairs)
+    except UnsupportedPoseError:
+        return None
+    after = enclosed_parts(mesh, bodies, p["max_penetration"] + 1e-3)
+    mesh.meta["enclosed"] = {
+        "refused": {"depth_m": max(f["depth_m"] for f in found), "parts": [f["parts"] for f in found]},
+        "after": {"depth_m": max(f["depth_m"] for f in after), "parts": [f["parts"] for f in after]},
+    }
+    return mesh
+
+
+#: Depth of a body vertex inside a refused surface's furniture that makes it a hand to pull the seat's edge past, in ``max_penetration``:
+#: the clearance step's sink (half of it), deeper than a hand resting on the rim is meant to press.
+_PULL_DEPTH = 0.5
+
+
+def _edge_pulled(start: _Start, refused: np.ndarray) -> ControlMesh | None:
+    """The cage of ``start`` with its seat's side edges pulled in past the hands the refused surface ``refused`` encloses; None when none moves or it gives no valid cage.
+
+    The parts the cage does not hold that lie more than half of
+    ``max_penetration`` inside the furniture that ``refused`` closes with
+    the floor (a hand resting on the seat's rim, its fingertips inside the
+    sloping side wall) are handed to the border step's ``rebuild_pulled``
+    (:func:`seatkit.template.steps._border_pulled`: which edge vertices move
+    and how far), the border is built again from the pulled grid and the
+    lift runs again, then the checks and their repairs
+    (:func:`_checked_cage`). ``meta["enclosed"]`` as :func:`_walls_against`.
+    """
+    state, mesh, bodies, p, _fixers, repairs = start
+    found = enclosed_parts(dataclasses.replace(mesh, vertices=refused), bodies, _PULL_DEPTH * p["max_penetration"])
+    rebuild = state.rebuild_pulled
+    if not any(f["vertices"] for f in found) or rebuild is None:
+        return None
+    state.meta = copy.deepcopy(mesh.meta)
+    grid = rebuild([f["vertices"] for f in found])
+    if grid is None:
+        return None
+    state.grid = grid
+    lift_grid(state, {})
+    return _checked_against(state, bodies, p, repairs, found)
 
 
 def _face_report(state: FitState) -> list:

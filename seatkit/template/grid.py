@@ -396,6 +396,11 @@ class FitState:
         under the seat that were found inside the furniture (the clearance
         step's ``repair_enclosure``; docs/templates.md, "Hands inside the
         furniture").
+    rebuild_pulled : callable or None
+        Set by the ``border`` step: builds the border again from the grid it
+        started from, its side edges pulled in past the hands a refused
+        surface encloses at the seat's rim (the engine's last fallback;
+        docs/templates.md, "Edge pulled in past the hand").
     """
 
     spec: TemplateSpec
@@ -406,6 +411,7 @@ class FitState:
     meta: dict = field(default_factory=dict)
     rebuild_border: object = None
     rebuild_walls: object = None
+    rebuild_pulled: object = None
 
     def supported_segments(self) -> list[int]:
         """Every segment listed by a fitted ('fit' or 'outer') face of a kept row, of any person (``meta["supported_segments"]``)."""
