@@ -163,7 +163,12 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
     # the template's next cage when the refiners refuse one (stages.refine_first_accepted)
     refiners = [(r["name"], registry.get("refiner", r["name"]), r["params"]) for r in recipe["refiners"]]
-    initial, mesh = refine_first_accepted(cages, initial, refiners, bodies, pressures, timer)
+    template = registry.get("template", recipe["template"])
+
+    def last_resort():
+        return template_cages(template, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"], last_resort=True)
+
+    initial, mesh = refine_first_accepted(cages, initial, refiners, bodies, pressures, timer, last_resort=last_resort)
     if baseline is not None and design_segments(initial) != segments:
         baseline = None  # a later cage supports other segments: its baseline is fitted here, in evaluate_result
 

@@ -149,13 +149,21 @@ def refine(mesh, refiners, bodies, pressures, timer: StageTimer | None = None):
 MAX_REFINED_CAGES = 4
 
 
-def template_cages(template, bodies, pressures, *, params, seed) -> Iterator:
+def template_cages(template, bodies, pressures, *, params, seed, last_resort: bool = False) -> Iterator:
     """The template's valid cages in its order of preference.
 
     Its ``fits`` where it has one (:meth:`seatkit.template.YamlTemplate.fits`:
     one cage per start that gives a valid one), else the single cage of its
-    ``fit``. Lazy: a cage is fitted only when it is asked for.
+    ``fit``. Lazy: a cage is fitted only when it is asked for. With
+    ``last_resort``, the cages of its ``last_resort_fits``
+    (:meth:`seatkit.template.YamlTemplate.last_resort_fits`), none for a
+    template without one.
     """
+    if last_resort:
+        fits = getattr(template, "last_resort_fits", None)
+        if fits is not None:
+            yield from fits(bodies, pressures, params=params, seed=seed)
+        return
     fits = getattr(template, "fits", None)
     if fits is None:
         yield template.fit(bodies, pressures, params=params, seed=seed)
@@ -163,7 +171,7 @@ def template_cages(template, bodies, pressures, *, params, seed) -> Iterator:
         yield from fits(bodies, pressures, params=params, seed=seed)
 
 
-def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, timer: StageTimer | None = None) -> tuple:
+def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, timer: StageTimer | None = None, last_resort=None) -> tuple:
     """``(cage, refined)``: the first of the template's cages that the refiners accept, and it refined.
 
     ``cage`` is the template's first cage, ``cages`` the rest of
@@ -185,8 +193,16 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
     that the rest of the refiners accept is the design (its refusal in
     ``meta["repaired_refusal"]``). Only a build that would otherwise be
     refused runs a repair: every design that builds without one is the same.
+
+    Last, when no repair is accepted either, ``last_resort`` (a callable
+    giving an iterator of further cages: the template's last-resort cages,
+    :func:`template_cages` with ``last_resort``) is asked for up to
+    :data:`MAX_REFINED_CAGES` more cages, refined, and then repaired, the
+    same way; the first accepted is the design (``meta["fit_attempts"]
+    ["last_resort"]``). A template that refuses every last-resort start, or
+    has none, leaves the refusal as it was: the first cage's.
     """
-    from seatkit.errors import SolverError
+    from seatkit.errors import SolverError, UnsupportedPoseError
 
     timer = timer or StageTimer()
     refused: list = []  # (cage, its refusal)
@@ -200,36 +216,64 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
             refined.meta["repaired_refusal"] = str(repaired)
         return cage, refined
 
-    while True:
-        try:
-            return accepted(cage, refine(cage, refiners, bodies, pressures, timer))
-        except SolverError as e:
-            refused.append((cage, e))
-        nxt = None
-        if len(refused) < MAX_REFINED_CAGES:
-            with timer.stage("template"):
-                nxt = next(cages, None)
-        if nxt is None:
-            break
-        cage = nxt
-    # every cage refused: the refusals' last local repairs, in the cages' order
-    for cage, e in refused:
-        repair = getattr(e, "repair", None)
-        if repair is None:
-            continue
-        with timer.stage(f"refine:{refiners[e.refiner_index][0]}"):
-            repaired = repair()
-        if repaired is None:
-            continue
-        try:
-            refined = refine(repaired, refiners[e.refiner_index + 1 :], bodies, pressures, timer)
-        except SolverError:
-            continue
-        return accepted(cage, refined, repaired=e)
+    def first_accepted(cage, cages) -> tuple | None:
+        """The first of ``cage`` and ``cages`` the refiners accept, else the first repaired one; None when none is."""
+        start = len(refused)
+        while True:
+            try:
+                return accepted(cage, refine(cage, refiners, bodies, pressures, timer))
+            except SolverError as e:
+                refused.append((cage, e))
+            nxt = None
+            if len(refused) - start < MAX_REFINED_CAGES:
+                with timer.stage("template"):
+                    nxt = next(cages, None)
+            if nxt is None:
+                break
+            cage = nxt
+        # every cage refused: the refusals' last local repairs, in the cages' order
+        for cage, e in refused[start:]:
+            repair = getattr(e, "repair", None)
+            if repair is None:
+                continue
+            with timer.stage(f"refine:{refiners[e.refiner_index][0]}"):
+                repaired = repair()
+            if repaired is None:
+                continue
+            try:
+                refined = refine(repaired, refiners[e.refiner_index + 1 :], bodies, pressures, timer)
+            except SolverError:
+                continue
+            return accepted(cage, refined, repaired=e)
+        return None
+
+    found = first_accepted(cage, cages)
+    if found is None and last_resort is not None:
+        # the template's last-resort cages (continue-planes: feet on the leg rest), only now
+        with timer.stage("template"):
+            more = last_resort()
+            try:
+                cage = next(more, None)
+            except UnsupportedPoseError:
+                cage = None  # every last-resort start refused by the template's checks
+        if cage is not None:
+            found = first_accepted(cage, _until_refused(more))
+    if found is not None:
+        return found
     first = refused[0][1]
     if getattr(first, "repair", None) is not None:
         first = SolverError(*first.args)  # the refusal as before: a SolverError, its repair let go
     raise first from None
+
+
+def _until_refused(cages: Iterator) -> Iterator:
+    """``cages`` until the template refuses the rest (an :class:`~seatkit.errors.UnsupportedPoseError` ends them)."""
+    from seatkit.errors import UnsupportedPoseError
+
+    try:
+        yield from cages
+    except UnsupportedPoseError:
+        return
 
 
 def baseline_components(recipe: Mapping, registry) -> tuple:

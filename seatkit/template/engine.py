@@ -152,6 +152,7 @@ class YamlTemplate:
         *,
         params: Mapping[str, Any] | None = None,
         seed: int = 0,
+        last_resort: bool = False,
     ) -> Iterator[ControlMesh]:
         """Every valid cage, one per start that gives one, in the order of the starts.
 
@@ -163,6 +164,14 @@ class YamlTemplate:
         less (docs/templates.md, "Hands inside the furniture"). Raises the
         first start's refusal when no start gives a valid cage, and a
         refusal of the pose rule at once.
+
+        With ``last_resort`` the same starts run with ``FitState.last_resort``
+        set: a step whose options ask for a last-resort change applies it
+        (``has_last_resort(options)``: ``fit-planes``' ``last_resort_rows``);
+        a template without one yields nothing. The build asks for those cages
+        only when the refiners refused every other cage and its repair
+        (:meth:`last_resort_fits`; docs/templates.md, "Last resort: feet on
+        the leg rest").
         """
         bodies, pressures = list(bodies), list(pressures)
         lo, hi = self.spec.people
@@ -176,6 +185,8 @@ class YamlTemplate:
                 raise InputError(f"person {i}: pressure has shape {p.pressure.shape}, the body has {len(b.vertices)} vertices")
         p, per_step = self._overrides(params)
         bound = self._bound_plan()
+        if last_resort and not any(getattr(step, "has_last_resort", lambda o: False)({**o, **per_step.get(i, {})}) for i, (step, o) in enumerate(bound)):
+            return
         # Several starts (docs/templates.md, "Seed-independent success"): the
         # seed's own RANSAC stream first; when its cage is refused, the same
         # fixed fallback streams whatever the seed, first with every step,
@@ -190,7 +201,7 @@ class YamlTemplate:
         first, found = None, False
         for attempt, (rng, dropped) in enumerate(plan):
             try:
-                mesh, walled = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
+                mesh, walled = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort)
             except UnsupportedPoseError as e:
                 if getattr(e, "seed_independent", False):
                     raise
@@ -198,6 +209,8 @@ class YamlTemplate:
                 continue
             stream = "seed" if attempt % max(1, p["fit_attempts"]) == 0 else f"fallback {attempt % p['fit_attempts']}"
             mesh.meta["fit_attempts"] = {"attempt": attempt + 1, "of": len(plan), "stream": stream, "optional_steps_dropped": bool(dropped)}
+            if last_resort:
+                mesh.meta["fit_attempts"]["last_resort"] = True
             if first is not None:
                 mesh.meta["fit_attempts"]["first_refusal"] = str(first)
             yield mesh
@@ -213,13 +226,30 @@ class YamlTemplate:
             first.diagnostics["fit_attempts"] = len(plan)
             raise first
 
-    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset()) -> tuple:
+    def last_resort_fits(
+        self,
+        bodies: Sequence[Body],
+        pressures: Sequence[PressureField],
+        *,
+        params: Mapping[str, Any] | None = None,
+        seed: int = 0,
+    ) -> Iterator[ControlMesh]:
+        """The valid cages of every start with the template's last-resort changes (:meth:`fits` with ``last_resort``).
+
+        The build refines them only when the refiners refused every cage of
+        :meth:`fits` and its last local repair
+        (:func:`seatkit.stages.refine_first_accepted`); empty for a template
+        without last-resort changes.
+        """
+        return self.fits(bodies, pressures, params=params, seed=seed, last_resort=True)
+
+    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset(), last_resort=False) -> tuple:
         """One run of the bound steps and the final check with one random stream.
 
         Returns the cage and a callable that gives the same cage with walls
         inside the hands it encloses, or None (:func:`_hands_outside`).
         """
-        state = FitState(self.spec, p, [self._block(i, b, pr) for i, (b, pr) in enumerate(zip(bodies, pressures))], rng)
+        state = FitState(self.spec, p, [self._block(i, b, pr) for i, (b, pr) in enumerate(zip(bodies, pressures))], rng, last_resort=last_resort)
         state.meta["template"] = self.name
         state.meta["seed"] = int(seed)
         state.meta["special_cases"] = []

@@ -396,6 +396,11 @@ class FitState:
         under the seat that were found inside the furniture (the clearance
         step's ``repair_enclosure``; docs/templates.md, "Hands inside the
         furniture").
+    last_resort : bool
+        This fit is one of the template's last-resort cages
+        (:meth:`seatkit.template.YamlTemplate.last_resort_fits`, asked for
+        only when the refiners refused every other cage): steps apply their
+        last-resort options (``fit-planes``' ``last_resort_rows``).
     """
 
     spec: TemplateSpec
@@ -406,6 +411,7 @@ class FitState:
     meta: dict = field(default_factory=dict)
     rebuild_border: object = None
     rebuild_walls: object = None
+    last_resort: bool = False
 
     def supported_segments(self) -> list[int]:
         """Every segment listed by a fitted ('fit' or 'outer') face of a kept row, of any person (``meta["supported_segments"]``)."""
