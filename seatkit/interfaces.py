@@ -156,8 +156,10 @@ class SupportTemplate(Protocol):
         (:class:`~seatkit.errors.SolverError`), a build refines the next one
         (:func:`seatkit.stages.refine_first_accepted`); without ``fits`` the
         template offers one cage. When every cage is refused, a refusal with a
-        ``repair()`` (the surface fit's last local repair) is tried before the
-        build is refused (docs/plugins.md).
+        ``repair()`` (the surface fit's last local repair) is tried, and then
+        the cages of ``last_resort_fits(bodies, pressures, *, params=None,
+        seed=0)`` if the template has it (the YAML engine's last-resort cages),
+        before the build is refused (docs/plugins.md).
         """
         ...
 

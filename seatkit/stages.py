@@ -249,7 +249,7 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
 
     found = first_accepted(cage, cages)
     if found is None and last_resort is not None:
-        # the template's last-resort cages (continue-planes: feet on the leg rest), only now
+        # the template's last-resort cages (the chair's feet on its shanks' planes), only now
         with timer.stage("template"):
             more = last_resort()
             try:
