@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 
 import numpy as np
 import pytest
@@ -221,8 +222,14 @@ def test_the_chairs_last_resort_cages_put_the_feet_on_the_shanks_planes_and_chan
     np.testing.assert_array_equal(first.vertices, plain.vertices)
     assert first.meta == plain.meta
     assert list(without.last_resort_fits([body], [pressure], seed=0)) == []
-    last = next(chair.last_resort_fits([body], [pressure], seed=0))
+    offered = list(itertools.islice(chair.last_resort_fits([body], [pressure], seed=0), 3))
+    last = offered[0]
     assert last.meta["fit_attempts"]["last_resort"] is True
+    assert last.meta["fit_attempts"]["stream"] == "seed" and not last.meta["fit_attempts"]["optional_steps_dropped"]
+    # each stream without its optional steps, dropped in turn, before the next stream; no cage offered twice
+    assert [m.meta["fit_attempts"]["attempt"] for m in offered] == sorted(m.meta["fit_attempts"]["attempt"] for m in offered)
+    assert offered[1].meta["fit_attempts"]["stream"] == "seed" and offered[1].meta["fit_attempts"]["optional_steps_dropped"]
+    assert not any(np.array_equal(a.vertices, b.vertices) for a, b in itertools.combinations(offered, 2))
     labels = list(last.face_labels)
     for side in ("right", "left"):
         foot, shank = labels.index(f"foot.{side}"), labels.index(f"shank.{side}")

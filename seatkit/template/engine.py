@@ -168,7 +168,10 @@ class YamlTemplate:
         With ``last_resort`` the same starts run with ``FitState.last_resort``
         set: a step whose options ask for a last-resort change applies it
         (``has_last_resort(options)``: ``fit-planes``' ``last_resort_rows``);
-        a template without one yields nothing. The build asks for those cages
+        a template without one yields nothing. Their order differs: each
+        stream with every step, then without the optional steps dropped in
+        turn, before the next stream; a cage the same as one offered before
+        is skipped. The build asks for those cages
         only when the refiners refused every other cage and its repair
         (:meth:`last_resort_fits`; docs/templates.md, "Last resort: feet on
         the leg rest").
@@ -197,9 +200,17 @@ class YamlTemplate:
         streams = [lambda: np.random.default_rng(seed)] + [lambda k=k: np.random.default_rng([_FALLBACK, k]) for k in range(1, p["fit_attempts"])]
         optional = [i for i, (step, _) in enumerate(bound) if getattr(step, "optional", False)]
         phases = [frozenset(optional[len(optional) - n :]) for n in range(len(optional) + 1)]
-        plan = [(stream(), dropped) for dropped in phases for stream in streams]
+        if last_resort:
+            # the build refines only a few last-resort cages: each stream
+            # without the optional steps, dropped in turn, before the next
+            # stream (a cage the same as one offered before is skipped)
+            order = [(k, dropped) for k in range(len(streams)) for dropped in phases]
+        else:
+            order = [(k, dropped) for dropped in phases for k in range(len(streams))]
+        plan = [(k, streams[k](), dropped) for k, dropped in order]
         first, found = None, False
-        for attempt, (rng, dropped) in enumerate(plan):
+        offered: list = []
+        for attempt, (k, rng, dropped) in enumerate(plan):
             try:
                 mesh, walled = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort)
             except UnsupportedPoseError as e:
@@ -207,7 +218,11 @@ class YamlTemplate:
                     raise
                 first = first or e
                 continue
-            stream = "seed" if attempt % max(1, p["fit_attempts"]) == 0 else f"fallback {attempt % p['fit_attempts']}"
+            if last_resort:
+                if any(v.shape == mesh.vertices.shape and np.array_equal(v, mesh.vertices) for v in offered):
+                    continue
+                offered.append(mesh.vertices)
+            stream = "seed" if k == 0 else f"fallback {k}"
             mesh.meta["fit_attempts"] = {"attempt": attempt + 1, "of": len(plan), "stream": stream, "optional_steps_dropped": bool(dropped)}
             if last_resort:
                 mesh.meta["fit_attempts"]["last_resort"] = True
