@@ -157,13 +157,15 @@ class SupportTemplate(Protocol):
         (:func:`seatkit.stages.refine_first_accepted`); without ``fits`` the
         template offers one cage. When every cage is refused, a refusal with a
         ``repair()`` (the surface fit's last local repair) is tried before the
-        build is refused (docs/plugins.md); last, a template with
+        build is refused (docs/plugins.md); then, a template with
         ``walls_against(bodies, pressures, cage, refused, *, params=None,
         seed=0)`` is asked for a cage built against the surface a refusal
         kept (its ``closest``: the YAML engine's walls inside the hands that
         surface encloses), which is refined in turn; when those are refused
         too and it takes ``edge``, it is asked again with ``edge=True`` (the
-        YAML engine: the seat's side edges pulled in past those hands).
+        YAML engine: the seat's side edges pulled in past those hands); last,
+        the cages of ``last_resort_fits(bodies, pressures, *, params=None,
+        seed=0)`` if the template has it (the YAML engine's last-resort cages).
         """
         ...
 

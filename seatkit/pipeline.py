@@ -168,7 +168,11 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     walls = getattr(template, "walls_against", None)
     if walls is not None:
         walls = functools.partial(walls, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
-    initial, mesh = refine_first_accepted(cages, initial, refiners, bodies, pressures, timer, walls=walls)
+
+    def last_resort():
+        return template_cages(template, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"], last_resort=True)
+
+    initial, mesh = refine_first_accepted(cages, initial, refiners, bodies, pressures, timer, walls=walls, last_resort=last_resort)
     if baseline is not None and design_segments(initial) != segments:
         baseline = None  # a later cage supports other segments: its baseline is fitted here, in evaluate_result
 

@@ -151,13 +151,21 @@ def refine(mesh, refiners, bodies, pressures, timer: StageTimer | None = None):
 MAX_REFINED_CAGES = 4
 
 
-def template_cages(template, bodies, pressures, *, params, seed) -> Iterator:
+def template_cages(template, bodies, pressures, *, params, seed, last_resort: bool = False) -> Iterator:
     """The template's valid cages in its order of preference.
 
     Its ``fits`` where it has one (:meth:`seatkit.template.YamlTemplate.fits`:
     one cage per start that gives a valid one), else the single cage of its
-    ``fit``. Lazy: a cage is fitted only when it is asked for.
+    ``fit``. Lazy: a cage is fitted only when it is asked for. With
+    ``last_resort``, the cages of its ``last_resort_fits``
+    (:meth:`seatkit.template.YamlTemplate.last_resort_fits`), none for a
+    template without one.
     """
+    if last_resort:
+        fits = getattr(template, "last_resort_fits", None)
+        if fits is not None:
+            yield from fits(bodies, pressures, params=params, seed=seed)
+        return
     fits = getattr(template, "fits", None)
     if fits is None:
         yield template.fit(bodies, pressures, params=params, seed=seed)
@@ -165,7 +173,7 @@ def template_cages(template, bodies, pressures, *, params, seed) -> Iterator:
         yield from fits(bodies, pressures, params=params, seed=seed)
 
 
-def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, timer: StageTimer | None = None, *, walls=None) -> tuple:
+def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, timer: StageTimer | None = None, *, walls=None, last_resort=None) -> tuple:
     """``(cage, refined)``: the first of the template's cages that the refiners accept, and it refined.
 
     ``cage`` is the template's first cage, ``cages`` the rest of
@@ -188,7 +196,7 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
     ``meta["repaired_refusal"]``). Only a build that would otherwise be
     refused runs a repair: every design that builds without one is the same.
 
-    Last, ``walls`` (a callable ``(cage, refused control points) -> cage or
+    Then ``walls`` (a callable ``(cage, refused control points) -> cage or
     None``: the template's :meth:`~seatkit.template.YamlTemplate.walls_against`)
     is asked, cage by cage in their order, for the cage rebuilt with walls
     inside the hands the refused surface (a refusal's ``closest``) encloses,
@@ -201,8 +209,19 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
     again, cage by cage, with ``edge=True``: the cage with its seat's side
     edges pulled in past those hands (``meta["fit_attempts"]["edge_against_refusal"]``;
     docs/templates.md, "Edge pulled in past the hand"), refined the same way.
+
+    Last, when none of those is accepted either, ``last_resort`` (a callable
+    giving an iterator of further cages: the template's last-resort cages,
+    :func:`template_cages` with ``last_resort``) is asked for up to
+    :data:`MAX_REFINED_CAGES` more cages, refined, and then repaired, the
+    same way; the first accepted is the design (``meta["fit_attempts"]
+    ["last_resort"]``; docs/templates.md, "Last resort: feet on the leg
+    rest"). The hands' offers come first: they answer what a refused
+    surface names, where the last resort changes the whole cage. A template
+    that refuses every last-resort start, or has none, leaves the refusal
+    as it was: the first cage's.
     """
-    from seatkit.errors import SolverError
+    from seatkit.errors import SolverError, UnsupportedPoseError
 
     timer = timer or StageTimer()
     refused: list = []  # (cage, its refusal)
@@ -218,30 +237,38 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
             refined.meta["repaired_refusal"] = str(repaired)
         return cage, refined
 
-    while True:
-        try:
-            return accepted(cage, refine(cage, refiners, bodies, pressures, timer))
-        except SolverError as e:
-            refused.append((cage, e))
-        nxt = None
-        if len(refused) < MAX_REFINED_CAGES:
-            with timer.stage("template"):
-                nxt = next(cages, None)
-        if nxt is None:
-            break
-        cage = nxt
-    # every cage refused: the refusals' last local repairs, in the cages' order
-    for cage, e in refused:
-        refined = _repaired(e, refiners, bodies, pressures, timer)
-        if refined is not None:
-            return accepted(cage, refined, repaired=e)
-    # then the cages again with walls inside the hands their refused surfaces enclose; last, with their
+    def first_accepted(cage, cages) -> tuple | None:
+        """The first of ``cage`` and ``cages`` the refiners accept, else the first repaired one; None when none is."""
+        start = len(refused)
+        while True:
+            try:
+                return accepted(cage, refine(cage, refiners, bodies, pressures, timer))
+            except SolverError as e:
+                refused.append((cage, e))
+            nxt = None
+            if len(refused) - start < MAX_REFINED_CAGES:
+                with timer.stage("template"):
+                    nxt = next(cages, None)
+            if nxt is None:
+                break
+            cage = nxt
+        # every cage refused: the refusals' last local repairs, in the cages' order
+        for cage, e in refused[start:]:
+            refined = _repaired(e, refiners, bodies, pressures, timer)
+            if refined is not None:
+                return accepted(cage, refined, repaired=e)
+        return None
+
+    found = first_accepted(cage, cages)
+    if found is not None:
+        return found
+    # then the cages again with walls inside the hands their refused surfaces enclose; then with their
     # seat's side edges pulled in past those hands (a template whose walls take ``edge``)
     offers = [] if walls is None else [walls]
     if walls is not None and "edge" in inspect.signature(walls).parameters:
         offers.append(functools.partial(walls, edge=True))
     for offer in offers:
-        for cage, e in refused:
+        for cage, e in list(refused):
             closest = getattr(e, "closest", None)
             if closest is None:
                 continue
@@ -255,6 +282,18 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
                 refined = _repaired(again, refiners, bodies, pressures, timer)
                 if refined is not None:
                     return accepted(offered, refined, repaired=again, against=e)
+    if last_resort is not None:
+        # the template's last-resort cages (the chair's feet on its shanks' planes), only now
+        with timer.stage("template"):
+            more = last_resort()
+            try:
+                cage = next(more, None)
+            except UnsupportedPoseError:
+                cage = None  # every last-resort start refused by the template's checks
+        if cage is not None:
+            found = first_accepted(cage, _until_refused(more))
+            if found is not None:
+                return found
     first = refused[0][1]
     if getattr(first, "repair", None) is not None:
         first = SolverError(*first.args)  # the refusal as before: a SolverError, its repair let go
@@ -276,6 +315,16 @@ def _repaired(refusal, refiners, bodies, pressures, timer: StageTimer):
         return refine(repaired, refiners[refusal.refiner_index + 1 :], bodies, pressures, timer)
     except SolverError:
         return None
+
+
+def _until_refused(cages: Iterator) -> Iterator:
+    """``cages`` until the template refuses the rest (an :class:`~seatkit.errors.UnsupportedPoseError` ends them)."""
+    from seatkit.errors import UnsupportedPoseError
+
+    try:
+        yield from cages
+    except UnsupportedPoseError:
+        return
 
 
 def baseline_components(recipe: Mapping, registry) -> tuple:

@@ -561,6 +561,29 @@ def test_hands_under_the_thighs_flank_build_from_the_walled_cage(tmp_path, index
     assert ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005
 
 
+@pytest.mark.slow
+@pytest.mark.parametrize("index, body", [(49, "default-male"), (73, "default-female")])
+def test_a_foot_dropped_beside_a_raised_leg_builds_from_a_last_resort_cage(tmp_path, index, body):
+    """reclined-049 (male) and -073 (female): one foot dropped to the floor beside a raised leg.
+
+    Every cage's surface reached 29-34 mm into the heels (the limit surface
+    rounds the corner between the shank and foot faces) and the build was
+    refused; the last-resort cage, whose foot faces continue the shank
+    faces, builds within the 5 mm limits and beats the flat patch.
+    """
+    from seatkit.pipeline import build
+
+    path = tmp_path / "pose.yaml"
+    path.write_text(pose_yaml(draw_pose(np.random.default_rng([2026, index]), "reclined", f"reclined-{index:03d}")))
+    r = build({"template": "chair", "seed": 0, "bodies": [{"model": body, "pose": str(path)}]}, write=False, processes=False)
+    assert r.initial_mesh.meta["fit_attempts"]["last_resort"] is True
+    assert len(r.initial_mesh.meta["refiner_refusals"]) == 4
+    ours, flat = r.metrics["ours"][0], r.metrics["baseline"][0]
+    assert ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005
+    for key in ("avg_distance_m", "avg_pressure_pa", "max_pressure_pa"):
+        assert ours[key] < flat[key], key
+
+
 def _enclosed_depth(mesh, body, segments) -> float:
     """Deepest vertex of ``segments`` inside the furniture the cage closes with the floor, m (0 when none is)."""
     from seatkit.geometry.normals import quad_vertex_normals

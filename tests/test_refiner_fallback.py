@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 
 import numpy as np
 import pytest
@@ -262,3 +263,104 @@ def test_edges_pulled_against_the_refused_surfaces_come_after_every_walled_cage(
     with pytest.raises(SolverError, match="cage a reaches"):
         refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls_only)
     assert asked == [("a", "a"), ("b", "b")]
+
+
+def test_last_resort_cages_are_asked_for_only_when_every_cage_and_repair_is_refused():
+    asked = []
+
+    def last_resort(names):
+        def make():
+            asked.append(True)
+            return iter([_Cage(n) for n in names])
+
+        return make
+
+    # a later cage accepted, or a repair: the last-resort cages are never made, the design is as before
+    for refuse, repairs, want in (({"a"}, set(), "b+refined"), ({"a", "b"}, {"a"}, "a+pushed")):
+        refiner = _Repairable(refuse=refuse, repairs=repairs)
+        cages = iter([_Cage(n) for n in ["a", "b"]])
+        cage, refined = refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], last_resort=last_resort(["z"]))
+        assert refined.name == want and asked == []
+    # every cage and every repair refused: the last-resort cages, in order, then their repairs
+    refiner = _Repairable(refuse={"a", "b", "x"}, repairs=set())
+    cages = iter([_Cage(n) for n in ["a", "b"]])
+    cage, refined = refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], last_resort=last_resort(["x", "y"]))
+    assert asked == [True] and refiner.seen == ["a", "b", "x", "y"] and refiner.repaired == ["a", "b"]  # y accepted: no repair of x
+    assert cage.name == "y" and refined.name == "y+refined" and len(refined.meta["refiner_refusals"]) == 3
+    refiner = _Repairable(refuse={"a", "x", "y"}, repairs={"y"})
+    cages = iter([_Cage("a")])
+    cage, refined = refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], last_resort=last_resort(["x", "y"]))
+    assert refiner.repaired == ["a", "x", "y"] and refined.name == "y+pushed"
+    # none accepted, or the template refuses every last-resort start: the first refusal, as before
+    from seatkit.errors import UnsupportedPoseError
+
+    def refused_template():
+        raise UnsupportedPoseError("the fitted cage crosses the body at faces foot.left")
+        yield  # a generator, as YamlTemplate.fits
+
+    for more in (last_resort(["x"]), refused_template, lambda: iter([])):
+        refiner = _Repairable(refuse={"a", "x"}, repairs=set())
+        cages = iter([_Cage("a")])
+        with pytest.raises(SolverError, match="cage a reaches") as refusal:
+            refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], last_resort=more)
+        assert type(refusal.value) is SolverError
+
+
+def test_the_chairs_last_resort_cages_put_the_feet_on_the_shanks_planes_and_change_no_other_cage(seated):
+    """``fit-planes``' ``last_resort_rows: [foot]``: only the cages of ``last_resort_fits`` change, and there each foot face lies in its shank face's plane."""
+    from seatkit.resources import template_path
+    from seatkit.template import load_template
+
+    text = template_path("chair.yaml").read_text()
+    chair = load_template(text=text, source="chair.yaml")
+    without = load_template(text=text.replace("    last_resort_rows: [foot]\n", ""), source="chair.yaml")
+    assert "last_resort_rows" in text and "last_resort_rows" not in without.spec.steps[1]
+    body, pressure = seated["upright-sitting"]
+    first = chair.fit([body], [pressure], seed=0)
+    plain = without.fit([body], [pressure], seed=0)
+    np.testing.assert_array_equal(first.vertices, plain.vertices)
+    assert first.meta == plain.meta
+    assert list(without.last_resort_fits([body], [pressure], seed=0)) == []
+    offered = list(itertools.islice(chair.last_resort_fits([body], [pressure], seed=0), 3))
+    last = offered[0]
+    assert last.meta["fit_attempts"]["last_resort"] is True
+    assert last.meta["fit_attempts"]["stream"] == "seed" and not last.meta["fit_attempts"]["optional_steps_dropped"]
+    # each stream without its optional steps, dropped in turn, before the next stream; no cage offered twice
+    assert [m.meta["fit_attempts"]["attempt"] for m in offered] == sorted(m.meta["fit_attempts"]["attempt"] for m in offered)
+    assert offered[1].meta["fit_attempts"]["stream"] == "seed" and offered[1].meta["fit_attempts"]["optional_steps_dropped"]
+    assert not any(np.array_equal(a.vertices, b.vertices) for a, b in itertools.combinations(offered, 2))
+    labels = list(last.face_labels)
+    for side in ("right", "left"):
+        foot, shank = labels.index(f"foot.{side}"), labels.index(f"shank.{side}")
+        np.testing.assert_allclose(last.plane_normals[foot], last.plane_normals[shank])
+        np.testing.assert_allclose((last.plane_points[foot] - last.plane_points[shank]) @ last.plane_normals[shank], 0.0, atol=1e-12)
+        # ... while the seed's own cage fits the foot its own plane
+        assert not np.allclose(first.plane_normals[labels.index(f"foot.{side}")], first.plane_normals[labels.index(f"shank.{side}")])
+    record = [c for c in last.meta["special_cases"] if c["case"] == "last-resort-planes"]
+    assert record and record[0]["faces"] == ["foot.right", "foot.left"]
+    assert not any(c["case"] == "last-resort-planes" for c in first.meta["special_cases"])
+
+
+def test_the_hands_offers_come_before_the_last_resort_cages():
+    """Walls against the refused surface, then the edges pulled, then the template's last-resort cages: each only when everything before it was refused."""
+    order = []
+
+    def walls(cage, refused, edge=False):
+        order.append(("edge" if edge else "walls", cage.name))
+        return _Cage(cage.name + ("+edge" if edge else "+walls"))
+
+    def last_resort():
+        order.append(("last resort", None))
+        return iter([_Cage("x")])
+
+    refiner = _Closest(refuse={"a", "a+walls", "a+edge"}, repairs=set())
+    cages = iter([_Cage("a")])
+    cage, refined = refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls, last_resort=last_resort)
+    assert order == [("walls", "a"), ("edge", "a"), ("last resort", None)]
+    assert cage.name == "x" and refined.name == "x+refined"
+    # a walled cage accepted: neither the pulled edge nor the last resort is asked for
+    order.clear()
+    refiner = _Closest(refuse={"a"}, repairs=set())
+    cages = iter([_Cage("a")])
+    assert refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls, last_resort=last_resort)[1].name == "a+walls+refined"
+    assert order == [("walls", "a")]

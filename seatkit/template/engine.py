@@ -153,6 +153,7 @@ class YamlTemplate:
         *,
         params: Mapping[str, Any] | None = None,
         seed: int = 0,
+        last_resort: bool = False,
     ) -> Iterator[ControlMesh]:
         """Every valid cage, one per start that gives one, in the order of the starts.
 
@@ -164,6 +165,17 @@ class YamlTemplate:
         less (docs/templates.md, "Hands inside the furniture"). Raises the
         first start's refusal when no start gives a valid cage, and a
         refusal of the pose rule at once.
+
+        With ``last_resort`` the same starts run with ``FitState.last_resort``
+        set: a step whose options ask for a last-resort change applies it
+        (``has_last_resort(options)``: ``fit-planes``' ``last_resort_rows``);
+        a template without one yields nothing. Their order differs: each
+        stream with every step, then without the optional steps dropped in
+        turn, before the next stream; a cage the same as one offered before
+        is skipped. The build asks for those cages
+        only when the refiners refused every other cage and its repair
+        (:meth:`last_resort_fits`; docs/templates.md, "Last resort: feet on
+        the leg rest").
         """
         bodies, pressures = list(bodies), list(pressures)
         lo, hi = self.spec.people
@@ -177,6 +189,8 @@ class YamlTemplate:
                 raise InputError(f"person {i}: pressure has shape {p.pressure.shape}, the body has {len(b.vertices)} vertices")
         p, per_step = self._overrides(params)
         bound = self._bound_plan()
+        if last_resort and not any(getattr(step, "has_last_resort", lambda o: False)({**o, **per_step.get(i, {})}) for i, (step, o) in enumerate(bound)):
+            return
         # Several starts (docs/templates.md, "Seed-independent success"): the
         # seed's own RANSAC stream first; when its cage is refused, the same
         # fixed fallback streams whatever the seed, first with every step,
@@ -184,18 +198,25 @@ class YamlTemplate:
         # last two (and the crossed-legs merge), and so on. The first valid
         # cage wins, so success does not depend on the seed; the seed only
         # picks among valid designs.
-        plan = _starts(p, bound, seed)
+        plan = _starts(p, bound, seed, last_resort)
         first, found = None, False
-        for attempt, (rng, dropped) in enumerate(plan):
+        offered: list = []
+        for attempt, (k, rng, dropped) in enumerate(plan):
             try:
-                mesh, start = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
+                mesh, start = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort)
             except UnsupportedPoseError as e:
                 if getattr(e, "seed_independent", False):
                     raise
                 first = first or e
                 continue
-            stream = "seed" if attempt % max(1, p["fit_attempts"]) == 0 else f"fallback {attempt % p['fit_attempts']}"
+            if last_resort:
+                if any(v.shape == mesh.vertices.shape and np.array_equal(v, mesh.vertices) for v in offered):
+                    continue
+                offered.append(mesh.vertices)
+            stream = "seed" if k == 0 else f"fallback {k}"
             mesh.meta["fit_attempts"] = {"attempt": attempt + 1, "of": len(plan), "stream": stream, "optional_steps_dropped": bool(dropped)}
+            if last_resort:
+                mesh.meta["fit_attempts"]["last_resort"] = True
             if first is not None:
                 mesh.meta["fit_attempts"]["first_refusal"] = str(first)
             yield mesh
@@ -253,7 +274,7 @@ class YamlTemplate:
         plan = _starts(p, bound, seed)
         if attempt >= len(plan):
             return None
-        rng, dropped = plan[attempt]
+        _, rng, dropped = plan[attempt]
         try:
             _, start = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
         except UnsupportedPoseError:
@@ -268,13 +289,30 @@ class YamlTemplate:
             walled.meta["fit_attempts"] = {**cage.meta["fit_attempts"], key: True}
         return walled
 
-    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset()) -> tuple:
+    def last_resort_fits(
+        self,
+        bodies: Sequence[Body],
+        pressures: Sequence[PressureField],
+        *,
+        params: Mapping[str, Any] | None = None,
+        seed: int = 0,
+    ) -> Iterator[ControlMesh]:
+        """The valid cages of every start with the template's last-resort changes (:meth:`fits` with ``last_resort``).
+
+        The build refines them only when the refiners refused every cage of
+        :meth:`fits` and its last local repair
+        (:func:`seatkit.stages.refine_first_accepted`); empty for a template
+        without last-resort changes.
+        """
+        return self.fits(bodies, pressures, params=params, seed=seed, last_resort=True)
+
+    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset(), last_resort=False) -> tuple:
         """One run of the bound steps and the final check with one random stream.
 
         Returns the cage and its :class:`_Start` (what
         :func:`_hands_outside` and :func:`_walls_against` build on).
         """
-        state = FitState(self.spec, p, [self._block(i, b, pr) for i, (b, pr) in enumerate(zip(bodies, pressures))], rng)
+        state = FitState(self.spec, p, [self._block(i, b, pr) for i, (b, pr) in enumerate(zip(bodies, pressures))], rng, last_resort=last_resort)
         state.meta["template"] = self.name
         state.meta["seed"] = int(seed)
         state.meta["special_cases"] = []
@@ -368,17 +406,24 @@ def _plan(spec: TemplateSpec, steps: Mapping[str, Any], *, missing_hint: str = "
     return plan
 
 
-def _starts(p: dict, bound: list, seed: int) -> list:
-    """[(random stream, indices of the steps dropped)] of every start, in order (docs/templates.md, "Seed-independent success").
+def _starts(p: dict, bound: list, seed: int, last_resort: bool = False) -> list:
+    """[(stream number, random stream, indices of the steps dropped)] of every start, in order (docs/templates.md, "Seed-independent success").
 
-    The seed's own stream first; then the fixed fallback streams, the same
-    whatever the seed; all of them first with every step, then without the
-    last optional step, then without the last two, and so on.
+    The seed's own stream (number 0) first; then the fixed fallback streams,
+    the same whatever the seed; all of them first with every step, then
+    without the last optional step, then without the last two, and so on.
+    With ``last_resort`` (the build refines only a few last-resort cages),
+    each stream without the optional steps, dropped in turn, before the
+    next stream.
     """
     streams = [lambda: np.random.default_rng(seed)] + [lambda k=k: np.random.default_rng([_FALLBACK, k]) for k in range(1, p["fit_attempts"])]
     optional = [i for i, (step, _) in enumerate(bound) if getattr(step, "optional", False)]
     phases = [frozenset(optional[len(optional) - n :]) for n in range(len(optional) + 1)]
-    return [(stream(), dropped) for dropped in phases for stream in streams]
+    if last_resort:
+        order = [(k, dropped) for k in range(len(streams)) for dropped in phases]
+    else:
+        order = [(k, dropped) for dropped in phases for k in range(len(streams))]
+    return [(k, streams[k](), dropped) for k, dropped in order]
 
 
 #: One start's fit once its cage passed the checks: what a second design of the same start builds on.

@@ -401,6 +401,11 @@ class FitState:
         started from, its side edges pulled in past the hands a refused
         surface encloses at the seat's rim (the engine's last fallback;
         docs/templates.md, "Edge pulled in past the hand").
+    last_resort : bool
+        This fit is one of the template's last-resort cages
+        (:meth:`seatkit.template.YamlTemplate.last_resort_fits`, asked for
+        only when the refiners refused every other cage): steps apply their
+        last-resort options (``fit-planes``' ``last_resort_rows``).
     """
 
     spec: TemplateSpec
@@ -412,6 +417,7 @@ class FitState:
     rebuild_border: object = None
     rebuild_walls: object = None
     rebuild_pulled: object = None
+    last_resort: bool = False
 
     def supported_segments(self) -> list[int]:
         """Every segment listed by a fitted ('fit' or 'outer') face of a kept row, of any person (``meta["supported_segments"]``)."""

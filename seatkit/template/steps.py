@@ -24,7 +24,7 @@ from seatkit.template.checks import check_supportability, crossing_faces, enclos
 from seatkit.template.clearance import lift_off_bodies
 from seatkit.template.grid import FitState, GridMesh
 from seatkit.template.options import Option, options_table
-from seatkit.template.planes import fit_support_plane
+from seatkit.template.planes import Plane, fit_support_plane
 from seatkit.template.pose_rule import PoseRuleStep
 from seatkit.template.special_cases import add_armrests, fit_outer_face, merge_crossed_legs
 
@@ -86,7 +86,21 @@ def fit_face(state: FitState, block, face, *, direction_penalty: bool, segments=
 
 
 class FitPlanesStep:
-    """Importance-weighted RANSAC plane per ``fit`` face, row after row."""
+    """Importance-weighted RANSAC plane per ``fit`` face, row after row.
+
+    ``last_resort_rows``: in the engine's last-resort cages only
+    (``state.last_resort``, :meth:`seatkit.template.YamlTemplate.last_resort_fits`),
+    each ``fit`` face of these rows then takes the plane of the face of the
+    same column in the next row. On the chair the foot faces take their
+    shank face's plane: a heel sits in the corner between the shank face
+    (under or behind the calf) and the foot face (under or in front of the
+    sole), the limit surface rounds that corner, and where it is tight (a
+    foot dropped to the floor beside a raised leg) the rounding reaches 3 cm
+    into the heel, beyond what the surface fit can pull out. With the leg
+    rest running on past the heel there is no corner: the foot rests on it,
+    or stands on the floor in front of it (docs/templates.md, "Last resort:
+    feet on the leg rest").
+    """
 
     name = "fit-planes"
     description = "RANSAC supporting plane for each 'fit' face of the given rows and columns (paper Sec. 5.2)"
@@ -96,7 +110,12 @@ class FitPlanesStep:
         "rows": Option("rows", "rows to fit, in order (default: all)"),
         "columns": Option("columns", "columns to fit (default: all)"),
         "direction_penalty": Option("bool", "use p^d against the previous row's plane", False),
+        "last_resort_rows": Option("rows", "in the last-resort cages only: these rows' faces take the next row's plane (default: none)"),
     }
+
+    def has_last_resort(self, options: Mapping[str, Any]) -> bool:
+        """Whether these options change the last-resort cages (the engine offers those only then)."""
+        return bool(options.get("last_resort_rows"))
 
     def run(self, state: FitState, *, options: Mapping[str, Any]) -> None:
         for block in state.blocks:
@@ -105,6 +124,32 @@ class FitPlanesStep:
                     face = block.faces[(r, c)]
                     if face.spec.role == "fit":
                         fit_face(state, block, face, direction_penalty=bool(options.get("direction_penalty", False)))
+        if state.last_resort and options.get("last_resort_rows"):
+            _take_next_planes(state, options)
+
+
+def _take_next_planes(state: FitState, options: Mapping[str, Any]) -> None:
+    """Each ``fit`` face of ``last_resort_rows`` (and the step's columns) takes the plane of the same column's face in the next row."""
+    sd = state.params["support_distance"]
+    names = options["last_resort_rows"]
+    for block in state.blocks:
+        taken = []
+        for r in [state.spec.rows.index(n) for n in names]:
+            if r not in block.rows or block.rows.index(r) + 1 >= len(block.rows):
+                continue
+            after = block.rows[block.rows.index(r) + 1]
+            for c in _columns(state, options):
+                face, nxt = block.faces[(r, c)], block.faces[(after, c)]
+                if face.spec.role != "fit" or face.plane is None or nxt.plane is None:
+                    continue
+                block.set_frame(face, Plane(nxt.plane.point.copy(), nxt.plane.normal.copy(), nxt.plane.quality))
+                idx = block.vertices_of(face.segments)
+                near = np.abs(face.plane.signed_distance(block.body.vertices[idx])) <= sd
+                face.supported = idx[near]
+                face.weight = float(block.importance[face.supported].sum())
+                face.info = {**face.info, "plane_of": state.face_name(nxt)}
+                taken.append(state.face_name(face))
+        state.meta.setdefault("special_cases", []).append({"case": "last-resort-planes", "person": block.person, "taken": bool(taken), "faces": taken})
 
 
 class BridgeStep:
