@@ -172,7 +172,8 @@ def run_task(task):
         except SeatkitError as e:
             done = {"seed": seed, "ok": False, "seconds": time.perf_counter() - t0, "reason": f"{type(e).__name__}: {e}"}
         # "build" is the first seed's (Table 1), "builds" every seed's
-        out.setdefault("build", done)
+        if seed == seeds[0]:
+            out["build"] = done
         out.setdefault("builds", []).append(done)
     path.unlink()
     for seed in fit_seeds:

@@ -161,10 +161,7 @@ class SupportTemplate(Protocol):
         ``walls_against(bodies, pressures, cage, refused, *, params=None,
         seed=0)`` is asked for a cage built against the surface a refusal
         kept (its ``closest``: the YAML engine's walls inside the hands that
-        surface encloses), which is refined in turn; when those are refused
-        too and it takes ``edge``, it is asked again with ``edge=True`` (the
-        YAML engine: the seat's side edges pulled in past those hands); last,
-        the cages of ``last_resort_fits(bodies, pressures, *, params=None,
+        surface encloses), which is refined in turn; last, the cages of ``last_resort_fits(bodies, pressures, *, params=None,
         seed=0)`` if the template has it (the YAML engine's last-resort cages).
         """
         ...

@@ -8,8 +8,6 @@ the plugin registry by the names the recipe gives.
 
 from __future__ import annotations
 
-import functools
-import inspect
 import time
 from contextlib import contextmanager
 from typing import Callable, Iterator, Mapping
@@ -204,11 +202,8 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
     first accepted is the design (``meta["fit_attempts"]["walls_against_refusal"]``,
     and the refusal it answers in ``meta["walls_against"]``). It too runs
     only in a build that would otherwise be refused
-    (docs/templates.md, "Walls against the refused surface"). After every
-    walled cage was refused too, a ``walls`` that takes ``edge`` is asked
-    again, cage by cage, with ``edge=True``: the cage with its seat's side
-    edges pulled in past those hands (``meta["fit_attempts"]["edge_against_refusal"]``;
-    docs/templates.md, "Edge pulled in past the hand"), refined the same way.
+    (docs/templates.md, "Walls against the refused surface"); a ``walls``
+    that raises :class:`~seatkit.errors.UnsupportedPoseError` offers nothing.
 
     Last, when none of those is accepted either, ``last_resort`` (a callable
     giving an iterator of further cages: the template's last-resort cages,
@@ -216,8 +211,8 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
     :data:`MAX_REFINED_CAGES` more cages, refined, and then repaired, the
     same way; the first accepted is the design (``meta["fit_attempts"]
     ["last_resort"]``; docs/templates.md, "Last resort: feet on the leg
-    rest"). The hands' offers come first: they answer what a refused
-    surface names, where the last resort changes the whole cage. A template
+    rest"). The walls come first: they answer what a refused surface
+    names, where the last resort changes the whole cage. A template
     that refuses every last-resort start, or has none, leaves the refusal
     as it was: the first cage's.
     """
@@ -262,26 +257,24 @@ def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, ti
     found = first_accepted(cage, cages)
     if found is not None:
         return found
-    # then the cages again with walls inside the hands their refused surfaces enclose; then with their
-    # seat's side edges pulled in past those hands (a template whose walls take ``edge``)
-    offers = [] if walls is None else [walls]
-    if walls is not None and "edge" in inspect.signature(walls).parameters:
-        offers.append(functools.partial(walls, edge=True))
-    for offer in offers:
-        for cage, e in list(refused):
-            closest = getattr(e, "closest", None)
-            if closest is None:
-                continue
-            with timer.stage("template"):
-                offered = offer(cage, closest.vertices)
-            if offered is None:
-                continue
+    # then the cages again with walls inside the hands their refused surfaces enclose
+    for cage, e in list(refused) if walls is not None else ():
+        closest = getattr(e, "closest", None)
+        if closest is None:
+            continue
+        with timer.stage("template"):
             try:
-                return accepted(offered, refine(offered, refiners, bodies, pressures, timer), against=e)
-            except SolverError as again:
-                refined = _repaired(again, refiners, bodies, pressures, timer)
-                if refined is not None:
-                    return accepted(offered, refined, repaired=again, against=e)
+                offered = walls(cage, closest.vertices)
+            except UnsupportedPoseError:
+                continue  # a template that refuses the start again offers nothing: the refusal stays the first cage's
+        if offered is None:
+            continue
+        try:
+            return accepted(offered, refine(offered, refiners, bodies, pressures, timer), against=e)
+        except SolverError as again:
+            refined = _repaired(again, refiners, bodies, pressures, timer)
+            if refined is not None:
+                return accepted(offered, refined, repaired=again, against=e)
     if last_resort is not None:
         # the template's last-resort cages (the chair's feet on its shanks' planes), only now
         with timer.stage("template"):

@@ -186,12 +186,9 @@ class _Closest(_Repairable):
 
 
 def test_walls_against_the_refused_surfaces_come_after_every_repair():
-    asked, pulled = [], []
+    asked = []
 
-    def walls(cage, refused, edge=False):
-        if edge:  # the pulled edges come after every walled cage (test below); here none is offered
-            pulled.append(cage.name)
-            return None
+    def walls(cage, refused):
         asked.append((cage.name, refused))
         return _Cage(cage.name + "+walls") if cage.name != "a" else None
 
@@ -220,49 +217,6 @@ def test_walls_against_the_refused_surfaces_come_after_every_repair():
         refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)
     assert asked == [("a", "a"), ("b", "b")] and refiner.repaired == ["a", "b", "b+walls"]
     assert type(refusal.value) is SolverError
-    assert pulled == ["a", "b"]
-
-
-def test_edges_pulled_against_the_refused_surfaces_come_after_every_walled_cage():
-    """The seat's edge pulled in past the hands (``walls(cage, refused, edge=True)``) is asked for last, cage by cage, only when every walled cage was refused too."""
-    asked = []
-
-    def walls(cage, refused, edge=False):
-        asked.append((cage.name, refused, edge))
-        return _Cage(cage.name + ("+edge" if edge else "+walls")) if cage.name != "a" else None
-
-    # a walled cage accepted: no edge is pulled
-    refiner = _Closest(refuse={"a", "b"}, repairs=set())
-    cages = iter([_Cage(n) for n in ["a", "b"]])
-    assert refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)[1].name == "b+walls+refined"
-    assert asked == [("a", "a", False), ("b", "b", False)]
-    # every walled cage refused: the edges pulled, in the cages' order, refined by every refiner
-    asked.clear()
-    refiner = _Closest(refuse={"a", "b", "b+walls"}, repairs=set())
-    after = _Refiner(refuse=set())
-    cages = iter([_Cage(n) for n in ["a", "b"]])
-    cage, refined = refine_first_accepted(cages, next(cages), [("fit", refiner, {}), ("after", after, {})], [], [], walls=walls)
-    assert asked == [("a", "a", False), ("b", "b", False), ("a", "a", True), ("b", "b", True)]
-    assert cage.name == "b+edge" and refined.name == "b+edge+refined+refined"
-    assert refined.meta["walls_against"] == "catmull-clark-fit: the surface of cage b reaches 9.0 mm into the body"
-    # the pulled cage refused too, its repair as well: the first refusal, as before
-    refiner = _Closest(refuse={"a", "b", "b+walls", "b+edge"}, repairs=set())
-    cages = iter([_Cage(n) for n in ["a", "b"]])
-    with pytest.raises(SolverError, match="cage a reaches") as refusal:
-        refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls)
-    assert refiner.repaired == ["a", "b", "b+walls", "b+edge"]
-    assert type(refusal.value) is SolverError
-    # a template whose walls_against does not take ``edge`` (a plugin's, written before it) is not asked for it
-    asked.clear()
-
-    def walls_only(cage, refused):
-        asked.append((cage.name, refused))
-        return None
-
-    cages = iter([_Cage(n) for n in ["a", "b"]])
-    with pytest.raises(SolverError, match="cage a reaches"):
-        refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls_only)
-    assert asked == [("a", "a"), ("b", "b")]
 
 
 def test_last_resort_cages_are_asked_for_only_when_every_cage_and_repair_is_refused():
@@ -341,26 +295,40 @@ def test_the_chairs_last_resort_cages_put_the_feet_on_the_shanks_planes_and_chan
     assert not any(c["case"] == "last-resort-planes" for c in first.meta["special_cases"])
 
 
-def test_the_hands_offers_come_before_the_last_resort_cages():
-    """Walls against the refused surface, then the edges pulled, then the template's last-resort cages: each only when everything before it was refused."""
+def test_the_walls_come_before_the_last_resort_cages():
+    """Walls against the refused surface, then the template's last-resort cages: each only when everything before it was refused."""
     order = []
 
-    def walls(cage, refused, edge=False):
-        order.append(("edge" if edge else "walls", cage.name))
-        return _Cage(cage.name + ("+edge" if edge else "+walls"))
+    def walls(cage, refused):
+        order.append(("walls", cage.name))
+        return _Cage(cage.name + "+walls")
 
     def last_resort():
         order.append(("last resort", None))
         return iter([_Cage("x")])
 
-    refiner = _Closest(refuse={"a", "a+walls", "a+edge"}, repairs=set())
+    refiner = _Closest(refuse={"a", "a+walls"}, repairs=set())
     cages = iter([_Cage("a")])
     cage, refined = refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls, last_resort=last_resort)
-    assert order == [("walls", "a"), ("edge", "a"), ("last resort", None)]
+    assert order == [("walls", "a"), ("last resort", None)]
     assert cage.name == "x" and refined.name == "x+refined"
-    # a walled cage accepted: neither the pulled edge nor the last resort is asked for
+    # a walled cage accepted: the last resort is not asked for
     order.clear()
     refiner = _Closest(refuse={"a"}, repairs=set())
     cages = iter([_Cage("a")])
     assert refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls, last_resort=last_resort)[1].name == "a+walls+refined"
     assert order == [("walls", "a")]
+
+
+def test_a_template_that_refuses_its_start_again_offers_no_walls():
+    """A plugin's ``walls_against`` may raise UnsupportedPoseError: the build goes on (here to the last resort) and, refused, says the first cage's refusal."""
+    from seatkit.errors import UnsupportedPoseError
+
+    def walls(cage, refused):
+        raise UnsupportedPoseError(f"the fitted cage crosses the body at faces of {cage.name}")
+
+    refiner = _Closest(refuse={"a", "x"}, repairs=set())
+    cages = iter([_Cage("a")])
+    with pytest.raises(SolverError, match="cage a reaches") as refusal:
+        refine_first_accepted(cages, next(cages), [("fake", refiner, {})], [], [], walls=walls, last_resort=lambda: iter([_Cage("x")]))
+    assert type(refusal.value) is SolverError and refiner.seen == ["a", "x"]

@@ -31,7 +31,7 @@ from seatkit.template.checks import check_cage, enclosed_parts
 from seatkit.template.grid import Block, FaceState, FitState, GridMesh, segment_of_vertex
 from seatkit.template.options import check_step_options, did_you_mean
 from seatkit.template.schema import TemplateSpec, read_template, resolve_parameters
-from seatkit.template.steps import BUILTIN_STEPS, join_blocks, lift_grid
+from seatkit.template.steps import BUILTIN_STEPS, join_blocks
 
 __all__ = ["YamlTemplate", "load_template", "grid_to_mesh"]
 
@@ -241,7 +241,6 @@ class YamlTemplate:
         *,
         params: Mapping[str, Any] | None = None,
         seed: int = 0,
-        edge: bool = False,
     ) -> ControlMesh | None:
         """The start of ``cage`` again, its side walls inside the hands the refused surface ``refused`` encloses; None when there is none.
 
@@ -258,12 +257,6 @@ class YamlTemplate:
         (docs/templates.md, "Walls against the refused surface"). The walled
         cage passes the template's checks and their repairs, as any cage;
         whether it is better is the refiners' to say.
-
-        ``edge``: instead of walls, the seat's side edges pulled in past
-        those hands at the row lines beside them, never across a supported
-        part (:func:`_edge_pulled`; docs/templates.md, "Edge pulled in past
-        the hand"). The build asks for this only after every walled cage
-        was refused too.
         """
         attempt = int(cage.meta.get("fit_attempts", {}).get("attempt", 0)) - 1
         if attempt < 0 or np.shape(refused) != np.shape(cage.vertices):
@@ -279,14 +272,11 @@ class YamlTemplate:
             _, start = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
         except UnsupportedPoseError:
             return None
-        if edge:
-            walled = _edge_pulled(start, np.asarray(refused, dtype=np.float64))
-            key = "edge_against_refusal"
-        else:
-            walled = _walls_against(start, np.asarray(refused, dtype=np.float64))
-            key = "walls_against_refusal"
+        walled = _walls_against(start, np.asarray(refused, dtype=np.float64))
         if walled is not None:
-            walled.meta["fit_attempts"] = {**cage.meta["fit_attempts"], key: True}
+            # built from the plain start: not the walls inside the hands of a walled first cage
+            attempts = {k: v for k, v in cage.meta["fit_attempts"].items() if k != "walls_inside"}
+            walled.meta["fit_attempts"] = {**attempts, "walls_against_refusal": True}
         return walled
 
     def last_resort_fits(
@@ -508,52 +498,16 @@ def _walls_against(start: _Start, refused: np.ndarray) -> ControlMesh | None:
     state.meta = copy.deepcopy(mesh.meta)
     if not any(step.repair_enclosure(state, [f["vertices"] for f in found], options=o, every_row=True) for step, o in fixers):
         return None
-    return _checked_against(state, bodies, p, repairs, found)
-
-
-def _checked_against(state: FitState, bodies, p: dict, repairs: list, found: list) -> ControlMesh | None:
-    """The state's cage through the checks and their repairs (:func:`_checked_cage`), None when refused; ``meta["enclosed"]``: what the refused surface enclosed (``found``) and what its limit surface encloses."""
     try:
-        mesh = _checked_cage(state, bodies, p, repairs)
+        walled = _checked_cage(state, bodies, p, repairs)
     except UnsupportedPoseError:
         return None
-    after = enclosed_parts(mesh, bodies, p["max_penetration"] + 1e-3)
-    mesh.meta["enclosed"] = {
+    after = enclosed_parts(walled, bodies, p["max_penetration"] + 1e-3)
+    walled.meta["enclosed"] = {
         "refused": {"depth_m": max(f["depth_m"] for f in found), "parts": [f["parts"] for f in found]},
         "after": {"depth_m": max(f["depth_m"] for f in after), "parts": [f["parts"] for f in after]},
     }
-    return mesh
-
-
-#: Depth of a body vertex inside a refused surface's furniture that makes it a hand to pull the seat's edge past, in ``max_penetration``:
-#: the clearance step's sink (half of it), deeper than a hand resting on the rim is meant to press.
-_PULL_DEPTH = 0.5
-
-
-def _edge_pulled(start: _Start, refused: np.ndarray) -> ControlMesh | None:
-    """The cage of ``start`` with its seat's side edges pulled in past the hands the refused surface ``refused`` encloses; None when none moves or it gives no valid cage.
-
-    The parts the cage does not hold that lie more than half of
-    ``max_penetration`` inside the furniture that ``refused`` closes with
-    the floor (a hand resting on the seat's rim, its fingertips inside the
-    sloping side wall) are handed to the border step's ``rebuild_pulled``
-    (:func:`seatkit.template.steps._border_pulled`: which edge vertices move
-    and how far), the border is built again from the pulled grid and the
-    lift runs again, then the checks and their repairs
-    (:func:`_checked_cage`). ``meta["enclosed"]`` as :func:`_walls_against`.
-    """
-    state, mesh, bodies, p, _fixers, repairs = start
-    found = enclosed_parts(dataclasses.replace(mesh, vertices=refused), bodies, _PULL_DEPTH * p["max_penetration"])
-    rebuild = state.rebuild_pulled
-    if not any(f["vertices"] for f in found) or rebuild is None:
-        return None
-    state.meta = copy.deepcopy(mesh.meta)
-    grid = rebuild([f["vertices"] for f in found])
-    if grid is None:
-        return None
-    state.grid = grid
-    lift_grid(state, {})
-    return _checked_against(state, bodies, p, repairs, found)
+    return walled
 
 
 def _face_report(state: FitState) -> list:

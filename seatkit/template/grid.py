@@ -396,11 +396,6 @@ class FitState:
         under the seat that were found inside the furniture (the clearance
         step's ``repair_enclosure``; docs/templates.md, "Hands inside the
         furniture").
-    rebuild_pulled : callable or None
-        Set by the ``border`` step: builds the border again from the grid it
-        started from, its side edges pulled in past the hands a refused
-        surface encloses at the seat's rim (the engine's last fallback;
-        docs/templates.md, "Edge pulled in past the hand").
     last_resort : bool
         This fit is one of the template's last-resort cages
         (:meth:`seatkit.template.YamlTemplate.last_resort_fits`, asked for
@@ -416,7 +411,6 @@ class FitState:
     meta: dict = field(default_factory=dict)
     rebuild_border: object = None
     rebuild_walls: object = None
-    rebuild_pulled: object = None
     last_resort: bool = False
 
     def supported_segments(self) -> list[int]:

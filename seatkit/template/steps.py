@@ -455,13 +455,11 @@ class BorderStep:
             front_drop=float(options.get("front_drop", 0.08)),
             body_clearance=options.get("body_clearance"),
         )
-        surface, state.grid = state.grid, border(meta=state.meta)
+        state.grid = border(meta=state.meta)
         # the clearance step's repair may rebuild it with the side rings lowered beside a hanging hand
         state.rebuild_border = lambda **kw: border(meta=state.meta, drop_beside=True, **kw)
         # ... or with its side walls inside the hands the cage encloses (the clearance step's repair_enclosure)
         state.rebuild_walls = functools.partial(_border_with_walls, state, border)
-        # ... or from that grid with its side edges pulled in past the hands a refused surface encloses (the engine's last fallback)
-        state.rebuild_pulled = functools.partial(_border_pulled, state, border, surface)
         if options.get("clearance", True):
             lift_grid(state, {})
 
@@ -480,96 +478,6 @@ def _border_with_walls(state: FitState, border, enclosed, **kw) -> GridMesh:
         trigger[np.asarray(sorted(found), dtype=np.int64)] = True
         hanging.append((free[block.segment], trigger))
     return border(meta=state.meta, hanging=hanging, **kw)
-
-
-#: Largest share of a row line's outer face (edge to first inner column line) the pulled edge may cross.
-_PULL_MAX = 0.9
-
-
-def _border_pulled(state: FitState, border, surface: GridMesh, enclosed, *, margin: float | None = None) -> GridMesh | None:
-    """The border again from ``surface`` with its side edges pulled in past the hands at the seat's rim; None when no edge moves.
-
-    ``enclosed`` (per body, vertex indices) are the body vertices a refused
-    surface encloses (the engine's :func:`~seatkit.template.engine._edge_pulled`).
-    Those of parts the cage does not hold are each given to the side edge
-    nearer to them, measured inward along its row lines (horizontally,
-    from the edge vertex to the first inner column line), and to the row
-    span of that edge polyline nearest to them. The edge vertex of each row
-    line bounding such a span moves inward along its row line to ``margin``
-    (the border's ``min_spacing``) past the innermost of those vertices
-    beside it, unless that would cross the outermost body vertex a face of
-    the rows beside it supports (the seat keeps holding a thigh the hand
-    rests against) or more than ``_PULL_MAX`` of the row line's outer face.
-    ``surface`` (this start's own grid, built for this call) is changed in
-    place so that every later rebuild of the border (the checks' repairs)
-    starts from the pulled edge. ``meta["edge_pulled"]`` (kept through the checks' border rebuilds):
-    {side: {row line: metres}}.
-    """
-    margin = float(border.keywords.get("min_spacing", 0.02) if margin is None else margin)
-    free = _free_segments(state)
-    V = surface.vertices
-    R1, C1 = V.shape[:2]
-    held = []
-    for block in state.blocks:
-        rows = [(r, f) for (r, _c), f in block.faces.items() if r in block.rows and f.plane is not None and f.spec.role in ("fit", "outer")]
-        held.append({r: block.body.vertices[np.asarray(f.supported, dtype=np.int64)] for r, f in rows if len(f.supported)} if rows else {})
-    pulled: dict = {}
-    sides = (("right", 0, 1), ("left", C1 - 1, C1 - 2))
-    units = {j: _unit_in(V, j, jn) for _, j, jn in sides}
-    for side, j, jn in sides:
-        other = C1 - 1 - j
-        edge, inner, u = V[:, j].copy(), V[:, jn], units[j]
-        length = np.linalg.norm((inner - edge)[:, [0, 2]], axis=1)
-        need = np.full(R1, -np.inf)
-        beside_held = np.full(R1, np.inf)
-        for person, (block, found) in enumerate(zip(state.blocks, enclosed)):
-            idx = np.asarray(sorted(found), dtype=np.int64)
-            idx = idx[free[block.segment[idx]]] if len(idx) else idx
-            P = block.body.vertices[idx]
-            # the side a vertex is nearer to (less far inward of its edge)
-            P = P[_inward(P, edge, u) <= _inward(P, V[:, other], units[other])] if len(P) else P
-            if len(P):
-                span = _nearest_span(P, edge)
-                for k in np.unique(np.concatenate([span, span + 1])):
-                    near = (span == k) | (span + 1 == k)
-                    need[k] = max(need[k], float(((P[near] - edge[k]) @ u[k]).max()))
-            for r, H in held[person].items():
-                for k in (r, r + 1):  # row r lies between row lines r and r + 1
-                    if k < R1:
-                        beside_held[k] = min(beside_held[k], float(((H - edge[k]) @ u[k]).min()))
-        for k in range(R1):
-            target = need[k] + margin
-            if not np.isfinite(need[k]) or target <= 0.0 or target >= beside_held[k] or target > _PULL_MAX * length[k]:
-                continue
-            V[k, j] = edge[k] + (target / length[k]) * (inner[k] - edge[k])
-            pulled.setdefault(side, {})[int(k)] = round(float(target), 4)
-    if not pulled:
-        return None
-    grid = border(meta=state.meta)
-    state.meta["edge_pulled"] = pulled
-    return grid
-
-
-def _unit_in(V: np.ndarray, j: int, jn: int) -> np.ndarray:
-    """(R+1, 3) horizontal unit directions of the row lines from column line ``j`` towards ``jn``."""
-    d = V[:, jn] - V[:, j]
-    d[:, 1] = 0.0
-    return d / np.maximum(np.linalg.norm(d, axis=1), 1e-12)[:, None]
-
-
-def _inward(P: np.ndarray, edge: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """(n,) how far each point lies inward of the edge, along the row line of the edge vertex nearest to it, m."""
-    k = np.linalg.norm(P[:, None, :] - edge[None], axis=2).argmin(1)
-    return np.einsum("ij,ij->i", P - edge[k], u[k])
-
-
-def _nearest_span(P: np.ndarray, edge: np.ndarray) -> np.ndarray:
-    """(n,) index i of the segment edge[i] - edge[i + 1] of the polyline ``edge`` nearest to each point."""
-    a, b = edge[:-1], edge[1:]
-    ab = b - a
-    t = np.clip(np.einsum("nkj,kj->nk", P[:, None, :] - a[None], ab) / np.maximum(np.einsum("kj,kj->k", ab, ab), 1e-12), 0.0, 1.0)
-    q = a[None] + t[..., None] * ab[None]
-    return np.linalg.norm(P[:, None, :] - q, axis=2).argmin(1)
 
 
 def grid_quads(shape: tuple[int, int]) -> np.ndarray:
