@@ -232,7 +232,7 @@ def summarise(results, args, wall) -> str:
         whole = sum(_case_ok(r) for r in ran)
         lines.append(f"| full builds (refiners, 5 mm guarantee, evaluation; seed {args.seeds[0]}) of supportable cases that finished | {done} of {len(ran)} ({100 * done / len(ran):.1f}%) |")
         lines.append(f"| cases with a full build: every seed's fit and the build succeeded | {whole} of {len(ran)} ({100 * whole / len(ran):.1f}%) |")
-        every = [b for r in ran for b in r.get("builds", [])]
+        every = [b for r in supp for b in r.get("builds", [])]
         if len(every) > len(ran):
             ok_every = sum(b["ok"] for b in every)
             lines.append(f"| full builds with every seed ({' '.join(map(str, args.seeds))}) of supportable cases that finished | {ok_every} of {len(every)} ({100 * ok_every / len(every):.1f}%) |")
