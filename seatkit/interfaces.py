@@ -161,8 +161,9 @@ class SupportTemplate(Protocol):
         ``walls_against(bodies, pressures, cage, refused, *, params=None,
         seed=0)`` is asked for a cage built against the surface a refusal
         kept (its ``closest``: the YAML engine's walls inside the hands that
-        surface encloses), which is refined in turn; last, the cages of ``last_resort_fits(bodies, pressures, *, params=None,
-        seed=0)`` if the template has it (the YAML engine's last-resort cages).
+        surface encloses), which is refined in turn; last, the cages of
+        ``last_resort_fits(bodies, pressures, *, params=None, seed=0)`` if the
+        template has it (the YAML engine's last-resort cages).
         """
         ...
 

@@ -141,8 +141,10 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     with timer.stage("pressure"):
         pressures = solve_importance(recipe, bodies, registry)
 
+    template = registry.get("template", recipe["template"])
+    cages_of = functools.partial(template_cages, template, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
     with timer.stage("template"):
-        cages = template_cages(registry.get("template", recipe["template"]), bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
+        cages = cages_of()
         try:
             initial = next(cages)
         except UnsupportedPoseError as e:
@@ -164,14 +166,10 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
     # the template's next cage when the refiners refuse one (stages.refine_first_accepted)
     refiners = [(r["name"], registry.get("refiner", r["name"]), r["params"]) for r in recipe["refiners"]]
-    template = registry.get("template", recipe["template"])
     walls = getattr(template, "walls_against", None)
     if walls is not None:
         walls = functools.partial(walls, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
-
-    def last_resort():
-        return template_cages(template, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"], last_resort=True)
-
+    last_resort = functools.partial(cages_of, last_resort=True)
     initial, mesh = refine_first_accepted(cages, initial, refiners, bodies, pressures, timer, walls=walls, last_resort=last_resort)
     if baseline is not None and design_segments(initial) != segments:
         baseline = None  # a later cage supports other segments: its baseline is fitted here, in evaluate_result
