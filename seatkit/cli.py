@@ -24,6 +24,7 @@ import typer
 import typer.core
 
 from seatkit.errors import SeatkitError
+from seatkit.messages import one_line
 
 
 class _SeatkitGroup(typer.core.TyperGroup):
@@ -35,7 +36,9 @@ class _SeatkitGroup(typer.core.TyperGroup):
         except SeatkitError as e:
             if (ctx.obj or {}).get("debug"):
                 raise
-            click.echo(f"seatkit: error: {e}", err=True)
+            # one line of at most MAX_MESSAGE characters, even for an error a
+            # plugin made with a str() of its own
+            click.echo(f"seatkit: error: {one_line(str(e))}", err=True)
             ctx.exit(1)
         except KeyboardInterrupt:
             click.echo("seatkit: interrupted; no partial output was kept", err=True)

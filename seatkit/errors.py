@@ -13,11 +13,22 @@ Messages name the offending file, field and value::
 
 from __future__ import annotations
 
-from seatkit.messages import format_path
+from seatkit.messages import MAX_MESSAGE, format_path, one_line
 
 
 class SeatkitError(Exception):
-    """Base class of every error seatkit reports to a user."""
+    """Base class of every error seatkit reports to a user.
+
+    A text message is put on one line of at most :data:`~seatkit.messages.MAX_MESSAGE`
+    characters when the error is made (:func:`seatkit.messages.one_line`
+    summarises a longer one, keeping its start and end), so that every
+    refusal prints as one bounded line wherever it is shown.
+    """
+
+    def __init__(self, *args):
+        if args and isinstance(args[0], str) and (len(args[0]) > MAX_MESSAGE or "\n" in args[0] or "\r" in args[0]):
+            args = (one_line(args[0]),) + args[1:]
+        super().__init__(*args)
 
 
 class RecipeError(SeatkitError):

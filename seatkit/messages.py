@@ -11,10 +11,12 @@ from __future__ import annotations
 
 from typing import Any, Iterable
 
-__all__ = ["MAX_QUOTE", "clip", "quote", "format_path"]
+__all__ = ["MAX_MESSAGE", "MAX_QUOTE", "clip", "quote", "format_path", "one_line"]
 
 #: Longest quotation of a user's value in a message, characters.
 MAX_QUOTE = 60
+#: Longest message seatkit prints for a user error, characters (docs/robustness.md).
+MAX_MESSAGE = 500
 
 
 def clip(text: str, limit: int = MAX_QUOTE) -> str:
@@ -23,6 +25,40 @@ def clip(text: str, limit: int = MAX_QUOTE) -> str:
     if len(text) <= limit:
         return text
     return f"{text[: max(limit - 20, 10)]}... ({len(text)} characters)"
+
+
+def _cut_at_word(text: str, limit: int, *, from_end: bool = False) -> str:
+    """At most ``limit`` characters of ``text`` from its start (or end), ending at a word boundary."""
+    if len(text) <= limit:
+        return text
+    if from_end:
+        part = text[len(text) - limit :]
+        space = part.find(" ")
+        return part[space + 1 :] if 0 <= space < limit // 2 else part
+    part = text[:limit]
+    space = part.rfind(" ")
+    return part[:space] if space > limit // 2 else part
+
+
+def one_line(text: str, limit: int = MAX_MESSAGE) -> str:
+    """A message on one line of at most ``limit`` characters, summarised if longer.
+
+    Line breaks become spaces. A longer message keeps its beginning (the file,
+    line and field) and its end (what was expected), cut at word boundaries,
+    and says how much was left out between them::
+
+        c.usda: faceVertexIndices: [0, 1, 2, ... (5,912 characters left out) ..., 3]: expected ...
+    """
+    text = " ".join(str(text).split())
+    if len(text) <= limit:
+        return text
+    # the marker's width is bounded by the digits of len(text); keep 2/3 for the head
+    marker_room = len(f" ... ({len(text):,} characters left out) ... ")
+    room = max(limit - marker_room, 20)
+    head = _cut_at_word(text, room * 2 // 3)
+    tail = _cut_at_word(text, room - len(head), from_end=True)
+    left_out = len(text) - len(head) - len(tail)
+    return f"{head} ... ({left_out:,} characters left out) ... {tail}"[:limit]
 
 
 def quote(value: Any, limit: int = MAX_QUOTE) -> str:

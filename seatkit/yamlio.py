@@ -31,6 +31,7 @@ from typing import Any, Iterable
 import yaml
 
 from seatkit.errors import RecipeError
+from seatkit.io import MAX_FILE_BYTES, read_user_file
 from seatkit.messages import clip, format_path, quote
 
 KeyPath = tuple  # of str and int
@@ -101,7 +102,7 @@ MAX_NODES = 50_000
 #: Schema errors looked at to report the first (in file order) and count the rest.
 MAX_SCHEMA_ERRORS = 100
 #: Largest YAML file read, bytes.
-MAX_BYTES = 16 * 1024 * 1024
+MAX_BYTES = MAX_FILE_BYTES["YAML"]
 #: Longest mapping key, characters (keys are names: segments, joints, options).
 MAX_KEY = 200
 def _line_of_offset(text: str | bytes, offset: int) -> int:
@@ -128,21 +129,12 @@ def read_text(path, what: str = "file", *, max_bytes: int = MAX_BYTES) -> str:
     Raises
     ------
     RecipeError
-        Missing or unreadable file, larger than ``max_bytes``, or not UTF-8.
+        Missing or unreadable file, not a regular file (a FIFO, a device),
+        larger than ``max_bytes``, or not UTF-8 (see
+        :func:`seatkit.io.read_user_file`).
     """
     path = Path(path)
-    try:
-        with path.open("rb") as fh:
-            data = fh.read(max_bytes + 1)
-    except FileNotFoundError:
-        raise RecipeError(f"{path}: file not found") from None
-    except IsADirectoryError:
-        raise RecipeError(f"{path}: is a folder, expected a {what}") from None
-    except OSError as e:
-        raise RecipeError(f"{path}: cannot read: {e.strerror or e}") from None
-    if len(data) > max_bytes:
-        raise RecipeError(f"{path}: larger than {max_bytes // (1024 * 1024)} MB; not a {what} seatkit reads")
-    return decode_text(data, str(path), what)
+    return decode_text(read_user_file(path, what, max_bytes=max_bytes, error=RecipeError), str(path), what)
 
 
 def _check_events(loader, source: str) -> None:
