@@ -213,11 +213,9 @@ def _float(token: str, path, line: int, what: str) -> float:
 
 def _read_lines(path: Path) -> list[str]:
     """The lines of a BVH file, with one-line errors for an unreadable or non-UTF-8 file."""
-    try:
-        data = path.read_bytes()
-    except OSError as e:
-        msg = f"{path}: cannot read BVH file: {e.strerror or e}"
-        raise InputError(msg) from e
+    from seatkit.io import MAX_FILE_BYTES, read_user_file
+
+    data = read_user_file(path, "BVH file", max_bytes=MAX_FILE_BYTES["BVH"])
     try:
         text = decode_text(data, str(path), "BVH file")
     except RecipeError as e:

@@ -86,9 +86,9 @@ def _load_document(path: Path):
     except ImportError as e:  # pygltflib is a core dependency; be clear if it is absent
         msg = f"{path}: reading glTF needs the package pygltflib ({e})"
         raise InputError(msg) from None
-    if not path.is_file():
-        msg = f"{path}: no such glTF/GLB file"
-        raise InputError(msg)
+    from seatkit.io import MAX_FILE_BYTES, check_user_file
+
+    check_user_file(path, "glTF/GLB file", max_bytes=MAX_FILE_BYTES["glTF"])
     try:
         gltf = pygltflib.GLTF2().load(str(path))
     except Exception as e:  # pygltflib raises many kinds on a bad file
@@ -154,10 +154,12 @@ def _buffers(gltf, path: Path) -> list[bytes]:
             if Path(name).is_absolute() or ".." in Path(name).parts or ":" in name or "\0" in name:
                 msg = f"{path}: buffers[{k}].uri {quote(uri)}: expected a file name beside the glTF file"
                 raise InputError(msg)
+            from seatkit.io import MAX_FILE_BYTES, read_user_file
+
             try:
-                data = (path.parent / name).read_bytes()
-            except (OSError, ValueError) as e:
-                msg = f"{path}: buffer {k}: cannot read {quote(uri)} ({getattr(e, 'strerror', None) or e})"
+                data = read_user_file(path.parent / name, "glTF buffer", max_bytes=MAX_FILE_BYTES["glTF"])
+            except InputError as e:
+                msg = f"{path}: buffer {k}: cannot read {quote(uri)} ({e})"
                 raise InputError(msg) from None
         blobs.append(bytes(data))
     return blobs

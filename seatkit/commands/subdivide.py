@@ -61,7 +61,10 @@ def register(app: typer.Typer) -> None:
             raise InputError(msg)
         if boundary is not None:
             c = Cage(c.vertices, c.faces, c.crease_edges, c.crease_sharpness, c.corners, c.corner_sharpness, boundary)
-        ops = build_operators(c, levels)
+        try:
+            ops = build_operators(c, levels)  # refuses a refinement past MAX_REFINED_FACES before any work
+        except InputError as e:
+            raise InputError(f"{cage}: {e}") from None
         P = c.vertices
         points = ops.limit @ P if limit else ops.refine @ P
         surface = Surface(vertices=points, normals=ops.limit_normals(P), faces=ops.faces, level=levels)

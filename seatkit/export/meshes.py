@@ -92,11 +92,11 @@ def read_obj_cage(path):
 
     path = Path(path)
     verts, faces, creases, sharp = [], [], [], []
+    from seatkit.io import MAX_FILE_BYTES, read_user_file
+
+    data = read_user_file(path, "OBJ cage", max_bytes=MAX_FILE_BYTES["OBJ"])
     try:
-        text = decode_text(path.read_bytes(), str(path), "OBJ file")
-    except OSError as exc:
-        msg = f"{path}: cannot read OBJ cage: {exc.strerror}"
-        raise InputError(msg) from exc
+        text = decode_text(data, str(path), "OBJ file")
     except RecipeError as exc:
         raise InputError(str(exc)) from None
     for lineno, raw in enumerate(text.splitlines(), start=1):

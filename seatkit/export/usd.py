@@ -181,6 +181,68 @@ def write_usd(
     return path
 
 
+#: Most faces, face-vertex indices, vertices and crease indices of a USD cage
+#: read (a cage of about a million faces, as for OBJ cages).
+MAX_USD_ELEMENTS = 10_000_000
+#: Most vertices of one face of a USD cage (an n-gon of a furniture cage has a few).
+MAX_FACE_SIZE = 64
+#: Accepted ``metersPerUnit`` of a stage (from micrometres to kilometres).
+METERS_PER_UNIT_RANGE = (1e-6, 1e3)
+
+
+def _usd_array(attr, path, prim, name: str, dtype, *, width: int | None = None) -> np.ndarray:
+    """An attribute's value as a checked numpy array: 1-D (or (n, width)), finite, at most MAX_USD_ELEMENTS rows."""
+    value = attr.Get() if attr else None
+    if value is None:
+        return np.zeros((0,) if width is None else (0, width), dtype)
+    try:
+        a = np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError, OverflowError) as e:
+        msg = f"{path}:{prim.GetPath()}: {name}: expected {'numbers' if width is None else f'{width}-vectors'} ({e})"
+        raise InputError(msg) from None
+    shape_ok = a.ndim == 1 if width is None else (a.ndim == 2 and a.shape[1] == width) or a.size == 0
+    if not shape_ok:
+        msg = f"{path}:{prim.GetPath()}: {name}: expected {'a list of numbers' if width is None else f'a list of {width}-vectors'}, got shape {a.shape}"
+        raise InputError(msg)
+    if len(a) > MAX_USD_ELEMENTS:
+        msg = f"{path}:{prim.GetPath()}: {name}: {len(a):,} values; seatkit reads cages of at most {MAX_USD_ELEMENTS:,}"
+        raise InputError(msg)
+    if a.dtype.kind == "f" and not np.isfinite(a).all():
+        msg = f"{path}:{prim.GetPath()}: {name}: expected finite numbers, got NaN or infinity"
+        raise InputError(msg)
+    return a.reshape(-1) if width is None else a.reshape(-1, width)
+
+
+def _usd_creases(path, prim, c_idx, c_len, c_sharp, n: int):
+    """Crease edges (c, 2) and sharpness (c,) of USD's chains, checked and vectorised."""
+    where = f"{path}:{prim.GetPath()}"
+    if len(c_len) == 0 and len(c_idx) == 0:
+        return np.zeros((0, 2), np.int64), np.zeros(0)
+    if (c_len < 2).any() or int(c_len.sum()) != len(c_idx):
+        msg = (
+            f"{where}: creaseLengths: expected chains of at least 2 vertices summing to the "
+            f"{len(c_idx)} creaseIndices, got lengths summing to {int(c_len.sum()) if (c_len >= 0).all() else 'a negative total'}"
+        )
+        raise InputError(msg)
+    if ((c_idx < 0) | (c_idx >= n)).any():
+        msg = f"{where}: creaseIndices: expected vertex indices from 0 to {n - 1}"
+        raise InputError(msg)
+    n_edges = int((c_len - 1).sum())
+    if len(c_sharp) == len(c_len):
+        per_edge = False
+    elif len(c_sharp) == n_edges:
+        per_edge = True
+    else:
+        msg = f"{where}: creaseSharpnesses: expected {len(c_len)} (one per crease) or {n_edges} (one per edge) values, got {len(c_sharp)}"
+        raise InputError(msg)
+    # every index but the last of each chain starts an edge to the next one
+    last = np.cumsum(c_len) - 1
+    starts = np.setdiff1d(np.arange(len(c_idx)), last)
+    edges = np.stack([c_idx[starts], c_idx[starts + 1]], axis=1)
+    sharp = c_sharp if per_edge else np.repeat(c_sharp, c_len - 1)
+    return edges, np.asarray(sharp, dtype=np.float64)
+
+
 def read_usd_cage(path, *, prim_path: str | None = None):
     """Read a Catmull-Clark cage (creases, corners, boundary mode) from a USD file.
 
@@ -196,15 +258,47 @@ def read_usd_cage(path, *, prim_path: str | None = None):
     seatkit.subdivision.Cage
         Points in world space (the prim's transforms applied), metres if the
         stage says ``metersPerUnit``.
+
+    Raises
+    ------
+    InputError
+        One line naming the file (and prim and attribute): not a regular file
+        or larger than ``MAX_FILE_BYTES["USD"]``, a layer usd-core cannot
+        parse, a layer that composes other files (sublayers, references,
+        payloads: seatkit reads self-contained cages), counts, indices,
+        creases or corners that do not fit the points, non-finite values.
     """
+    from seatkit.export.meshes import MAX_CAGE_COORDINATE
+    from seatkit.io import MAX_FILE_BYTES, check_user_file
     from seatkit.subdivision import Cage
 
     Gf, Sdf, Usd, UsdGeom, Vt = _pxr()
     path = Path(path)
-    if not path.exists():
-        msg = f"{path}: no such USD file"
+    check_user_file(path, "USD file", max_bytes=MAX_FILE_BYTES["USD"])
+    try:
+        # an anonymous copy of the file: not cached in the layer registry,
+        # and its composition arcs are looked at before any other file is opened
+        layer = Sdf.Layer.OpenAsAnonymous(str(path))
+    except RuntimeError as e:  # pxr.Tf.ErrorException
+        msg = f"{path}: usd-core cannot read this file: {' '.join(str(e).split())}"
+        raise InputError(msg) from None
+    if layer is None:
+        msg = f"{path}: usd-core cannot open this file"
         raise InputError(msg)
-    stage = Usd.Stage.Open(str(path))
+    if layer.GetCompositionAssetDependencies():
+        deps = sorted(layer.GetCompositionAssetDependencies())
+        msg = f"{path}: refers to other files ({', '.join(map(str, deps[:3]))}); seatkit reads self-contained USD cages"
+        raise InputError(msg)
+    try:
+        stage = Usd.Stage.Open(layer, Usd.Stage.LoadNone)
+        return _read_stage_cage(stage, path, prim_path, Cage, UsdGeom, MAX_CAGE_COORDINATE)
+    except RuntimeError as e:  # pxr.Tf.ErrorException from an attribute of the wrong type
+        msg = f"{path}: usd-core cannot read this cage: {' '.join(str(e).split())}"
+        raise InputError(msg) from None
+
+
+def _read_stage_cage(stage, path: Path, prim_path, Cage, UsdGeom, max_coordinate: float):
+    """:func:`read_usd_cage` on an open stage."""
     if stage is None:
         msg = f"{path}: usd-core cannot open this file"
         raise InputError(msg)
@@ -222,50 +316,64 @@ def read_usd_cage(path, *, prim_path: str | None = None):
         cand = [p for p in meshes if str(p.GetPath()) == CAGE_PRIM]
         cand += [p for p in meshes if UsdGeom.Mesh(p).GetSubdivisionSchemeAttr().Get() == UsdGeom.Tokens.catmullClark]
         prim = (cand or meshes)[0]
+    where = f"{path}:{prim.GetPath()}"
     mesh = UsdGeom.Mesh(prim)
-    pts = np.asarray(mesh.GetPointsAttr().Get(), dtype=np.float64)
+    pts = _usd_array(mesh.GetPointsAttr(), path, prim, "points", np.float64, width=3)
     xf = np.asarray(UsdGeom.XformCache().GetLocalToWorldTransform(prim), dtype=np.float64)
-    pts = pts @ xf[:3, :3] + xf[3, :3]
-    pts *= UsdGeom.GetStageMetersPerUnit(stage)
-    counts = np.asarray(mesh.GetFaceVertexCountsAttr().Get(), dtype=np.int64)
-    idx = np.asarray(mesh.GetFaceVertexIndicesAttr().Get(), dtype=np.int64)
+    meters = float(UsdGeom.GetStageMetersPerUnit(stage))
+    lo, hi = METERS_PER_UNIT_RANGE
+    if not lo <= meters <= hi:  # NaN fails too
+        msg = f"{path}: metersPerUnit: expected {lo:g} to {hi:g}, got {meters:g}"
+        raise InputError(msg)
+    with np.errstate(all="ignore"):
+        pts = (pts @ xf[:3, :3] + xf[3, :3]) * meters
+    if not (np.isfinite(pts).all() and (np.abs(pts) <= max_coordinate).all()):
+        msg = (
+            f"{where}: points: coordinates in metres (after the prim's transforms and metersPerUnit) must be "
+            f"finite and within +-{max_coordinate:g}"
+        )
+        raise InputError(msg)
+    counts = _usd_array(mesh.GetFaceVertexCountsAttr(), path, prim, "faceVertexCounts", np.int64)
+    idx = _usd_array(mesh.GetFaceVertexIndicesAttr(), path, prim, "faceVertexIndices", np.int64)
+    if len(counts) == 0:
+        msg = f"{where}: faceVertexCounts: the mesh has no faces"
+        raise InputError(msg)
+    if ((counts < 3) | (counts > MAX_FACE_SIZE)).any():
+        k = int(np.flatnonzero((counts < 3) | (counts > MAX_FACE_SIZE))[0])
+        msg = f"{where}: faceVertexCounts[{k}]: expected a face of 3 to {MAX_FACE_SIZE} vertices, got {counts[k]}"
+        raise InputError(msg)
     if counts.sum() != len(idx):
-        msg = f"{path}:{prim.GetPath()}: faceVertexCounts sum to {counts.sum()} but there are {len(idx)} indices"
+        msg = f"{where}: faceVertexCounts sum to {counts.sum()} but there are {len(idx)} indices"
+        raise InputError(msg)
+    if ((idx < 0) | (idx >= len(pts))).any():
+        msg = f"{where}: faceVertexIndices: expected vertex indices from 0 to {len(pts) - 1}"
         raise InputError(msg)
     polys = np.split(idx, np.cumsum(counts)[:-1])
     if mesh.GetOrientationAttr().Get() == UsdGeom.Tokens.leftHanded:
         polys = [p[::-1] for p in polys]
 
-    edges, sharp = [], []
-    c_idx = mesh.GetCreaseIndicesAttr().Get()
-    if c_idx:
-        c_idx = np.asarray(c_idx, dtype=np.int64)
-        c_len = np.asarray(mesh.GetCreaseLengthsAttr().Get(), dtype=np.int64)
-        c_sharp = np.asarray(mesh.GetCreaseSharpnessesAttr().Get(), dtype=np.float64)
-        per_edge = len(c_sharp) == int((c_len - 1).sum()) and len(c_sharp) != len(c_len)
-        start = 0
-        k = 0
-        for i, n in enumerate(c_len.tolist()):
-            chain = c_idx[start : start + n]
-            for j in range(n - 1):
-                edges.append(chain[j : j + 2])
-                sharp.append(c_sharp[k] if per_edge else c_sharp[i])
-                k += 1
-            start += n
-    corners = mesh.GetCornerIndicesAttr().Get()
-    corner_s = mesh.GetCornerSharpnessesAttr().Get()
+    edges, sharp = _usd_creases(
+        path,
+        prim,
+        _usd_array(mesh.GetCreaseIndicesAttr(), path, prim, "creaseIndices", np.int64),
+        _usd_array(mesh.GetCreaseLengthsAttr(), path, prim, "creaseLengths", np.int64),
+        _usd_array(mesh.GetCreaseSharpnessesAttr(), path, prim, "creaseSharpnesses", np.float64),
+        len(pts),
+    )
+    corners = _usd_array(mesh.GetCornerIndicesAttr(), path, prim, "cornerIndices", np.int64)
+    corner_s = _usd_array(mesh.GetCornerSharpnessesAttr(), path, prim, "cornerSharpnesses", np.float64)
     ib = mesh.GetInterpolateBoundaryAttr().Get()
     boundary = "edge-only" if ib in ("edgeOnly", "none") else "edge-and-corner"
     try:
         return Cage(
             pts,
             polys,
-            crease_edges=np.array(edges, dtype=np.int64).reshape(-1, 2),
-            crease_sharpness=np.array(sharp, dtype=np.float64),
-            corners=np.asarray(corners if corners else [], dtype=np.int64),
-            corner_sharpness=np.asarray(corner_s if corner_s else [], dtype=np.float64),
+            crease_edges=edges,
+            crease_sharpness=sharp,
+            corners=corners,
+            corner_sharpness=corner_s,
             boundary=boundary,
         )
     except InputError as exc:
-        msg = f"{path}:{prim.GetPath()}: {exc}"
+        msg = f"{where}: {exc}"
         raise InputError(msg) from exc

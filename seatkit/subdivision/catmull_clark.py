@@ -326,6 +326,19 @@ class SubdivisionOperators:
 _OPS_CACHE = LRUCache(maxsize=64)
 
 
+#: Most quads a refinement may make: the operators take about 2.3 kB per
+#: refined quad (a 10,000-quad cage at level 3 makes 640,000 quads and peaks
+#: at 1.5 GB), so this caps one refinement near 2.5 GB.
+MAX_REFINED_FACES = 1_000_000
+
+
+def refined_face_count(cage: Cage, level: int) -> int:
+    """Quads of ``cage`` refined ``level`` times: each n-gon gives n quads, then every quad 4."""
+    if level <= 0:
+        return int(cage.n_faces)
+    return int(cage.face_sizes.sum()) * 4 ** (int(level) - 1)
+
+
 def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
     """Catmull-Clark refinement and limit operators of ``cage`` at ``level``.
 
@@ -347,6 +360,13 @@ def build_operators(cage: Cage, level: int = 3) -> SubdivisionOperators:
         msg = f"subdivision level must be a non-negative integer, got {level!r}"
         raise InputError(msg)
     level = int(level)
+    quads = refined_face_count(cage, level)
+    if quads > MAX_REFINED_FACES:
+        msg = (
+            f"a cage of {cage.n_faces:,} faces refined {level} times makes {quads:,} quads; seatkit refines to at "
+            f"most {MAX_REFINED_FACES:,} (about 2.5 GB): use fewer levels or a coarser cage"
+        )
+        raise InputError(msg)
     if level == 0 and not np.all(cage.face_sizes == 4):
         msg = "subdivision level 0 needs an all-quad cage; use level >= 1"
         raise InputError(msg)
