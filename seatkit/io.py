@@ -76,7 +76,7 @@ def _check_stat(path: Path, st: os.stat_result, what: str, max_bytes: int, error
 
 def _os_error(path: Path, e: OSError, what: str, error):
     if isinstance(e, FileNotFoundError):
-        return error(f"{path}: file not found; expected a {what}")
+        return error(f"{path}: file not found (no such {what})")
     if isinstance(e, IsADirectoryError):
         return error(f"{path}: is a folder, expected a {what}")
     return error(f"{path}: cannot read the {what}: {clip(e.strerror or e, 120)}")
