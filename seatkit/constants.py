@@ -17,6 +17,12 @@ DEFAULT_BODY_MASS = 75.0
 #: units (forces in N, areas in m^2, moments in N m).
 DEFAULT_LAMBDA = 0.013
 
+#: A body's largest extent must lie in this range, m, whatever its source
+#: (a preset, a .npz rig, glTF, a plugin's model): smaller is a toy or the
+#: wrong unit (millimetres read as metres give kilometres), larger is a
+#: mistake (a building, a scaled node, garbage).
+BODY_SIZE_RANGE = (0.3, 3.0)
+
 #: Coulomb friction coefficient between body and support, dimensionless.
 DEFAULT_MU = 0.5
 

@@ -195,7 +195,7 @@ def load_npz(path, what: str, *, max_bytes: int = MAX_FILE_BYTES["npz"], error=I
             MemoryError) as e:
         # what zipfile and numpy's header parser raise for damaged data (a bad
         # header is a SyntaxError or ValueError of ast.literal_eval)
-        msg = f"{path}: not a readable {what} (.npz): {clip(f'{type(e).__name__}: {e}', 160)}"
+        msg = f"{path}: not a seatkit {what} ({clip(f'{type(e).__name__}: {e}', 160)})"
         raise error(msg) from None
     return arrays
 

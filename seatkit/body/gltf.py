@@ -46,7 +46,7 @@ import numpy as np
 from seatkit.body.name_maps import candidate_maps, choose_map, load_name_map
 from seatkit.body.retarget import CHAIN_CHILD, check_axes, facing_rotation
 from seatkit.body.rig import make_rig
-from seatkit.constants import DEFAULT_BODY_MASS
+from seatkit.constants import BODY_SIZE_RANGE, DEFAULT_BODY_MASS
 from seatkit.errors import InputError
 from seatkit.model import RiggedBody
 from seatkit.skeleton import N_SEGMENTS, PARENTS, SEGMENT_INDEX, SEGMENTS
@@ -67,8 +67,7 @@ _TRIANGLES = 4
 #: A body's largest extent must lie in this range, m: a glTF of a person is in
 #: metres, so anything smaller is a toy or the wrong unit and anything larger
 #: is a mistake (a building, a scaled node, garbage read through a bad stride).
-MIN_BODY_SIZE = 0.3
-MAX_BODY_SIZE = 3.0
+MIN_BODY_SIZE, MAX_BODY_SIZE = BODY_SIZE_RANGE
 #: Most nodes, accessor elements and bytes of a body file seatkit reads.
 MAX_NODES = 100_000
 MAX_COUNT = 50_000_000

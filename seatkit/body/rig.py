@@ -27,14 +27,16 @@ in those axes (see :mod:`seatkit.body.skinning`).
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
 from seatkit.body.anthropometry import com_ratios, segment_masses
-from seatkit.constants import DEFAULT_BODY_MASS
+from seatkit.constants import BODY_SIZE_RANGE, DEFAULT_BODY_MASS
 from seatkit.errors import InputError
+from seatkit.messages import quote
 from seatkit.model import RiggedBody
 from seatkit.resources import data_path
 from seatkit.skeleton import N_SEGMENTS
@@ -99,6 +101,9 @@ def make_rig(
         weights, rows of weights that do not sum to 1, a segment owning no
         vertex.
     """
+    if not (isinstance(mass, (int, float, np.number)) and math.isfinite(mass) and mass > 0):
+        msg = f"{source}: mass: expected a positive number of kg, got {quote(mass)}"
+        raise InputError(msg)
     vertices = np.asarray(vertices, dtype=np.float64)
     if vertices.ndim != 2 or vertices.shape[1] != 3 or len(vertices) == 0:
         msg = f"{source}: vertices must be (n, 3), got {vertices.shape}"
@@ -107,6 +112,11 @@ def make_rig(
     if not np.isfinite(vertices).all():
         bad = np.flatnonzero(~np.isfinite(vertices).all(axis=1))
         msg = f"{source}: {bad.size} vertices are NaN or infinite (first: vertex {bad[0]})"
+        raise InputError(msg)
+    size = float(np.ptp(vertices, axis=0).max())
+    lo, hi = BODY_SIZE_RANGE
+    if not lo <= size <= hi:
+        msg = f"{source}: the body is {size:.3g} m across; expected a person from {lo:g} to {hi:g} m (vertices are in metres)"
         raise InputError(msg)
     faces_in = np.asarray(faces)
     if faces_in.ndim != 2 or faces_in.shape[1] != 3 or not np.issubdtype(faces_in.dtype, np.integer):
@@ -143,6 +153,15 @@ def make_rig(
         if arr.shape != (N_SEGMENTS, 3) or not np.isfinite(arr).all():
             msg = f"{source}: {key} must be finite ({N_SEGMENTS}, 3), got {arr.shape}"
             raise InputError(msg)
+        # joints lie in the body, tips on it: within its box grown by a quarter of its size
+        box_lo, box_hi = vertices.min(axis=0) - size / 4, vertices.max(axis=0) + size / 4
+        outside = ~((arr >= box_lo) & (arr <= box_hi)).all(axis=1)
+        if outside.any():
+            from seatkit.skeleton import SEGMENTS
+
+            k = int(np.flatnonzero(outside)[0])
+            msg = f"{source}: {key}[{k}] ({SEGMENTS[k]}) at {np.round(arr[k], 3).tolist()} m lies outside the body"
+            raise InputError(msg)
         arrays[key] = arr
     regions = {}
     for region, idx in (region_labels or {}).items():
@@ -166,6 +185,40 @@ def make_rig(
     )
 
 
+#: Longest ``meta`` text of a rig file, characters, and its deepest nesting.
+MAX_META_CHARS = 100_000
+MAX_META_DEPTH = 16
+
+
+def _depth(text: str) -> int:
+    """Deepest bracket nesting of JSON text (strings not excluded: an upper bound)."""
+    opens = np.frombuffer(text.encode("utf-8", "replace"), dtype=np.uint8)
+    step = np.where((opens == ord("[")) | (opens == ord("{")), 1, 0) - np.where((opens == ord("]")) | (opens == ord("}")), 1, 0)
+    return int(np.cumsum(step).max(initial=0))
+
+
+def _rig_meta(value: np.ndarray, path: Path) -> dict:
+    """The ``meta`` array of a rig file: one JSON text of a mapping, bounded."""
+    if value.dtype.kind not in "US" or value.shape != ():
+        msg = f"{path}: meta: expected one JSON text, got an array of {value.dtype} of shape {value.shape}"
+        raise InputError(msg)
+    text = value.item()
+    if isinstance(text, bytes):
+        text = text.decode("utf-8", "replace")
+    if len(text) > MAX_META_CHARS or _depth(text) > MAX_META_DEPTH:
+        msg = f"{path}: meta: expected a small JSON mapping (at most {MAX_META_CHARS:,} characters, {MAX_META_DEPTH} levels deep)"
+        raise InputError(msg)
+    try:
+        meta = json.loads(text)
+    except (json.JSONDecodeError, RecursionError, ValueError) as e:
+        msg = f"{path}: meta is not JSON ({e})"
+        raise InputError(msg) from None
+    if not isinstance(meta, dict):
+        msg = f"{path}: meta: expected a JSON mapping, got {type(meta).__name__}"
+        raise InputError(msg)
+    return meta
+
+
 def load_rig_file(path, *, mass: float = DEFAULT_BODY_MASS, name: str | None = None) -> RiggedBody:
     """Load a seatkit ``.npz`` rig file.
 
@@ -186,31 +239,26 @@ def load_rig_file(path, *, mass: float = DEFAULT_BODY_MASS, name: str | None = N
     InputError
         Unreadable file, missing keys, invalid arrays (see :func:`make_rig`).
     """
+    from seatkit.io import load_npz
+
     path = Path(path)
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            contents = {key: data[key] for key in data.files}
-    except FileNotFoundError:
-        msg = f"{path}: no such body file"
-        raise InputError(msg) from None
-    except (OSError, ValueError) as e:
-        msg = f"{path}: not a seatkit .npz rig file ({e})"
-        raise InputError(msg) from None
+    contents = load_npz(path, "body file")  # a regular file, capped, plain arrays only
     missing = [k for k in ("vertices", "faces", "weights", "joints", "tips") if k not in contents]
     if missing:
         msg = f"{path}: missing arrays {', '.join(missing)} (a seatkit rig needs vertices, faces, weights, joints, tips)"
         raise InputError(msg)
+    for key, value in contents.items():
+        kinds = "iu" if key == "faces" or key.startswith("region_") else ("US" if key == "meta" else "biuf")
+        if value.dtype.kind not in kinds:
+            msg = f"{path}: {quote(key)}: expected {'integers' if kinds == 'iu' else 'numbers'}, got an array of {value.dtype}"
+            raise InputError(msg)
     meta: dict = {}
     if "meta" in contents:
-        try:
-            meta = json.loads(str(contents["meta"]))
-        except json.JSONDecodeError as e:
-            msg = f"{path}: meta is not JSON ({e})"
-            raise InputError(msg) from None
+        meta = _rig_meta(contents["meta"], path)
     regions = {key[len("region_"):]: contents[key] for key in contents if key.startswith("region_")}
     sex = meta.get("sex", "male")
     if sex not in ("male", "female"):
-        msg = f"{path}: meta.sex must be 'male' or 'female', got {sex!r}"
+        msg = f"{path}: meta.sex must be 'male' or 'female', got {quote(sex)}"
         raise InputError(msg)
     return make_rig(
         contents["vertices"],
