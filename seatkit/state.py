@@ -16,7 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from seatkit.errors import InputError
+from seatkit.errors import InputError, SeatkitError
+from seatkit.messages import clip, quote
 from seatkit.io import jsonable, write_bytes_atomic
 from seatkit.model import Body, BuildResult, ControlMesh
 
@@ -70,6 +71,117 @@ def without_timings(value):
     return value
 
 
+#: Most people a design holds (a template seats at most 64).
+MAX_DESIGN_BODIES = 64
+#: Largest JSON header of a design, bytes.
+MAX_HEADER_BYTES = 16 * 1024 * 1024
+
+
+def _header(arrays: dict, path: Path) -> dict:
+    """The JSON header of a design, its shape checked."""
+    raw = arrays.get("header")
+    if raw is None or raw.dtype != np.uint8 or raw.ndim != 1 or raw.size > MAX_HEADER_BYTES:
+        raise InputError(f"{path}: not a seatkit design file (no header: expected a 1-D uint8 array of JSON)")
+    try:
+        header = json.loads(raw.tobytes().decode("utf-8"))
+    except (UnicodeDecodeError, ValueError, RecursionError) as e:
+        raise InputError(f"{path}: header: not JSON text ({e})") from None
+    if not isinstance(header, dict):
+        raise InputError(f"{path}: header: expected a JSON mapping, got {type(header).__name__}")
+    if header.get("format") != FORMAT_VERSION:
+        raise InputError(f"{path}: design format {quote(header.get('format'))}, this seatkit reads {FORMAT_VERSION}")
+    bodies, meshes = header.get("bodies"), header.get("meshes")
+    if not isinstance(bodies, list) or not 1 <= len(bodies) <= MAX_DESIGN_BODIES or not all(
+        isinstance(b, dict) and isinstance(b.get("name"), str) and isinstance(b.get("regions"), list)
+        and all(isinstance(r, str) for r in b["regions"]) for b in bodies
+    ):
+        msg = f"{path}: header.bodies: expected 1 to {MAX_DESIGN_BODIES} mappings with a name and a list of regions"
+        raise InputError(msg)
+    if not isinstance(meshes, dict) or "final" not in meshes or not set(meshes) <= {"final", "initial"} or not all(
+        isinstance(m, dict) and isinstance(m.get("face_labels"), list) and isinstance(m.get("meta"), dict)
+        and all(isinstance(t, str) for t in m["face_labels"]) for m in meshes.values()
+    ):
+        msg = f"{path}: header.meshes: expected 'final' (and 'initial') mappings with face_labels and meta"
+        raise InputError(msg)
+    if not isinstance(header.get("recipe"), dict):
+        raise InputError(f"{path}: header.recipe: expected a mapping")
+    return header
+
+
+def _array(arrays: dict, key: str, path: Path, kinds: str, shape: tuple) -> np.ndarray:
+    """``arrays[key]`` of one of the dtype ``kinds`` and ``shape`` (None: any length)."""
+    a = arrays.get(key)
+    if a is None:
+        raise InputError(f"{path}: missing array {quote(key)}")
+    ok = a.dtype.kind in kinds and a.ndim == len(shape) and all(w is None or w == n for w, n in zip(shape, a.shape))
+    if not ok:
+        want = "x".join("n" if w is None else str(w) for w in shape) or "a scalar"
+        raise InputError(f"{path}: {key}: expected a ({want}) array of {'integers' if kinds == 'iu' else 'numbers'}, got {a.dtype} {a.shape}")
+    if a.dtype.kind == "f" and key.rsplit("_", 1)[-1] not in ("points", "normals") and not np.isfinite(a).all():
+        raise InputError(f"{path}: {key}: expected finite numbers")
+    return a
+
+
+def _design_body(arrays: dict, i: int, info: dict, path: Path) -> Body:
+    from seatkit.body.rig import check_body_arrays
+    from seatkit.skeleton import N_SEGMENTS
+
+    key = f"body{i}_"
+    vertices, faces, weights, joints, tips = check_body_arrays(
+        *(_array(arrays, key + k, path, "iu" if k == "faces" else "biuf", s)
+          for k, s in (("vertices", (None, 3)), ("faces", (None, 3)), ("weights", (None, N_SEGMENTS)), ("joints", (N_SEGMENTS, 3)), ("tips", (N_SEGMENTS, 3)))),
+        source=f"{path}: body {i}",
+    )
+    mass = _array(arrays, key + "segment_mass", path, "biuf", (N_SEGMENTS,)).astype(np.float64)
+    if (mass < 0).any() or not 1.0 <= mass.sum() <= 1000.0:
+        raise InputError(f"{path}: {key}segment_mass: expected non-negative segment masses summing to 1 to 1000 kg")
+    com = _array(arrays, key + "segment_com", path, "biuf", (N_SEGMENTS, 3)).astype(np.float64)
+    size = float(np.ptp(vertices, axis=0).max())
+    if not ((com >= vertices.min(axis=0) - size / 4) & (com <= vertices.max(axis=0) + size / 4)).all():
+        raise InputError(f"{path}: {key}segment_com: centres of mass outside the body")
+    regions = {}
+    for name in info["regions"]:
+        idx = _array(arrays, f"{key}region_{name}", path, "iu", (None,)).astype(np.int64)
+        if idx.size and (idx.min() < 0 or idx.max() >= len(vertices)):
+            raise InputError(f"{path}: {key}region_{clip(name)}: vertex indices outside 0..{len(vertices) - 1}")
+        regions[name] = idx
+    return Body(vertices, faces, weights, joints, tips, mass, com, name=info["name"], region_labels=regions)
+
+
+def _design_mesh(arrays: dict, role: str, info: dict, path: Path, n_people: int) -> ControlMesh:
+    from seatkit.export.meshes import MAX_CAGE_COORDINATE
+    from seatkit.skeleton import N_SEGMENTS
+    from seatkit.subdivision import Cage
+
+    vertices = _array(arrays, f"{role}_vertices", path, "biuf", (None, 3)).astype(np.float64)
+    nv = len(vertices)
+    faces = _array(arrays, f"{role}_faces", path, "iu", (None, 4)).astype(np.int64)
+    nf = len(faces)
+    if nf == 0 or (np.abs(vertices) > MAX_CAGE_COORDINATE).any():
+        raise InputError(f"{path}: {role}_vertices: expected a cage with faces, within +-{MAX_CAGE_COORDINATE:g} m")
+    shapes = {
+        "face_segments": ("iu", (nf,)), "face_person": ("iu", (nf,)), "plane_points": ("f", (nf, 3)),
+        "plane_normals": ("f", (nf, 3)), "vertex_weights": ("biuf", (nv,)), "fixed": ("b", (nv,)),
+        "ground": ("b", (nv,)), "crease_edges": ("iu", (None, 2)), "crease_sharpness": ("biuf", (None,)),
+        "corners": ("iu", (None,)), "corner_sharpness": ("biuf", (None,)),
+    }
+    kw = {k: _array(arrays, f"{role}_{k}", path, kinds, shape) for k, (kinds, shape) in shapes.items()}
+    if ((kw["face_segments"] < -1) | (kw["face_segments"] >= N_SEGMENTS)).any():
+        raise InputError(f"{path}: {role}_face_segments: expected segment numbers from -1 to {N_SEGMENTS - 1}")
+    if ((kw["face_person"] < -1) | (kw["face_person"] >= n_people)).any():
+        raise InputError(f"{path}: {role}_face_person: expected person numbers from -1 to {n_people - 1}")
+    if (kw["vertex_weights"] < 0).any():
+        raise InputError(f"{path}: {role}_vertex_weights: expected non-negative weights")
+    if len(info["face_labels"]) not in (0, nf):
+        raise InputError(f"{path}: header.meshes.{role}.face_labels: expected {nf} labels, got {len(info['face_labels'])}")
+    mesh = ControlMesh(vertices, faces, **kw, face_labels=tuple(info["face_labels"]), meta=info["meta"])
+    try:
+        Cage.from_control_mesh(mesh)  # the topology, creases and corners, as evaluate will refine them
+    except InputError as e:
+        raise InputError(f"{path}: {role} cage: {e}") from None
+    return mesh
+
+
 def load_design(path) -> tuple[dict, list[Body], ControlMesh, ControlMesh | None]:
     """Read ``design.npz``.
 
@@ -85,36 +197,42 @@ def load_design(path) -> tuple[dict, list[Body], ControlMesh, ControlMesh | None
     Raises
     ------
     InputError
-        When the file is missing or not a seatkit design.
+        When the file is missing or not a seatkit design: every array is
+        checked (shapes, types, finite values, indices in range, bodies of
+        0.3 to 3 m with their joints in them, cages Catmull-Clark can
+        refine) and the recipe against the recipe schema, before any work.
     """
+    from seatkit.io import load_npz
+    from seatkit.recipe import RECIPE_SCHEMA
+    from seatkit.yamlio import Document, validate
+
     path = Path(path)
-    try:
-        data = np.load(path, allow_pickle=False)
-        header = json.loads(bytes(data["header"]).decode("utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file; is this a seatkit build folder?") from None
-    except (OSError, ValueError, KeyError) as e:
-        raise InputError(f"{path}: not a seatkit design file ({e})") from None
-    if header.get("format") != FORMAT_VERSION:
-        raise InputError(f"{path}: design format {header.get('format')!r}, this seatkit reads {FORMAT_VERSION}")
-    bodies = []
-    for i, info in enumerate(header["bodies"]):
-        kw = {k: data[f"body{i}_{k}"] for k in _BODY_ARRAYS}
-        regions = {name: data[f"body{i}_region_{name}"] for name in info["regions"]}
-        bodies.append(Body(**kw, name=info["name"], region_labels=regions))
-
-    def mesh(role):
-        if role not in header["meshes"]:
-            return None
-        kw = {k: data[f"{role}_{k}"] for k in _MESH_ARRAYS}
-        m = header["meshes"][role]
-        return ControlMesh(**kw, face_labels=tuple(m["face_labels"]), meta=m["meta"])
-
+    if not path.exists():
+        raise InputError(f"{path}: no such file; is this a seatkit build folder?")
+    arrays = load_npz(path, "design file")
+    header = _header(arrays, path)
     recipe = header["recipe"]
-    lam = recipe.get("pressure", {}).get("lambda")
-    if isinstance(lam, str):
-        recipe["pressure"]["lambda"] = float(lam)
-    return recipe, bodies, mesh("final"), mesh("initial")
+    pressure = recipe.get("pressure")
+    if isinstance(pressure, dict) and isinstance(pressure.get("lambda"), str):
+        try:
+            pressure["lambda"] = float(pressure["lambda"])  # JSON has no inf: written as "inf"
+        except ValueError:
+            raise InputError(f"{path}: header.recipe.pressure.lambda: expected a number, got {quote(pressure['lambda'])}") from None
+    try:
+        validate(Document(recipe, f"{path}: header.recipe"), RECIPE_SCHEMA)
+    except SeatkitError as e:
+        raise InputError(str(e)) from None
+    level = recipe.get("surface_level", 3)
+    bodies = [_design_body(arrays, i, info, path) for i, info in enumerate(header["bodies"])]
+    meshes = {
+        role: _design_mesh(arrays, role, info, path, len(bodies)) for role, info in header["meshes"].items()
+    }
+    from seatkit.subdivision.catmull_clark import MAX_REFINED_FACES
+
+    quads = 4 * len(meshes["final"].faces) * 4 ** (level - 1)  # evaluate refines the final quad cage this far
+    if quads > MAX_REFINED_FACES:
+        raise InputError(f"{path}: header.recipe.surface_level: {level} refines the cage past {MAX_REFINED_FACES:,} quads")
+    return recipe, bodies, meshes["final"], meshes.get("initial")
 
 
 class DesignExporter:

@@ -84,14 +84,15 @@ def test_design_file_round_trips(tmp_path):
     from seatkit.state import load_design, save_design
 
     rng = np.random.default_rng(1)
+    vertices = rng.normal(size=(10, 3)) * 0.4  # about 1.3 m across: load_design refuses what is not a person's size
     body = Body(
-        vertices=rng.normal(size=(10, 3)),
+        vertices=vertices,
         faces=np.array([[0, 1, 2], [2, 3, 4]]),
         weights=np.full((10, 21), 1 / 21),
-        joints=rng.normal(size=(21, 3)),
-        tips=rng.normal(size=(21, 3)),
+        joints=vertices[rng.integers(0, 10, 21)],
+        tips=vertices[rng.integers(0, 10, 21)],
         segment_mass=np.full(21, 75 / 21),
-        segment_com=rng.normal(size=(21, 3)),
+        segment_com=vertices[rng.integers(0, 10, 21)],
         name="b",
         region_labels={"face": np.array([1, 2])},
     )

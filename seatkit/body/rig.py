@@ -55,55 +55,15 @@ def default_body_path(name: str) -> Path:
     return data_path("bodies", f"{name}.npz")
 
 
-def make_rig(
-    vertices,
-    faces,
-    weights,
-    joints,
-    tips,
-    *,
-    mass: float = DEFAULT_BODY_MASS,
-    sex: str = "male",
-    name: str = "",
-    region_labels: Mapping[str, Any] | None = None,
-    meta: Mapping[str, Any] | None = None,
-    source: str = "body",
-) -> RiggedBody:
-    """Validate arrays and make a :class:`RiggedBody` with Plagenhoef masses.
+def check_body_arrays(vertices, faces, weights, joints, tips, *, source: str = "body"):
+    """Validated body arrays: what :func:`make_rig` and ``design.npz`` bodies must satisfy.
 
-    Parameters
-    ----------
-    vertices : (n, 3) array_like
-        Rest vertices, m.
-    faces : (m, 3) array_like of int
-    weights : (n, 21) array_like
-        Non-negative; each row is normalised to sum to 1 (a row must already
-        sum to 1 within 1e-3, or to a positive number if it is float32 data).
-    joints, tips : (21, 3) array_like
-    mass : float
-        Total body mass, kg.
-    sex : {"male", "female"}
-        Column of the Plagenhoef et al. (1983) table.
-    name : str
-    region_labels : mapping of str to (k,) int, optional
-    meta : mapping, optional
-    source : str
-        Where the arrays came from (a file name), for error messages.
-
-    Returns
-    -------
-    RiggedBody
-
-    Raises
-    ------
-    InputError
-        Wrong shapes, NaN or infinite values, faces out of range, negative
-        weights, rows of weights that do not sum to 1, a segment owning no
-        vertex.
+    Returns ``(vertices, faces, weights, joints, tips)`` as float64 / int64
+    arrays, the weights normalised. Raises :class:`InputError` naming
+    ``source`` for wrong shapes, NaN or infinities, faces out of range, bad
+    weights, a segment owning no vertex, a body not 0.3 to 3 m across, joints
+    or tips outside it.
     """
-    if not (isinstance(mass, (int, float, np.number)) and math.isfinite(mass) and mass > 0):
-        msg = f"{source}: mass: expected a positive number of kg, got {quote(mass)}"
-        raise InputError(msg)
     vertices = np.asarray(vertices, dtype=np.float64)
     if vertices.ndim != 2 or vertices.shape[1] != 3 or len(vertices) == 0:
         msg = f"{source}: vertices must be (n, 3), got {vertices.shape}"
@@ -163,6 +123,60 @@ def make_rig(
             msg = f"{source}: {key}[{k}] ({SEGMENTS[k]}) at {np.round(arr[k], 3).tolist()} m lies outside the body"
             raise InputError(msg)
         arrays[key] = arr
+    return vertices, faces, weights, arrays["joints"], arrays["tips"]
+
+
+def make_rig(
+    vertices,
+    faces,
+    weights,
+    joints,
+    tips,
+    *,
+    mass: float = DEFAULT_BODY_MASS,
+    sex: str = "male",
+    name: str = "",
+    region_labels: Mapping[str, Any] | None = None,
+    meta: Mapping[str, Any] | None = None,
+    source: str = "body",
+) -> RiggedBody:
+    """Validate arrays and make a :class:`RiggedBody` with Plagenhoef masses.
+
+    Parameters
+    ----------
+    vertices : (n, 3) array_like
+        Rest vertices, m.
+    faces : (m, 3) array_like of int
+    weights : (n, 21) array_like
+        Non-negative; each row is normalised to sum to 1 (a row must already
+        sum to 1 within 1e-3, or to a positive number if it is float32 data).
+    joints, tips : (21, 3) array_like
+    mass : float
+        Total body mass, kg.
+    sex : {"male", "female"}
+        Column of the Plagenhoef et al. (1983) table.
+    name : str
+    region_labels : mapping of str to (k,) int, optional
+    meta : mapping, optional
+    source : str
+        Where the arrays came from (a file name), for error messages.
+
+    Returns
+    -------
+    RiggedBody
+
+    Raises
+    ------
+    InputError
+        Wrong shapes, NaN or infinite values, faces out of range, negative
+        weights, rows of weights that do not sum to 1, a segment owning no
+        vertex.
+    """
+    if not (isinstance(mass, (int, float, np.number)) and math.isfinite(mass) and mass > 0):
+        msg = f"{source}: mass: expected a positive number of kg, got {quote(mass)}"
+        raise InputError(msg)
+    vertices, faces, weights, joints, tips = check_body_arrays(vertices, faces, weights, joints, tips, source=source)
+    n = len(vertices)
     regions = {}
     for region, idx in (region_labels or {}).items():
         idx = np.asarray(idx, dtype=np.int64).ravel()
@@ -174,8 +188,8 @@ def make_rig(
         vertices=vertices,
         faces=faces,
         weights=weights,
-        joints=arrays["joints"],
-        tips=arrays["tips"],
+        joints=joints,
+        tips=tips,
         mass=float(mass),
         segment_mass=segment_masses(mass, sex),
         com_ratio=com_ratios(sex),
