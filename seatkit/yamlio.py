@@ -52,12 +52,24 @@ class _SafeLoader(yaml.SafeLoader):
 
 
 _SafeLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789"))
+
+
+def _without_dates(loader_class) -> None:
+    """Read ``2001-02-30`` as text: JSON has no dates, and YAML's date constructor crashes on some."""
+    loader_class.yaml_implicit_resolvers = {
+        first: [(tag, regexp) for tag, regexp in resolvers if tag != "tag:yaml.org,2002:timestamp"]
+        for first, resolvers in loader_class.yaml_implicit_resolvers.items()
+    }
+
+
+_without_dates(_SafeLoader)
 if _Loader is not yaml.SafeLoader:
 
     class _CSafeLoader(_Loader):
         """libyaml's safe loader, reading ``1e6`` as a number."""
 
     _CSafeLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_12, list("-+0123456789"))
+    _without_dates(_CSafeLoader)
     _Loader = _CSafeLoader
 else:
     _Loader = _SafeLoader
@@ -238,26 +250,64 @@ def compose_yaml(text: str, *, source: str = "<string>"):
     raise AssertionError("unreachable")
 
 
+#: The scalar types seatkit reads from YAML: JSON's (null, booleans, numbers, text).
+_PLAIN_TAGS = {f"tag:yaml.org,2002:{name}": name for name in ("null", "bool", "int", "float", "str")}
+
+
+def _shown_tag(tag: str) -> str:
+    return "!!" + tag[len("tag:yaml.org,2002:"):] if tag.startswith("tag:yaml.org,2002:") else tag
+
+
 def scalar_value(node, source: str = "<string>") -> Any:
-    """The Python value of a scalar node (YAML's safe types only).
+    """The Python value of a scalar node: JSON's types only (null, booleans, numbers, text).
+
+    A date (``2001-02-30``) is read as the text it is; an explicit tag other
+    than ``!!null``, ``!!bool``, ``!!int``, ``!!float``, ``!!str``
+    (``!!timestamp``, ``!!binary``, ``!!python/...``) is refused.
 
     Raises
     ------
     RecipeError
-        A value YAML's constructors cannot build (``2001-02-30``, an integer
-        of 5,000 digits, an unknown ``!tag``, bad ``!!binary``), with the line.
+        A tag seatkit does not read, or a value the tag cannot build (an
+        integer of 5,000 digits, ``!!int x``), with the line.
     """
+    line = node.start_mark.line + 1 if node.start_mark is not None else 0
+    value = node.value if isinstance(node.value, str) else None
+    kind = _PLAIN_TAGS.get(node.tag)
+    if kind is None or value is None:
+        msg = (
+            f"{source}:{line}: cannot read the value {quote(value if value is not None else 'a collection')} tagged "
+            f"{clip(_shown_tag(str(node.tag)), 60)}: seatkit reads null, true or false, numbers and text"
+        )
+        raise RecipeError(msg)
     try:
         # a fresh constructor each time: no state shared between threads
-        return yaml.constructor.SafeConstructor().construct_object(node, deep=True)
-    except (yaml.YAMLError, ValueError, OverflowError, TypeError) as e:
+        constructor = yaml.constructor.SafeConstructor()
+        return getattr(constructor, f"construct_yaml_{kind}")(node)
+    except (yaml.YAMLError, ValueError, OverflowError, TypeError, AttributeError, IndexError) as e:
         problem = getattr(e, "problem", None) or str(e)
-        msg = f"{source}:{node.start_mark.line + 1}: cannot read the value {quote(node.value if isinstance(node.value, str) else node.tag)}: {clip(problem, 120)}"
+        msg = f"{source}:{line}: cannot read the value {quote(value)} as {kind}: {clip(problem, 120)}"
         raise RecipeError(msg) from None
+
+
+_COLLECTION_TAGS = {yaml.MappingNode: "tag:yaml.org,2002:map", yaml.SequenceNode: "tag:yaml.org,2002:seq"}
+
+
+def check_collection_tag(node, source: str = "<string>") -> None:
+    """Refuse a mapping or list with a tag (``!!set``, ``!!omap``, ``!!timestamp {}``): seatkit reads JSON's types."""
+    expected = _COLLECTION_TAGS.get(type(node))
+    if expected is not None and node.tag != expected:
+        what = "mapping" if isinstance(node, yaml.MappingNode) else "list"
+        msg = (
+            f"{source}:{node.start_mark.line + 1}: a {what} tagged {clip(_shown_tag(str(node.tag)), 60)}: "
+            f"seatkit reads plain mappings and lists"
+        )
+        raise RecipeError(msg)
 
 
 def _construct(node, path, lines, source):
     lines[path] = node.start_mark.line + 1
+    check_collection_tag(node, source)
     if isinstance(node, yaml.MappingNode):
         out = {}
         for key_node, value_node in node.value:

@@ -38,7 +38,7 @@ from seatkit.model import Pose
 from seatkit.resources import data_path
 from seatkit.skeleton import N_SEGMENTS, SEGMENT_INDEX, SEGMENTS
 from seatkit.messages import clip, quote
-from seatkit.yamlio import compose_yaml, read_text, scalar_value
+from seatkit.yamlio import check_collection_tag, compose_yaml, read_text, scalar_value
 
 __all__ = [
     "EULER_ORDER",
@@ -237,6 +237,7 @@ def _mapping_items(node: yaml.Node, path: Path, key_path: str) -> dict[str, tupl
         where = key_path or "the file"
         msg = f"{_where(path, node)}: {where}: expected a mapping, got {_kind(node)}"
         raise RecipeError(msg)
+    check_collection_tag(node, str(path))
     items: dict[str, tuple[yaml.Node, yaml.Node]] = {}
     for k, v in node.value:
         if not isinstance(k, yaml.ScalarNode):
