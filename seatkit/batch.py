@@ -21,6 +21,7 @@ import copy
 import csv
 import hashlib
 import json
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -68,24 +69,77 @@ def item_seed(base_seed: int, name: str) -> int:
 
 
 def _safe_name(text: str) -> str:
-    keep = "".join(c if c.isalnum() or c in "-_." else "-" for c in text)
+    keep = "".join(c if c.isalnum() or c in "-_." else "-" for c in text[:100])  # a folder name the OS takes
     return keep.strip("-.") or "item"
 
 
-def _table_rows(path: Path) -> list[dict]:
+#: The columns of a batch table; the most rows one may have.
+TABLE_COLUMNS = ("pose", "body", "mass", "template", "name")
+MAX_TABLE_ROWS = 10_000
+#: A body mass in a table, kg (the recipe's range).
+TABLE_MASS_RANGE = (20.0, 300.0)
+
+
+def _table_rows(path: Path) -> list[tuple[int, dict]]:
+    """(line, row) of a CSV or YAML table, each value checked: text, or for ``mass`` a number of kg."""
+    from seatkit.messages import quote
     from seatkit.yamlio import load_yaml, read_text
 
+    rows: list[tuple[int, dict]] = []
     if path.suffix.lower() == ".csv":
         import io
 
         fh = io.StringIO(read_text(path, "CSV table"), newline="")  # UTF-8, named by byte offset if not
-        return [{k.strip(): (v or "").strip() for k, v in row.items() if k} for row in csv.DictReader(fh)]
+        reader = csv.DictReader(fh)
+        try:
+            for row in reader:
+                if len(rows) >= MAX_TABLE_ROWS:
+                    raise RecipeError(f"{path}:{reader.line_num}: more than {MAX_TABLE_ROWS:,} rows; split the table")
+                rows.append((reader.line_num, {(k or "").strip(): v for k, v in row.items() if k}))
+        except csv.Error as e:  # a NUL byte, a field past csv's size limit
+            raise RecipeError(f"{path}:{reader.line_num}: not a readable CSV table: {e}") from None
+        where = {i: f"{path}:{line}" for i, (line, _) in enumerate(rows)}
+    else:
+        doc = load_yaml(path, "batch table")
+        data = doc.data.get("items") if isinstance(doc.data, dict) else doc.data
+        if not isinstance(data, list) or not all(isinstance(r, dict) for r in data):
+            raise doc.error(("items",), "expected a list of mappings with keys " + ", ".join(TABLE_COLUMNS))
+        if len(data) > MAX_TABLE_ROWS:
+            raise doc.error(("items",), f"{len(data):,} rows; a table has at most {MAX_TABLE_ROWS:,}: split it")
+        rows = [(doc.line(("items", i)) or 0, r) for i, r in enumerate(data)]
+        where = {i: f"{path}:{line}" for i, (line, _) in enumerate(rows)}
+    out = []
+    for i, (line, row) in enumerate(rows):
+        clean = {}
+        for key, value in row.items():
+            if key not in TABLE_COLUMNS:
+                msg = f"{where[i]}: row {i + 1}: unknown column {quote(key)}; expected {', '.join(TABLE_COLUMNS)}"
+                raise RecipeError(msg)
+            if value is None or (isinstance(value, str) and not value.strip()):
+                continue
+            if key == "mass":
+                clean[key] = _table_mass(value, f"{where[i]}: row {i + 1}: mass")
+            elif isinstance(value, str) or (isinstance(value, (int, float)) and not isinstance(value, bool) and key == "name"):
+                clean[key] = str(value).strip()
+            else:
+                msg = f"{where[i]}: row {i + 1}: {key}: expected text, got {quote(value)}"
+                raise RecipeError(msg)
+        out.append((i, where[i], clean))
+    return out
 
-    doc = load_yaml(path)
-    rows = doc.data.get("items") if isinstance(doc.data, dict) else doc.data
-    if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
-        raise doc.error(("items",), "expected a list of mappings with keys pose, body, mass, template, name")
-    return rows
+
+def _table_mass(value, where: str) -> float:
+    """A body mass from a table cell: a finite number of kg in :data:`TABLE_MASS_RANGE`."""
+    from seatkit.messages import quote
+
+    lo, hi = TABLE_MASS_RANGE
+    try:
+        mass = float(value) if not isinstance(value, bool) and isinstance(value, (str, int, float)) else math.nan
+    except (ValueError, OverflowError):
+        mass = math.nan
+    if not lo <= mass <= hi:  # NaN fails too
+        raise RecipeError(f"{where}: expected a body mass in kg from {lo:g} to {hi:g}, got {quote(value)}")
+    return mass
 
 
 def collect_items(
@@ -132,19 +186,21 @@ def collect_items(
     items: list[BatchItem] = []
     for f in files:
         if f.suffix.lower() == ".csv" or _is_table(f):
-            for i, row in enumerate(_table_rows(f)):
-                name = _safe_name(row.get("name") or f"{i:03d}-{Path(str(row.get('pose', 'pose'))).stem}")
-                pose = str(row.get("pose") or "").strip()
+            for i, where, row in _table_rows(f):
+                pose = row.get("pose", "")
                 if not pose:
-                    raise RecipeError(f"{f}: row {i + 1}: missing 'pose'")
-                if looks_like_path(pose) and not Path(pose).is_absolute():
-                    pose = str((f.parent / pose).resolve())
-                body = row.get("body") or None
-                mass = float(row["mass"]) if row.get("mass") not in (None, "") else None
+                    raise RecipeError(f"{where}: row {i + 1}: missing 'pose'")
+                try:
+                    name = _safe_name(row.get("name") or f"{i:03d}-{Path(pose).stem}")
+                    if looks_like_path(pose) and not Path(pose).is_absolute():
+                        pose = str((f.parent / pose).resolve())
+                except (OSError, ValueError) as e:  # a NUL byte, a name too long for the OS
+                    raise RecipeError(f"{where}: row {i + 1}: pose: not a usable pose name or path ({e})") from None
+                body = row.get("body")
                 r = apply_overrides(
-                    base, template=row.get("template") or None, poses=[pose], bodies=[body] if body else None, mass=mass
+                    base, template=row.get("template"), poses=[pose], bodies=[body] if body else None, mass=row.get("mass")
                 )
-                items.append(BatchItem(name, r, f"{f}:{i + 2}"))
+                items.append(BatchItem(name, r, where))
         elif _is_recipe(f):
             r, _ = load_recipe(f)
             items.append(BatchItem(_safe_name(f.stem), r, str(f)))
@@ -164,11 +220,15 @@ def collect_items(
 def _is_table(path: Path) -> bool:
     if path.suffix.lower() not in (".yaml", ".yml"):
         return False
-    try:
-        head = path.read_text(encoding="utf-8")[:4096]
-    except OSError:
+    from seatkit.io import MAX_FILE_BYTES, check_user_file
+
+    try:  # a regular file only (a FIFO in the folder must not block), its first bytes
+        check_user_file(path, "batch table", max_bytes=MAX_FILE_BYTES["YAML"], error=RecipeError)
+        with path.open("rb") as fh:
+            head = fh.read(4096)
+    except (RecipeError, OSError):
         return False
-    return head.lstrip().startswith("items:")
+    return head.decode("utf-8", "replace").lstrip().startswith("items:")
 
 
 def _is_recipe(path: Path) -> bool:

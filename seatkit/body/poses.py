@@ -310,6 +310,10 @@ def _resolve_base(base: str, path: Path, node: yaml.Node) -> Path:
     return library[base][0]
 
 
+#: Most pose files a chain of ``base:`` keys may pass through.
+MAX_BASE_DEPTH = 16
+
+
 def load_pose_file(path, *, _chain: tuple[Path, ...] = ()) -> PoseSpec:
     """Read and validate a pose YAML file, resolving its ``base`` chain.
 
@@ -358,8 +362,14 @@ def load_pose_file(path, *, _chain: tuple[Path, ...] = ()) -> PoseSpec:
         base_path = _resolve_base(base_name, path, bnode)
         chain = _chain + (path,)
         if base_path in chain:
-            cycle = " -> ".join(p.stem for p in chain + (base_path,))
-            msg = f"{_where(path, bnode)}: base: cycle of base poses ({cycle})"
+            cycle = " -> ".join(p.stem for p in chain[chain.index(base_path):] + (base_path,))
+            msg = f"{_where(path, bnode)}: base: cycle of base poses ({clip(cycle, 200)})"
+            raise RecipeError(msg)
+        if len(chain) >= MAX_BASE_DEPTH:
+            msg = (
+                f"{_where(path, bnode)}: base: a chain of more than {MAX_BASE_DEPTH} pose files "
+                f"({chain[0].name} -> ... -> {path.name} -> {base_path.name}); seatkit follows at most {MAX_BASE_DEPTH}"
+            )
             raise RecipeError(msg)
         base = load_pose_file(base_path, _chain=chain)
         angles = base.angles.copy()
