@@ -197,9 +197,12 @@ def collect_items(
                 except (OSError, ValueError) as e:  # a NUL byte, a name too long for the OS
                     raise RecipeError(f"{where}: row {i + 1}: pose: not a usable pose name or path ({e})") from None
                 body = row.get("body")
-                r = apply_overrides(
-                    base, template=row.get("template"), poses=[pose], bodies=[body] if body else None, mass=row.get("mass")
-                )
+                try:
+                    r = apply_overrides(
+                        base, template=row.get("template"), poses=[pose], bodies=[body] if body else None, mass=row.get("mass")
+                    )
+                except RecipeError as e:  # a body spec that does not parse: say which row
+                    raise RecipeError(f"{where}: row {i + 1}: {e}") from None
                 items.append(BatchItem(name, r, where))
         elif _is_recipe(f):
             r, _ = load_recipe(f)

@@ -527,6 +527,312 @@ def _obj_target(tmp: Path) -> Target:
     return Target("OBJ cage", ".obj", [_CUBE_OBJ, _GRID_OBJ], load, check, mutate)
 
 
+# --------------------------------------------------------------------------- USD cages
+
+_USD_TOKENS = (
+    "[2147483647]", "[-2147483648]", "[]", "[-1]", "[0, 0]", "[1e308]", "[nan]", "[inf, 0, 0]", "(1e30, 0, 0)",
+    "[(0, 0, 0)]", "@/dev/zero@", "@./other.usda@", "subLayers = [@x.usda@]", "references = @/dev/zero@",
+    "int[] creaseLengths = [2147483647]", "int[] faceVertexCounts = [1000000]", "int[] faceVertexIndices = [99]",
+    "float metersPerUnit = 1e30", "double metersPerUnit = 0", "matrix4d xformOp:transform = ((1e300,0,0,0),(0,1,0,0),(0,0,1,0),(0,0,0,1))",
+    'uniform token interpolateBoundary = "none"', 'uniform token orientation = "leftHanded"', "string[]", "token", "4",
+)
+
+
+def _usd_seeds(tmp: Path) -> list[bytes]:
+    """Two small cages written by usd-core: a cube with creases and corners, an L-shaped open grid."""
+    from pxr import Usd, UsdGeom, Vt
+
+    seeds = []
+    cube_v = [(-0.2, 0, -0.2), (0.2, 0, -0.2), (0.2, 0.4, -0.2), (-0.2, 0.4, -0.2), (-0.2, 0, 0.2), (0.2, 0, 0.2), (0.2, 0.4, 0.2), (-0.2, 0.4, 0.2)]
+    cube_f = [0, 3, 2, 1, 4, 5, 6, 7, 0, 1, 5, 4, 1, 2, 6, 5, 2, 3, 7, 6, 3, 0, 4, 7]
+    grid_v = [(x * 0.1, 0.05 if (x, z) == (1, 1) else 0.0, z * 0.1) for z in range(3) for x in range(3)]
+    grid_f = [0, 3, 4, 1, 1, 4, 5, 2, 3, 6, 7, 4]
+    for k, (points, counts, indices, creases) in enumerate(
+        [(cube_v, [4] * 6, cube_f, ([0, 1, 2, 3], [2, 2], [2.0, 1.5])), (grid_v[:8], [4, 4, 4], grid_f, ([0, 1, 2], [3], [10.0, 1.0]))]
+    ):
+        stage = Usd.Stage.CreateInMemory()
+        UsdGeom.SetStageMetersPerUnit(stage, 1.0 if k == 0 else 0.01)
+        UsdGeom.Xform.Define(stage, "/seatkit")
+        mesh = UsdGeom.Mesh.Define(stage, "/seatkit/Cage")
+        mesh.CreatePointsAttr(Vt.Vec3fArray(points))
+        mesh.CreateFaceVertexCountsAttr(Vt.IntArray(counts))
+        mesh.CreateFaceVertexIndicesAttr(Vt.IntArray(indices))
+        mesh.CreateSubdivisionSchemeAttr(UsdGeom.Tokens.catmullClark)
+        mesh.CreateCreaseIndicesAttr(Vt.IntArray(creases[0]))
+        mesh.CreateCreaseLengthsAttr(Vt.IntArray(creases[1]))
+        mesh.CreateCreaseSharpnessesAttr(Vt.FloatArray(creases[2]))
+        mesh.CreateCornerIndicesAttr(Vt.IntArray([0]))
+        mesh.CreateCornerSharpnessesAttr(Vt.FloatArray([3.0]))
+        path = tmp / f"seed{k}.usda"
+        tmp.mkdir(parents=True, exist_ok=True)
+        stage.GetRootLayer().Export(str(path))
+        seeds.append(path.read_bytes())
+    return seeds
+
+
+def mutate_usd(data: bytes, r: Chooser) -> bytes:
+    """1 or 2 mutations of a .usda: a number replaced (by NaN, huge, negative, fractional ones),
+    a USD token or array spliced in or put in place of a word, or a text mutation."""
+    import re
+
+    for _ in range(1 + r.randrange(2)):
+        kind = r.randrange(4)
+        if kind in (0, 1):  # a number in an array or value becomes an interesting one: the syntax stays valid
+            first_line = data.find(b"\n")  # not the "#usda 1.0" header
+            spans = [m.span() for m in re.finditer(rb"(?<![A-Za-z_])-?[0-9][0-9.eE+-]*", data) if m.start() > first_line]
+            if spans:
+                a, b = _pick(r, spans)
+                data = data[:a] + _pick(r, INTERESTING_NUMBERS + ("2147483647", "-2147483648", "100", "3")).encode() + data[b:]
+        elif kind == 2:
+            data = _text_mutation(data, r, yaml=False)
+        else:
+            token = _pick(r, _USD_TOKENS).encode()
+            data = _replace_token(data, r, token) if r.randrange(2) else _splice(data, r, token)
+    return data
+
+
+def _usd_target(tmp: Path) -> Target:
+    from seatkit.export.meshes import MAX_CAGE_COORDINATE
+    from seatkit.export.usd import read_usd_cage
+    from seatkit.subdivision import build_operators
+
+    def load(path):
+        cage = read_usd_cage(path)
+        ops = build_operators(cage, 1)
+        return cage, ops.limit @ cage.vertices, ops.limit_normals(cage.vertices)
+
+    def check(result):
+        cage, points, normals = result
+        if not _finite_in(cage.vertices, -MAX_CAGE_COORDINATE, MAX_CAGE_COORDINATE):
+            return "USD cage vertices out of range accepted"
+        if not (np.isfinite(points).all() and np.isfinite(normals).all()):
+            return "USD limit surface or normals not finite"
+        return None
+
+    return Target("USD cage", ".usda", _usd_seeds(Path(tmp)), load, check, mutate_usd)
+
+
+# --------------------------------------------------------------------------- .npz files (rigs, designs)
+
+_JSON_TEXTS = (
+    "", "[", "1", "[]", "null", '"x"', '{"sex": 3}', '{"sex": []}', '{"sex": "other"}', "[" * 100_000 + "]" * 100_000,
+    '{"a": ' * 5000 + "1" + "}" * 5000, '{"sex": "female"}', "NaN", '{"x": 1e400}',
+)
+
+
+def _npz_bytes(arrays: dict) -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    np.savez(buf, **arrays)
+    return buf.getvalue()
+
+
+def _load_npz_seed(data: bytes) -> dict:
+    import io
+
+    with np.load(io.BytesIO(data), allow_pickle=False) as f:
+        return {k: f[k] for k in f.files}
+
+
+def _edit_array(a: np.ndarray, r: Chooser) -> np.ndarray:
+    """One edit of an array: scaled, a NaN or huge entry, reshaped, truncated, retyped, emptied."""
+    kind = r.randrange(9)
+    if kind == 0 and a.dtype.kind in "iuf":
+        return a * _pick(r, (0, -1, 100, 1000, 1e-3, 1e30, 2**40))
+    if kind == 1 and a.size and a.dtype.kind in "iuf":
+        b = a.astype(np.float64 if a.dtype.kind == "f" else np.int64).copy().reshape(-1)
+        b[r.randrange(b.size)] = _pick(r, (np.nan, np.inf, -1, 1e308, 2**62, -(2**62))) if a.dtype.kind == "f" else _pick(r, (-1, 2**31, 2**62, 10**6))
+        return b.reshape(a.shape)
+    if kind == 2 and a.size:
+        return a.reshape(-1)
+    if kind == 3 and len(a):
+        return a[: r.randrange(len(a))]
+    if kind == 4:
+        return a.astype(_pick(r, (np.float32, np.int8, np.uint64, np.bool_, np.complex64, "U3", "S2", np.float16)))
+    if kind == 5:
+        return np.zeros((0,) + a.shape[1:], a.dtype)
+    if kind == 6 and a.ndim == 2:
+        return a.T
+    if kind == 7 and a.size:
+        return np.concatenate([a, a])
+    return np.array(_pick(r, ("x", 3, np.nan, [1, 2])))
+
+
+def mutate_npz(data: bytes, r: Chooser, *, json_key: str | None = None) -> bytes:
+    """An .npz with 1 to 3 edits of its arrays (deleted, scaled, NaN, retyped, reshaped; the JSON of
+    ``json_key`` edited as glTF's is), or (one time in five) byte-level mutations of the zip."""
+    if r.randrange(5) == 0:
+        return mutate(data, r, n=1 + r.randrange(2))
+    arrays = _load_npz_seed(data)
+    for _ in range(1 + r.randrange(3)):
+        key = _pick(r, sorted(arrays))
+        kind = r.randrange(6)
+        if kind == 0:
+            del arrays[key]
+            if not arrays:
+                arrays["x"] = np.zeros(1)
+        elif kind == 1 and key in (json_key, "meta"):
+            text = bytes(arrays[key]).decode() if key == json_key else str(arrays[key])
+            try:
+                doc = json.loads(text)
+                _edit_json(doc, r)
+                text = json.dumps(doc, allow_nan=True)
+            except (TypeError, KeyError, IndexError, AttributeError, ValueError):
+                text = _pick(r, _JSON_TEXTS)
+            if r.randrange(4) == 0:
+                text = _pick(r, _JSON_TEXTS)
+            arrays[key] = np.frombuffer(text.encode(), np.uint8) if key == json_key else np.array(text)
+        elif kind == 2:
+            arrays[f"{key.split('_')[0]}_region_{_pick(r, ('x', 'face', '../x'))}"] = np.array(_pick(r, ([0, 1], [-1], [10**9], [])), np.int64)
+        else:
+            try:
+                with np.errstate(all="ignore"):
+                    arrays[key] = _edit_array(arrays[key], r)
+            except (ValueError, TypeError, OverflowError):
+                pass  # a cast this array cannot take (text to numbers)
+    out = _npz_bytes(arrays)
+    if r.randrange(6) == 0:  # a damaged .npy header or zip record inside
+        out = mutate(out, r, n=1)
+    return out
+
+
+def _check_body(vertices, joints, what: str) -> str | None:
+    from seatkit.constants import BODY_SIZE_RANGE
+
+    v = np.asarray(vertices)
+    if not np.isfinite(v).all():
+        return f"{what} vertices not finite"
+    size = float(np.ptp(v, axis=0).max())
+    if not BODY_SIZE_RANGE[0] <= size <= BODY_SIZE_RANGE[1]:
+        return f"{what} of {size:.3g} m accepted"
+    j = np.asarray(joints)
+    if not (np.isfinite(j).all() and (j >= v.min(0) - size).all() and (j <= v.max(0) + size).all()):
+        return f"{what} joints far outside the body accepted"
+    return None
+
+
+def _rig_target(tmp: Path) -> Target:
+    from seatkit.body.rig import load_rig_file, save_rig
+
+    tmp = Path(tmp)
+    rig = _coarse_rig(_default_rig())
+    seed = save_rig(rig, tmp / "seed.npz").read_bytes()
+
+    def check(rig):
+        wrong = _check_body(rig.vertices, np.concatenate([rig.joints, rig.tips]), "npz body")
+        if wrong:
+            return wrong
+        if not (np.isfinite(rig.weights).all() and np.allclose(rig.weights.sum(axis=1), 1)):
+            return "npz body weights not normalised"
+        return None
+
+    return Target("npz rig", ".npz", [seed], load_rig_file, check, mutate_npz)
+
+
+def _design_seed(tmp: Path) -> bytes:
+    """A design.npz of the coarse default body seated in a small cage (no build needed)."""
+    from seatkit.body import load_pose
+    from seatkit.body.skinning import pose_rig
+    from seatkit.model import BuildResult, ControlMesh
+    from seatkit.recipe import default_recipe
+    from seatkit.state import save_design
+
+    body = pose_rig(_coarse_rig(_default_rig()), load_pose("upright-sitting"))
+    xs = np.linspace(-0.3, 0.3, 4)
+    vertices = np.array([[x, 0.45, z] for z in xs for x in xs])
+    faces = np.array([[j * 4 + i, (j + 1) * 4 + i, (j + 1) * 4 + i + 1, j * 4 + i + 1] for j in range(3) for i in range(3)])
+    mesh = ControlMesh(
+        vertices, faces, np.full(len(faces), 1), face_person=np.zeros(len(faces), np.int64),
+        crease_edges=np.array([[0, 1]]), crease_sharpness=np.array([2.0]), corners=np.array([0]),
+        corner_sharpness=np.array([4.0]), meta={"special_cases": []}, face_labels=tuple(f"f{i}" for i in range(len(faces))),
+    )
+    recipe = default_recipe()
+    result = BuildResult(recipe=recipe, bodies=[body], pressures=[], control_mesh=mesh, initial_mesh=mesh)
+    return save_design(result, Path(tmp) / "design.npz").read_bytes()
+
+
+def _design_target(tmp: Path) -> Target:
+    from seatkit.export.meshes import MAX_CAGE_COORDINATE
+    from seatkit.state import load_design
+
+    def check(result):
+        recipe, bodies, mesh, initial = result
+        for b in bodies:
+            wrong = _check_body(b.vertices, np.concatenate([b.joints, b.tips, b.segment_com]), "design body")
+            if wrong:
+                return wrong
+        for m in (mesh, initial):
+            if m is not None and not _finite_in(m.vertices, -MAX_CAGE_COORDINATE, MAX_CAGE_COORDINATE):
+                return "design cage vertices out of range accepted"
+        return _check_recipe_result(recipe) if "seed" in recipe else None
+
+    return Target(
+        "design.npz", ".npz", [_design_seed(Path(tmp))], load_design, check,
+        lambda d, r: mutate_npz(d, r, json_key="header"),
+    )
+
+
+# --------------------------------------------------------------------------- batch tables, name maps
+
+_CSV_TABLE = b"""name,pose,body,mass,template
+small,upright-sitting,default-female,55,chair
+tall,lounger,default-male,95,
+pose-file,poses/my.yaml,,80.5,bench
+"""
+
+_YAML_TABLE = b"""items:
+  - {name: small, pose: upright-sitting, body: default-female, mass: 55}
+  - {pose: lounger, body: default-male, mass: 95.5, template: bench}
+  - name: 7
+    pose: ../poses/x.bvh
+"""
+
+
+def _batch_target(tmp: Path, suffix: str) -> Target:
+    from seatkit.batch import TABLE_MASS_RANGE, collect_items
+
+    out = Path(tmp) / "out"
+
+    def load(path):
+        return collect_items([path], out=out)
+
+    def check(items):
+        for it in items:
+            for body in it.recipe["bodies"]:
+                mass = (body.get("params") or {}).get("mass")
+                if mass is not None and not _finite_in([mass], *TABLE_MASS_RANGE):
+                    return f"table mass {mass!r} accepted"
+            if not isinstance(it.recipe["template"], str) or not it.name or len(it.name) > 255:
+                return "table template or name not text"
+        return None
+
+    seed = _CSV_TABLE if suffix == ".csv" else _YAML_TABLE
+    name = "batch table CSV" if suffix == ".csv" else "batch table YAML"
+    return Target(name, suffix, [seed], load, check, lambda d, r: mutate(d, r, yaml=suffix != ".csv"))
+
+
+def _name_map_target(tmp: Path) -> Target:
+    from seatkit.body.name_maps import load_name_map
+    from seatkit.resources import data_path
+    from seatkit.skeleton import SEGMENT_INDEX
+
+    seeds = [p.read_bytes() for p in sorted(data_path("name_maps").glob("*.yaml"))]
+    names = ["Hips", "Spine", "Spine1", "Neck", "Head", "LeftUpLeg", "LeftLeg", "LeftFoot", "mixamorig:Hips", "lButtock", "RightArm"]
+
+    def load(path):
+        m = load_name_map(path)
+        return m, m.resolve(names)
+
+    def check(result):
+        m, (index, score) = result
+        if not set(m.segments) <= set(SEGMENT_INDEX):
+            return "name map with unknown segments accepted"
+        return None
+
+    return Target("name map", ".yaml", seeds, load, check, lambda d, r: mutate(d, r, yaml=True))
+
+
 #: Name -> builder of every target (built lazily: the glTF seed needs a body).
 TARGET_BUILDERS = {
     "recipe": _recipe_target,
@@ -535,6 +841,12 @@ TARGET_BUILDERS = {
     "bvh": _bvh_target,
     "gltf": _gltf_target,
     "obj": _obj_target,
+    "usd": _usd_target,
+    "rig": _rig_target,
+    "design": _design_target,
+    "batch-csv": lambda tmp: _batch_target(tmp, ".csv"),
+    "batch-yaml": lambda tmp: _batch_target(tmp, ".yaml"),
+    "name-map": _name_map_target,
 }
 
 

@@ -21,7 +21,7 @@ from seatkit.messages import MAX_QUOTE
 from seatkit.yamlio import parse_yaml
 
 #: Examples per loader: the glTF body takes about 0.1 s to load, the rest 0.01 s.
-EXAMPLES = {"gltf": 60, "bvh": 120}
+EXAMPLES = {"gltf": 60, "bvh": 120, "design": 80, "usd": 120}
 DEFAULT_EXAMPLES = 150
 
 

@@ -22,6 +22,7 @@ import numpy as np
 
 from seatkit.errors import InputError, SeatkitError
 from seatkit.io import atomic_path
+from seatkit.messages import clip
 
 __all__ = ["write_usd", "read_usd_cage", "prepare_usd", "CAGE_PRIM", "ROOT_PRIM"]
 
@@ -243,6 +244,15 @@ def _usd_creases(path, prim, c_idx, c_len, c_sharp, n: int):
     return edges, np.asarray(sharp, dtype=np.float64)
 
 
+def _problem(e: Exception) -> str:
+    """What usd-core said, on one line (its ``str()`` itself fails on non-UTF-8 text)."""
+    try:
+        text = " ".join(str(e).split())
+    except Exception:  # noqa: BLE001 - Tf.ErrorException.__str__ decodes the file's bytes
+        text = ""
+    return clip(f"{type(e).__name__}: {text}" if text else type(e).__name__, 200)
+
+
 def read_usd_cage(path, *, prim_path: str | None = None):
     """Read a Catmull-Clark cage (creases, corners, boundary mode) from a USD file.
 
@@ -279,21 +289,21 @@ def read_usd_cage(path, *, prim_path: str | None = None):
         # an anonymous copy of the file: not cached in the layer registry,
         # and its composition arcs are looked at before any other file is opened
         layer = Sdf.Layer.OpenAsAnonymous(str(path))
-    except RuntimeError as e:  # pxr.Tf.ErrorException
-        msg = f"{path}: usd-core cannot read this file: {' '.join(str(e).split())}"
+        deps = sorted(layer.GetCompositionAssetDependencies()) if layer is not None else []
+    except (RuntimeError, ValueError) as e:  # pxr.Tf.ErrorException; UnicodeDecodeError of non-UTF-8 text
+        msg = f"{path}: usd-core cannot read this file: {_problem(e)}"
         raise InputError(msg) from None
     if layer is None:
         msg = f"{path}: usd-core cannot open this file"
         raise InputError(msg)
-    if layer.GetCompositionAssetDependencies():
-        deps = sorted(layer.GetCompositionAssetDependencies())
+    if deps:
         msg = f"{path}: refers to other files ({', '.join(map(str, deps[:3]))}); seatkit reads self-contained USD cages"
         raise InputError(msg)
     try:
         stage = Usd.Stage.Open(layer, Usd.Stage.LoadNone)
         return _read_stage_cage(stage, path, prim_path, Cage, UsdGeom, MAX_CAGE_COORDINATE)
-    except RuntimeError as e:  # pxr.Tf.ErrorException from an attribute of the wrong type
-        msg = f"{path}: usd-core cannot read this cage: {' '.join(str(e).split())}"
+    except (RuntimeError, ValueError) as e:  # pxr.Tf.ErrorException from an attribute of the wrong type; bad UTF-8
+        msg = f"{path}: usd-core cannot read this cage: {_problem(e)}"
         raise InputError(msg) from None
 
 
