@@ -52,6 +52,8 @@ def main(argv=None) -> int:
             wall = time.perf_counter() - t0
             rows.append((tally, wall))
             failed |= bool(tally.crashes or tally.hangs)
+            # the row now, so that a long run's finished loaders are on record at once
+            print(f"  {name}: {_row(tally, wall)}", file=sys.stderr, flush=True)
             for k, (signature, (count, detail, data)) in enumerate(sorted(tally.signatures.items())):
                 print(f"  {name}: {count} x {signature}: {detail[:200]}")
                 if args.save_crashes:
@@ -62,11 +64,15 @@ def main(argv=None) -> int:
     print("| loader | cases | refused (own error, one line) | accepted (checked) | crashes | hangs | slowest case | time |")
     print("|---|---|---|---|---|---|---|---|")
     for tally, wall in rows:
-        print(
-            f"| {tally.name} | {tally.cases} | {tally.ok} | {tally.accepted} | {tally.crashes} | {tally.hangs} "
-            f"| {tally.slowest:.2f} s | {wall:.0f} s |"
-        )
+        print(_row(tally, wall))
     return 1 if failed else 0
+
+
+def _row(tally, wall: float) -> str:
+    return (
+        f"| {tally.name} | {tally.cases} | {tally.ok} | {tally.accepted} | {tally.crashes} | {tally.hangs} "
+        f"| {tally.slowest:.2f} s | {wall:.0f} s |"
+    )
 
 
 if __name__ == "__main__":

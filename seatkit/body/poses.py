@@ -38,6 +38,7 @@ from seatkit.model import Pose
 from seatkit.resources import data_path
 from seatkit.skeleton import N_SEGMENTS, SEGMENT_INDEX, SEGMENTS
 from seatkit.messages import clip, quote
+from seatkit.io import MAX_FILE_BYTES, check_user_file
 from seatkit.yamlio import check_collection_tag, compose_yaml, read_text, scalar_value
 
 __all__ = [
@@ -334,7 +335,10 @@ def load_pose_file(path, *, _chain: tuple[Path, ...] = ()) -> PoseSpec:
     InputError
         The file cannot be read.
     """
-    path = Path(path).resolve()
+    given = Path(path)
+    if given.exists():  # a FIFO or a symlink to a device is named as the user gave it, before resolving
+        check_user_file(given, "pose file", max_bytes=MAX_FILE_BYTES["YAML"], error=RecipeError)
+    path = given.resolve()
     node = _compose(path)
     top = _mapping_items(node, path, "")
     for key, (knode, _) in top.items():

@@ -264,7 +264,8 @@ def load_rig_file(path, *, mass: float = DEFAULT_BODY_MASS, name: str | None = N
     for key, value in contents.items():
         kinds = "iu" if key == "faces" or key.startswith("region_") else ("US" if key == "meta" else "biuf")
         if value.dtype.kind not in kinds:
-            msg = f"{path}: {quote(key)}: expected {'integers' if kinds == 'iu' else 'numbers'}, got an array of {value.dtype}"
+            expected = {"iu": "integers", "US": "one JSON text"}.get(kinds, "numbers")
+            msg = f"{path}: {quote(key)}: expected {expected}, got an array of {value.dtype}"
             raise InputError(msg)
     meta: dict = {}
     if "meta" in contents:

@@ -246,8 +246,9 @@ def _usd_creases(path, prim, c_idx, c_len, c_sharp, n: int):
 
 def _problem(e: Exception) -> str:
     """What usd-core said, on one line (its ``str()`` itself fails on non-UTF-8 text)."""
-    try:
-        text = " ".join(str(e).split())
+    try:  # a Tf.ErrorException holds Tf.Error objects: their commentary is what went wrong
+        first = e.args[0] if e.args else None
+        text = " ".join(str(getattr(first, "commentary", None) or e).split())
     except Exception:  # noqa: BLE001 - Tf.ErrorException.__str__ decodes the file's bytes
         text = ""
     return clip(f"{type(e).__name__}: {text}" if text else type(e).__name__, 200)
@@ -285,6 +286,11 @@ def read_usd_cage(path, *, prim_path: str | None = None):
     Gf, Sdf, Usd, UsdGeom, Vt = _pxr()
     path = Path(path)
     check_user_file(path, "USD file", max_bytes=MAX_FILE_BYTES["USD"])
+    from pxr import UsdUtils
+
+    # usd-core's warnings about a user's file ("Integer literal ... out of
+    # range") are collected here, not printed: the refusal is one line
+    quiet = UsdUtils.CoalescingDiagnosticDelegate()  # noqa: F841 - active while it lives
     try:
         # an anonymous copy of the file: not cached in the layer registry,
         # and its composition arcs are looked at before any other file is opened
