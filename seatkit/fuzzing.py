@@ -1,13 +1,15 @@
 """Fuzzing seatkit's file loaders: mutated inputs, what must happen, a tally.
 
 Every loader of a file a user gives (recipe, template and pose YAML, BVH,
-glTF/GLB, OBJ cage) is a :class:`Target`: a few valid seed files, a function
+glTF/GLB, OBJ and USD cages, ``.npz`` rigs, ``design.npz``, CSV and YAML
+batch tables, name maps) is a :class:`Target`: a few valid seed files, a function
 that loads one file the way the CLI does (and the first stage after it), and
 an oracle for what an *accepted* file must satisfy. :func:`mutate` turns a
 seed into a malformed variant (byte flips, truncation, spliced-in tokens:
 NaN, infinities, huge and fractional numbers, quoted booleans, deep nesting,
 YAML alias bombs, non-UTF-8 bytes; glTF also gets JSON-level edits of its
-indices, counts and strides). :func:`run_case` classifies the outcome:
+indices, counts and strides; USD numbers, tokens and arrays spliced into its
+text; ``.npz`` files edits of their arrays and of design.npz's JSON header). :func:`run_case` classifies the outcome:
 
 ``ok``
     The loader refused the file with seatkit's own error, on one line of at
@@ -507,24 +509,31 @@ f 5 8 9 6
 """
 
 
-def _obj_target(tmp: Path) -> Target:
-    from seatkit.export.meshes import MAX_CAGE_COORDINATE, read_obj_cage
+def _cage_target(name: str, suffix: str, seeds: list, read: Callable, mutator: Callable) -> Target:
+    """A cage reader, then the cage's level-1 limit surface and normals (what subdivide computes)."""
+    from seatkit.export.meshes import MAX_CAGE_COORDINATE
     from seatkit.subdivision import build_operators
 
     def load(path):
-        cage = read_obj_cage(path)
+        cage = read(path)
         ops = build_operators(cage, 1)
         return cage, ops.limit @ cage.vertices, ops.limit_normals(cage.vertices)
 
     def check(result):
         cage, points, normals = result
         if not _finite_in(cage.vertices, -MAX_CAGE_COORDINATE, MAX_CAGE_COORDINATE):
-            return "cage vertices out of range accepted"
+            return f"{name} vertices out of range accepted"
         if not (np.isfinite(points).all() and np.isfinite(normals).all()):
-            return "limit surface or normals not finite"
+            return f"{name} limit surface or normals not finite"
         return None
 
-    return Target("OBJ cage", ".obj", [_CUBE_OBJ, _GRID_OBJ], load, check, mutate)
+    return Target(name, suffix, seeds, load, check, mutator)
+
+
+def _obj_target(tmp: Path) -> Target:
+    from seatkit.export.meshes import read_obj_cage
+
+    return _cage_target("OBJ cage", ".obj", [_CUBE_OBJ, _GRID_OBJ], read_obj_cage, mutate)
 
 
 # --------------------------------------------------------------------------- USD cages
@@ -592,24 +601,9 @@ def mutate_usd(data: bytes, r: Chooser) -> bytes:
 
 
 def _usd_target(tmp: Path) -> Target:
-    from seatkit.export.meshes import MAX_CAGE_COORDINATE
     from seatkit.export.usd import read_usd_cage
-    from seatkit.subdivision import build_operators
 
-    def load(path):
-        cage = read_usd_cage(path)
-        ops = build_operators(cage, 1)
-        return cage, ops.limit @ cage.vertices, ops.limit_normals(cage.vertices)
-
-    def check(result):
-        cage, points, normals = result
-        if not _finite_in(cage.vertices, -MAX_CAGE_COORDINATE, MAX_CAGE_COORDINATE):
-            return "USD cage vertices out of range accepted"
-        if not (np.isfinite(points).all() and np.isfinite(normals).all()):
-            return "USD limit surface or normals not finite"
-        return None
-
-    return Target("USD cage", ".usda", _usd_seeds(Path(tmp)), load, check, mutate_usd)
+    return _cage_target("USD cage", ".usda", _usd_seeds(Path(tmp)), read_usd_cage, mutate_usd)
 
 
 # --------------------------------------------------------------------------- .npz files (rigs, designs)
