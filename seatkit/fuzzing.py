@@ -747,8 +747,8 @@ def _design_seed(tmp: Path) -> bytes:
 
 
 def _design_target(tmp: Path) -> Target:
+    from seatkit.commands.evaluate import load_checked_design
     from seatkit.export.meshes import MAX_CAGE_COORDINATE
-    from seatkit.state import load_design
 
     def check(result):
         recipe, bodies, mesh, initial = result
@@ -762,7 +762,7 @@ def _design_target(tmp: Path) -> Target:
         return _check_recipe_result(recipe) if "seed" in recipe else None
 
     return Target(
-        "design.npz", ".npz", [_design_seed(Path(tmp))], load_design, check,
+        "design.npz", ".npz", [_design_seed(Path(tmp))], load_checked_design, check,
         lambda d, r: mutate_npz(d, r, json_key="header"),
     )
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from seatkit.errors import InputError, SeatkitError
+from seatkit.errors import InputError
 from seatkit.messages import clip, quote
 from seatkit.io import jsonable, write_bytes_atomic
 from seatkit.model import Body, BuildResult, ControlMesh
@@ -200,11 +200,10 @@ def load_design(path) -> tuple[dict, list[Body], ControlMesh, ControlMesh | None
         When the file is missing or not a seatkit design: every array is
         checked (shapes, types, finite values, indices in range, bodies of
         0.3 to 3 m with their joints in them, cages Catmull-Clark can
-        refine) and the recipe against the recipe schema, before any work.
+        refine) before any work. The recipe is a mapping: ``seatkit
+        evaluate`` checks it (:func:`seatkit.commands.evaluate.load_checked_design`).
     """
     from seatkit.io import load_npz
-    from seatkit.recipe import RECIPE_SCHEMA
-    from seatkit.yamlio import Document, validate
 
     path = Path(path)
     if not path.exists():
@@ -218,20 +217,10 @@ def load_design(path) -> tuple[dict, list[Body], ControlMesh, ControlMesh | None
             pressure["lambda"] = float(pressure["lambda"])  # JSON has no inf: written as "inf"
         except ValueError:
             raise InputError(f"{path}: header.recipe.pressure.lambda: expected a number, got {quote(pressure['lambda'])}") from None
-    try:
-        validate(Document(recipe, f"{path}: header.recipe"), RECIPE_SCHEMA)
-    except SeatkitError as e:
-        raise InputError(str(e)) from None
-    level = recipe.get("surface_level", 3)
     bodies = [_design_body(arrays, i, info, path) for i, info in enumerate(header["bodies"])]
     meshes = {
         role: _design_mesh(arrays, role, info, path, len(bodies)) for role, info in header["meshes"].items()
     }
-    from seatkit.subdivision.catmull_clark import MAX_REFINED_FACES
-
-    quads = 4 * len(meshes["final"].faces) * 4 ** (level - 1)  # evaluate refines the final quad cage this far
-    if quads > MAX_REFINED_FACES:
-        raise InputError(f"{path}: header.recipe.surface_level: {level} refines the cage past {MAX_REFINED_FACES:,} quads")
     return recipe, bodies, meshes["final"], meshes.get("initial")
 
 

@@ -26,7 +26,7 @@ from seatkit.errors import InputError, RecipeError, SeatkitError
 from seatkit.export.usd import read_usd_cage
 from seatkit.fuzzing import MAX_MESSAGE, _design_seed, _usd_seeds, message_problem
 from seatkit.recipe import load_recipe
-from seatkit.state import load_design
+from seatkit.commands.evaluate import load_checked_design
 
 runner = CliRunner()
 
@@ -261,7 +261,7 @@ def _with_header(arrays, edit):
 )
 def test_hostile_design_files_are_refused(design, tmp_path, change, pattern):
     path = _npz(tmp_path / "design.npz", **change(design))
-    refused(lambda: load_design(path), path, pattern, InputError)
+    refused(lambda: load_checked_design(path), path, pattern, InputError)
 
 
 def test_cli_evaluate_refuses_a_hostile_design(design, tmp_path):

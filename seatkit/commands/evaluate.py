@@ -10,6 +10,36 @@ import click
 import typer
 
 
+def load_checked_design(path):
+    """:func:`seatkit.state.load_design`, its recipe checked as ``seatkit evaluate`` uses it.
+
+    The recipe must pass the recipe schema, and its ``surface_level`` must not refine the final cage
+    past :data:`~seatkit.subdivision.catmull_clark.MAX_REFINED_FACES` quads.
+
+    Raises
+    ------
+    InputError
+        One line naming the file and the recipe's key.
+    """
+    from seatkit.errors import InputError, SeatkitError
+    from seatkit.recipe import RECIPE_SCHEMA
+    from seatkit.subdivision.catmull_clark import MAX_REFINED_FACES
+    from seatkit.state import load_design
+    from seatkit.yamlio import Document, validate
+
+    path = Path(path)
+    recipe, bodies, mesh, initial = load_design(path)  # lambda "inf" read as the number
+    try:
+        validate(Document(recipe, f"{path}: header.recipe"), RECIPE_SCHEMA)
+    except SeatkitError as e:
+        raise InputError(str(e)) from None
+    level = recipe.get("surface_level", 3)
+    quads = 4 * len(mesh.faces) * 4 ** (level - 1)  # evaluate refines the final quad cage this far
+    if quads > MAX_REFINED_FACES:
+        raise InputError(f"{path}: header.recipe.surface_level: {level} refines the cage past {MAX_REFINED_FACES:,} quads")
+    return recipe, bodies, mesh, initial
+
+
 def evaluate_folder(directory: Path, *, pm, baseline: str | None = "keep", support_distance: float | None = None):
     """Re-evaluate the design saved in ``directory/design.npz``.
 
@@ -18,10 +48,9 @@ def evaluate_folder(directory: Path, *, pm, baseline: str | None = "keep", suppo
     from seatkit.constants import DEFAULT_SUPPORT_DISTANCE
     from seatkit.model import BuildResult
     from seatkit.pipeline import evaluate_result, solve_importance
-    from seatkit.state import load_design
     from seatkit.subdivision import limit_surface
 
-    recipe, bodies, mesh, initial = load_design(Path(directory) / "design.npz")
+    recipe, bodies, mesh, initial = load_checked_design(Path(directory) / "design.npz")
     ev = recipe.setdefault("evaluate", {"enabled": True, "baseline": "flat-patch", "support_distance": DEFAULT_SUPPORT_DISTANCE})
     if baseline != "keep":
         ev["baseline"] = baseline
