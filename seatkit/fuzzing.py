@@ -759,7 +759,7 @@ def _design_target(tmp: Path) -> Target:
         for m in (mesh, initial):
             if m is not None and not _finite_in(m.vertices, -MAX_CAGE_COORDINATE, MAX_CAGE_COORDINATE):
                 return "design cage vertices out of range accepted"
-        return _check_recipe_result(recipe) if "seed" in recipe else None
+        return _check_recipe_result(recipe)
 
     return Target(
         "design.npz", ".npz", [_design_seed(Path(tmp))], load_checked_design, check,
@@ -916,7 +916,10 @@ def run_case(target: Target, data: bytes, path: Path, *, timeout: float = 10.0) 
     dt = time.perf_counter() - t0
     if dt > timeout:
         return Outcome("hang", "hang", f"{dt:.1f} s", dt)
-    wrong = target.check(result)
+    try:
+        wrong = target.check(result)
+    except Exception as e:  # noqa: BLE001 - an accepted result the oracle cannot even read is wrong
+        return Outcome("crash", f"accepted but unreadable: {_signature(e)}", f"{type(e).__name__}: {str(e)[:300]}", dt)
     if wrong:
         return Outcome("crash", f"accepted but wrong: {wrong.split(' ')[0]} {wrong.split(' ')[-1]}", wrong, dt)
     return Outcome("accepted", "", "", dt)

@@ -264,6 +264,14 @@ def test_hostile_design_files_are_refused(design, tmp_path, change, pattern):
     refused(lambda: load_checked_design(path), path, pattern, InputError)
 
 
+def test_a_design_recipe_with_keys_left_out_is_read_normalised(design, tmp_path):
+    # the 10,000-case run found it: a recipe of only a template passed the schema, and
+    # evaluate would have read recipe["pressure"] from it (KeyError)
+    path = _npz(tmp_path / "design.npz", **_with_header(design, lambda h: h.update(recipe={"template": "chair"})))
+    recipe = load_checked_design(path)[0]
+    assert recipe["template"] == "chair" and recipe["pressure"]["mu"] == 0.5 and recipe["surface_level"] == 3
+
+
 def test_cli_evaluate_refuses_a_hostile_design(design, tmp_path):
     _npz(tmp_path / "design.npz", **{**design, "header": np.frombuffer(b"[1]", np.uint8)})
     one_line_error(runner.invoke(app, ["evaluate", str(tmp_path)]), "design.npz")

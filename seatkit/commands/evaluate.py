@@ -13,7 +13,8 @@ import typer
 def load_checked_design(path):
     """:func:`seatkit.state.load_design`, its recipe checked as ``seatkit evaluate`` uses it.
 
-    The recipe must pass the recipe schema, and its ``surface_level`` must not refine the final cage
+    The recipe must pass the recipe schema (it is returned normalised, every
+    key present), and its ``surface_level`` must not refine the final cage
     past :data:`~seatkit.subdivision.catmull_clark.MAX_REFINED_FACES` quads.
 
     Raises
@@ -22,7 +23,8 @@ def load_checked_design(path):
         One line naming the file and the recipe's key.
     """
     from seatkit.errors import InputError, SeatkitError
-    from seatkit.recipe import RECIPE_SCHEMA
+    from seatkit.messages import one_line
+    from seatkit.recipe import RECIPE_SCHEMA, load_recipe
     from seatkit.subdivision.catmull_clark import MAX_REFINED_FACES
     from seatkit.state import load_design
     from seatkit.yamlio import Document, validate
@@ -31,8 +33,9 @@ def load_checked_design(path):
     recipe, bodies, mesh, initial = load_design(path)  # lambda "inf" read as the number
     try:
         validate(Document(recipe, f"{path}: header.recipe"), RECIPE_SCHEMA)
+        recipe, _ = load_recipe(recipe)  # normalised: every key evaluate reads is present
     except SeatkitError as e:
-        raise InputError(str(e)) from None
+        raise InputError(one_line(f"{path}: header.recipe: {e}" if not str(e).startswith(str(path)) else str(e))) from None
     level = recipe.get("surface_level", 3)
     quads = 4 * len(mesh.faces) * 4 ** (level - 1)  # evaluate refines the final quad cage this far
     if quads > MAX_REFINED_FACES:
