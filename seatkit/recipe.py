@@ -139,6 +139,8 @@ RECIPE_SCHEMA: dict = {
         },
         "refiners": {"type": "array", "items": _REFINER},
         "exporters": {"type": "array", "items": _REFINER},
+        # the params of exporters written as {name, params}, by name (how a loaded recipe keeps them)
+        "exporter_params": {"type": "object", "additionalProperties": _PARAMS},
         "surface_level": _ranged("surface_level", "integer"),
         "evaluate": {
             "type": "object",
@@ -266,12 +268,13 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
         pressure["lambda"] = math.inf
     if "refiners" in data:
         recipe["refiners"] = [_refiner_entry(r) for r in data["refiners"]]
+    params = copy.deepcopy(dict(data.get("exporter_params") or {}))
     if "exporters" in data:
         entries = [_refiner_entry(e) for e in data["exporters"]]
         recipe["exporters"] = [e["name"] for e in entries]
-        params = {e["name"]: e["params"] for e in entries if e["params"]}
-        if params:
-            recipe["exporter_params"] = params
+        params.update({e["name"]: e["params"] for e in entries if e["params"]})
+    if params:
+        recipe["exporter_params"] = params
     if "structure" in data:
         from seatkit.structure.build import enable, settings
 

@@ -585,6 +585,10 @@ def refined_problems(before: ControlMesh, after: ControlMesh) -> list[str]:
     side), and its other fixed vertices where they were (within
     :data:`FIXED_TOLERANCE`).
     """
+    if not isinstance(before, ControlMesh):
+        return []  # no template cage to hold it to (a stand-in of the build's stages)
+    if not isinstance(after, ControlMesh):
+        return [f"it returned {type(after).__name__}, not a ControlMesh"]
     v0 = np.asarray(before.vertices, dtype=np.float64)
     v1 = np.asarray(after.vertices, dtype=np.float64)
     if v1.shape != v0.shape or np.asarray(after.faces).shape != np.asarray(before.faces).shape or not np.array_equal(after.faces, before.faces):
