@@ -232,10 +232,19 @@ def get_plugin_manager(*, disabled: Iterable[str] = (), autoload: bool | None = 
             pm.check_pending()
         except pluggy.PluginValidationError as e:
             name = pm.get_name(e.plugin) or repr(e.plugin)
-            pm.disable_plugin(name, f"it implements an unknown hook: {e}")
+            pm.disable_plugin(name, _unknown_hooks(pm, e.plugin) or str(e))
             continue
         break
     return pm
+
+
+def _unknown_hooks(pm: SeatkitPluginManager, plugin: Any) -> str:
+    """``it implements an unknown hook 'x' (did you mean 'y'?)`` for a plugin's hooks that are not seatkit's."""
+    from seatkit.options import did_you_mean
+
+    specs = [n for n in dir(hookspecs) if n.startswith("seatkit_")]
+    unknown = [c.name for c in pm.get_hookcallers(plugin) or () if not c.has_spec()]
+    return "; ".join(f"it implements an unknown hook {n!r}{did_you_mean(n, specs)}" for n in unknown)
 
 
 def _import_plugin(pm: SeatkitPluginManager, name: str, load, distribution: str, version: str, *, builtin: bool = False) -> None:
