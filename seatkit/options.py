@@ -42,7 +42,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 from seatkit.messages import quote
 
-__all__ = ["Option", "OPTION_TYPES", "check_options", "defaults", "did_you_mean", "options_table"]
+__all__ = ["Option", "OPTION_TYPES", "check_options", "defaults", "did_you_mean", "json_schema", "options_table"]
 
 OPTION_TYPES = ("number", "count", "bool", "choice", "text", "rows", "columns", "segments")
 
@@ -122,6 +122,29 @@ def did_you_mean(word: str, candidates: Sequence[str]) -> str:
 def defaults(declared: Mapping[str, Option]) -> dict[str, Any]:
     """``{name: default}`` of every declared option whose default is not None."""
     return {key: opt.default for key, opt in declared.items() if opt.default is not None}
+
+
+def json_schema(declared: Mapping[str, Option]) -> dict:
+    """A JSON schema of a mapping of the declared options (for a YAML section checked with :func:`seatkit.yamlio.validate`)."""
+    properties = {}
+    for key, opt in declared.items():
+        if opt.type in ("number", "count"):
+            prop: dict = {"type": "number" if opt.type == "number" else "integer"}
+            if opt.minimum is not None:
+                prop["minimum"] = opt.minimum
+            if opt.maximum is not None:
+                prop["maximum"] = opt.maximum
+        elif opt.type == "bool":
+            prop = {"type": "boolean"}
+        elif opt.type == "choice":
+            prop = {"enum": list(opt.choices)}
+        elif opt.type == "text":
+            prop = {"type": "string"}
+        else:
+            prop = {"type": "array", "minItems": 1, "items": {"type": "string"}}
+        properties[key] = prop
+    required = [key for key, opt in declared.items() if opt.required]
+    return {"type": "object", "additionalProperties": False, "properties": properties, **({"required": required} if required else {})}
 
 
 def _check_value(opt: Option, value: Any, names: Mapping[str, Sequence[str]]) -> tuple[Any, str | None, int | None]:

@@ -154,7 +154,7 @@ RECIPE_SCHEMA: dict = {
         },
         "output": {"anyOf": [_PATH, {"type": "null"}]},  # null: the default folder (seatkit.output.output_target)
         "seed": _ranged("seed", "integer"),
-        "structure": {"type": "object"},  # checked against seatkit.structure.build.SCHEMA in load_recipe
+        "structure": {"type": "object"},  # checked against seatkit.structure.build.OPTIONS in load_recipe
     },
 }
 
@@ -355,9 +355,9 @@ def load_recipe(source: str | Path | Mapping | None = None) -> tuple[dict, Docum
         raise doc.error((), f"a recipe must be a mapping of keys (template, bodies, ...), got {type(doc.data).__name__}")
     validate(doc, RECIPE_SCHEMA)
     if isinstance(doc.data.get("structure"), dict):
-        from seatkit.structure.build import SCHEMA as STRUCTURE_SCHEMA
+        from seatkit.structure.build import OPTIONS as STRUCTURE_OPTIONS
 
-        validate(doc, {"type": "object", "properties": {"structure": STRUCTURE_SCHEMA}})
+        check_options("structure", STRUCTURE_OPTIONS, doc.data["structure"], fail=lambda path, message: doc.error(("structure", *path), message))
     return _normalise(doc.data, base_dir), doc
 
 

@@ -92,10 +92,11 @@ def test_build_with_structure_sizes_and_writes_that_shell(tmp_path):
 @pytest.mark.parametrize(
     ("flags", "message"),
     [
-        (("--material", "oak"), "structure.material: unknown material 'oak'; expected one of birch-plywood"),
-        (("--thickness", "0"), "structure.thickness: shell thickness must be a positive number of metres"),
-        (("--thickness", "-0.02"), "structure.thickness: shell thickness must be a positive number of metres"),
-        (("--max-deflection", "0"), "structure.max_deflection: expected a positive number of metres"),
+        (("--material", "oak"), "structure.material: expected one of birch-plywood, mdf, pla, petg, aluminium-6061, steel, gfrp, got 'oak'"),
+        (("--material", "steal"), "structure.material: expected one of birch-plywood, mdf, pla, petg, aluminium-6061, steel, gfrp, got 'steal'; did you mean 'steel'?"),
+        (("--thickness", "0"), "structure.thickness: expected a number from 0.0001 to 0.5 (m), got 0.0"),
+        (("--thickness", "-0.02"), "structure.thickness: expected a number from 0.0001 to 0.5 (m), got -0.02"),
+        (("--max-deflection", "0"), "structure.max_deflection: expected a number from 1e-06 to 1 (m), got 0.0"),
     ],
 )
 def test_build_flags_are_checked_before_any_work(tmp_path, flags, message):
