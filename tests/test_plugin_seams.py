@@ -455,6 +455,19 @@ def test_docs_option_tables_are_generated_from_the_step_schemas():
         assert block in docs, f"docs/templates.md: the options table of step {name!r} is not the one its schema gives; run python -m seatkit.template.steps docs/templates.md"
 
 
+
+def test_docs_option_tables_of_refiners_are_generated_from_their_declarations():
+    from seatkit.options import options_table as table
+    from seatkit.template.flat_patch import FLAT_PATCH_OPTIONS
+
+    docs = (ROOT / "docs" / "refiners.md").read_text()
+    registry = get_plugin_manager(autoload=False).registry
+    declared = {name: refiner.options for name, refiner, _ in registry.items("refiner")}
+    declared["flat-patch"] = FLAT_PATCH_OPTIONS
+    for name, options in declared.items():
+        assert f"<!-- options of {name} -->\n{table(options)}\n<!-- end -->" in docs, f"docs/refiners.md: the options table of {name!r} is not the one it declares"
+
+
 # -- fuzz: whatever a template or recipe gives a step, the answer is a located RecipeError or a plan
 
 from hypothesis import HealthCheck, given, settings  # noqa: E402
