@@ -473,6 +473,11 @@ class Guarded:
     def __repr__(self) -> str:
         return f"Guarded({self._component!r})"
 
+    @property
+    def component_label(self) -> str:
+        """``refiner 'x' of plugin "p"``: how messages name the component."""
+        return f'{self._label} {self._component.name!r} of plugin "{self._plugin}"'
+
     def __getattr__(self, name: str) -> Any:
         if name.startswith("_"):
             raise AttributeError(name)
@@ -494,6 +499,6 @@ class Guarded:
         """The one line of a bug ``error`` raised by ``method``."""
         where = f" on {self._where}" if self._where else ""
         return (
-            f'{self._label} {self._component.name!r} of plugin "{self._plugin}" failed{where} in {method}(): '
+            f"{self.component_label} failed{where} in {method}(): "
             f"{type(error).__name__}: {clip(str(error), 200)} (a bug in the plugin; seatkit --debug shows the traceback)"
         )

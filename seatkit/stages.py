@@ -145,7 +145,7 @@ def refine(mesh, refiners, bodies, pressures, timer: StageTimer | None = None):
             except SolverError as e:
                 e.refiner_index = i  # where a repair of its refusal continues (refine_first_accepted)
                 raise
-            check_refined(mesh, refined, refiner=name)
+            check_refined(mesh, refined, refiner=getattr(refiner, "component_label", None) or f"refiner {name!r}")
             mesh = refined
     return mesh
 

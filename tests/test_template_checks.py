@@ -261,3 +261,8 @@ def test_a_refiners_cage_is_held_to_the_templates_constraints():
 
     with pytest.raises(PluginError, match=r"^refiner 'spreader' broke the template's constraints: ground vertex \d+ left the template's ground ring by \d+\.\d cm"):
         refine(cage, [("spreader", Spreader(), {})], [body], [pressure])
+    # as a build runs it, guarded: its plugin is named too
+    from seatkit.plugins import Guarded
+
+    with pytest.raises(PluginError, match=r"^refiner 'spreader' of plugin \"spread\" broke the template's constraints: ground vertex"):
+        refine(cage, [("spreader", Guarded(Spreader(), "refiner", "spread"), {})], [body], [pressure])

@@ -626,17 +626,18 @@ def refined_problems(before: ControlMesh, after: ControlMesh) -> list[str]:
 
 
 def check_refined(before: ControlMesh, after: ControlMesh, *, refiner: str) -> None:
-    """Raise unless refiner ``refiner``'s cage ``after`` keeps the template's constraints (:func:`refined_problems`).
+    """Raise unless the cage ``after`` of ``refiner`` (how messages name it: ``refiner 'x' of plugin "p"``) keeps the template's constraints (:func:`refined_problems`).
 
     Raises
     ------
     PluginError
-        ``refiner 'x' broke the template's constraints: ...``: a refiner bug,
-        not a refusal of the cage (that is a SolverError), so the build stops.
+        ``refiner 'x' of plugin "p" broke the template's constraints: ...``:
+        a refiner bug, not a refusal of the cage (that is a SolverError), so
+        the build stops.
     """
     problems = refined_problems(before, after)
     if problems:
-        msg = f"refiner {refiner!r} broke the template's constraints: {'; '.join(problems)}"
+        msg = f"{refiner} broke the template's constraints: {'; '.join(problems)}"
         raise PluginError(msg)
 
 
