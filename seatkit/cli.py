@@ -220,6 +220,8 @@ def plugins(ctx: typer.Context) -> None:
     table.add_column("components", ratio=1, overflow="fold")
     for name, info in sorted(pm.infos.items()):
         comps = "\n".join(f"{kind.replace('_', ' ')}: {', '.join(names)}" for kind, names in sorted(info.components.items()))
+        if info.disabled:
+            comps = "disabled (see its problem below)"
         label = f"{name} (built-in)" if info.builtin else name
         table.add_row(label, info.distribution or "-", info.version or "-", comps or "-")
     Console().print(table)

@@ -6,10 +6,12 @@ is first built (:attr:`seatkit.plugins.SeatkitPluginManager.registry`: a
 build, a command, ``seatkit plugins``), and returns a list of components, or
 ``None`` for none. Results are **merged** (no hook is ``firstresult``): the
 registry calls every plugin's implementation on its own, so that it knows
-which plugin registered which component, refuses a name registered twice
-with an error naming both plugins, and reports a plugin whose hook raises
-without losing the others. Components must implement their protocol
-(:mod:`seatkit.interfaces`); that is checked when they are registered.
+which plugin registered which component. A plugin whose hook raises, whose
+component lacks a member of its protocol (:mod:`seatkit.interfaces`) or
+declares options that are not :class:`seatkit.options.Option`, or that
+gives a name another plugin registered first, is disabled with one problem
+line naming it, the component and the member; the others keep working
+(:mod:`seatkit.plugins`).
 
 Built-in plugins (``plugins/``) implement these hooks with
 :data:`seatkit.hookimpl`, exactly as a third-party plugin does. Each hook is
@@ -37,7 +39,7 @@ def seatkit_register_body_models() -> "list[BodyModel] | None":
     Called: once per plugin manager, when its registry is built.
     Returns: a list of body models (``name`` is what a recipe's
     ``bodies[].model`` and ``--body`` name), or None.
-    Results: merged over every plugin; a name given twice is an error.
+    Results: merged over every plugin; a plugin giving a name another registered first is disabled.
     """
 
 
@@ -48,7 +50,7 @@ def seatkit_register_pressure_solvers() -> "list[PressureSolver] | None":
     Called: once per plugin manager, when its registry is built.
     Returns: a list of solvers (``pressure.solver`` in a recipe,
     ``--solver`` of ``seatkit build`` and ``seatkit pressure``), or None.
-    Results: merged over every plugin; a name given twice is an error.
+    Results: merged over every plugin; a plugin giving a name another registered first is disabled.
     """
 
 
@@ -64,7 +66,7 @@ def seatkit_register_templates() -> "list[SupportTemplate] | None":
     steps (``SupportTemplate.bind``), and one whose steps are unknown or
     misused is left out with its ``file:line`` problem reported.
     Returns: a list of templates (``template`` in a recipe, ``--template``), or None.
-    Results: merged over every plugin; a name given twice is an error.
+    Results: merged over every plugin; a plugin giving a name another registered first is disabled.
     """
 
 
@@ -79,7 +81,7 @@ def seatkit_register_template_steps() -> "list[TemplateStep] | None":
     Called: once per plugin manager, when its registry is built, before any
     template is bound.
     Returns: a list of steps, or None.
-    Results: merged over every plugin; a name given twice is an error.
+    Results: merged over every plugin; a plugin giving a name another registered first is disabled.
     """
 
 
@@ -90,7 +92,10 @@ def seatkit_register_refiners() -> "list[Refiner] | None":
     Called: once per plugin manager, when its registry is built.
     Returns: a list of refiners (``refiners`` and
     ``evaluate.baseline_refiners`` in a recipe, ``--refiner``), or None.
-    Results: merged over every plugin; a name given twice is an error.
+    A refiner declares its options (``options``: name ->
+    :class:`seatkit.options.Option`); a recipe's ``params`` for it are
+    checked against them before any geometry.
+    Results: merged over every plugin; a plugin giving a name another registered first is disabled.
     """
 
 
@@ -100,7 +105,10 @@ def seatkit_register_exporters() -> "list[Exporter] | None":
 
     Called: once per plugin manager, when its registry is built.
     Returns: a list of exporters (``exporters`` in a recipe, ``--exporter``), or None.
-    Results: merged over every plugin; a name given twice is an error.
+    An exporter that declares ``options`` is called
+    ``export(result, directory, options=...)`` with a recipe's ``params``
+    for it, checked before any geometry.
+    Results: merged over every plugin; a plugin giving a name another registered first is disabled.
     """
 
 

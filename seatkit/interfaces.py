@@ -193,7 +193,13 @@ class SupportTemplate(Protocol):
 
 @runtime_checkable
 class Refiner(Protocol):
-    """Improves a cage after the template (paper Section 5.3, surface fit)."""
+    """Improves a cage after the template (paper Section 5.3, surface fit).
+
+    It may declare ``options`` (name -> :class:`seatkit.options.Option`):
+    a recipe's ``params`` for it are checked against them before any
+    geometry (without ``options`` it takes none). Its cage must keep the
+    template's constraints (:func:`seatkit.template.checks.check_refined`).
+    """
 
     name: str
     description: str
@@ -219,7 +225,10 @@ class Exporter(Protocol):
     ``prepare()`` while the design is computed (:mod:`seatkit.workers`);
     ``export`` then gets a pickled copy of the result (exporters must
     pickle). Other exporters run in the build's process, and their
-    ``prepare()`` is called just before ``export``.
+    ``prepare()`` is called just before ``export``. An exporter that declares
+    ``options`` (name -> :class:`seatkit.options.Option`) is called
+    ``export(result, directory, options=...)`` with a recipe's ``params``
+    for it, checked before any geometry, and its defaults.
     """
 
     name: str

@@ -1,9 +1,12 @@
-"""Parameter handling shared by the refiners and the flat-patch template.
+"""The parameters a refiner (or the flat-patch template) runs with.
 
-Each refiner declares its defaults as a dict; a template's ``refiners:``
-section or a recipe overrides them by key. Unknown keys are user mistakes
-and raise :class:`~seatkit.errors.RecipeError` naming the refiner, the key and
-the keys that exist.
+A refiner declares its options (:class:`seatkit.options.Option`, the schema
+every component uses) as its ``options`` attribute; a recipe gives
+overrides under ``refiners[i].params``. :func:`seatkit.recipe.check_recipe`
+checks them against the declaration before any geometry (with the recipe's
+file and line); the refiner calls :func:`component_params` again when it
+runs, so that a caller of the library that skips the recipe gets the same
+one-line :class:`~seatkit.errors.RecipeError` and the same defaults.
 """
 
 from __future__ import annotations
@@ -11,25 +14,25 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from seatkit.errors import RecipeError
+from seatkit.messages import format_path
+from seatkit.options import Option, check_options
 
-__all__ = ["merge_params", "refiner_params"]
+__all__ = ["component_params", "refiner_params"]
 
 
-def merge_params(
-    refiner: str, defaults: Mapping[str, Any], params: Mapping[str, Any] | None
-) -> dict[str, Any]:
-    """Defaults overridden by ``params``, with types checked.
+def component_params(owner: str, declared: Mapping[str, Option], params: Mapping[str, Any] | None, *, where: tuple = ()) -> dict[str, Any]:
+    """``params`` checked against ``declared``, with every default filled in.
 
     Parameters
     ----------
-    refiner : str
-        Refiner name, for messages.
-    defaults : mapping
-        Every accepted key with its default value; the default's type is the
-        expected type (ints accept ints, floats accept ints and floats, bools
-        accept bools only).
+    owner : str
+        Who takes them, for messages (``"refiner 'optimize'"``).
+    declared : mapping of str to Option
     params : mapping or None
         Overrides.
+    where : tuple
+        Key path of ``params`` in the recipe, for messages
+        (``("refiners", "optimize")``).
 
     Returns
     -------
@@ -38,58 +41,16 @@ def merge_params(
     Raises
     ------
     RecipeError
-        On an unknown key or a value of the wrong type.
+        ``refiners.optimize.key: ...`` on an unknown key (with "did you
+        mean") or a value of the wrong type or range.
     """
-    merged = dict(defaults)
-    for key, value in dict(params or {}).items():
-        if key not in defaults:
-            msg = (
-                f"refiners.{refiner}.{key}: unknown parameter; "
-                f"expected one of {', '.join(sorted(defaults))}"
-            )
-            raise RecipeError(msg)
-        want = defaults[key]
-        if isinstance(want, bool):
-            ok = isinstance(value, bool)
-        elif isinstance(want, int):
-            ok = isinstance(value, int) and not isinstance(value, bool)
-        elif isinstance(want, float):
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-            value = float(value) if ok else value
-        else:
-            ok = isinstance(value, type(want))
-        if not ok:
-            msg = (
-                f"refiners.{refiner}.{key}: expected {type(want).__name__}, "
-                f"got {value!r} ({type(value).__name__})"
-            )
-            raise RecipeError(msg)
-        merged[key] = value
-    return merged
+
+    def fail(path, message):
+        return RecipeError(f"{format_path(where + tuple(path))}: {message}")
+
+    return check_options(owner, declared, params, fail=fail)
 
 
-def refiner_params(
-    refiner: str, defaults: Mapping[str, Any], mesh_meta: Mapping[str, Any], params: Mapping[str, Any] | None
-) -> dict[str, Any]:
-    """A refiner's parameters: its defaults, then the template's, then ``params``.
-
-    A template declares its own defaults in its YAML ``refiners:`` section;
-    the template engine stores that section in ``ControlMesh.meta["refiners"]``
-    (a mapping of refiner name to parameters). Recipe ``params`` win.
-
-    Parameters
-    ----------
-    refiner : str
-    defaults : mapping
-    mesh_meta : mapping
-        ``ControlMesh.meta``.
-    params : mapping or None
-
-    Returns
-    -------
-    dict
-    """
-    section = mesh_meta.get("refiners") or {}
-    template_params = (section.get(refiner) or {}) if isinstance(section, Mapping) else {}
-    merged = merge_params(refiner, defaults, template_params)
-    return merge_params(refiner, merged, params)
+def refiner_params(refiner: str, declared: Mapping[str, Option], params: Mapping[str, Any] | None) -> dict[str, Any]:
+    """A refiner's parameters: its declared defaults overridden by ``params`` (see :func:`component_params`)."""
+    return component_params(f"refiner {refiner!r}", declared, params, where=("refiners", refiner))

@@ -106,7 +106,7 @@ def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool
             with timer.stage("check"):
                 data, document = load_recipe(recipe)
                 recipe = check_recipe(data, registry, document=document)
-        exporters = [registry.get("exporter", name) for name in recipe["exporters"] if name != REPORT_EXPORTER] if write else []
+        exporters = _exporters(recipe, registry) if write else []
         with ExitStack() as helpers:
             # Hold the output folder from before the design to the final
             # rename: a second build into it, or a folder that cannot be
@@ -118,6 +118,30 @@ def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool
             if write:
                 _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper)
     return result
+
+
+def _exporters(recipe, registry) -> list:
+    """The recipe's exporters but ``report-json`` (run last by :func:`_write`), each guarded (:class:`seatkit.plugins.Guarded`).
+
+    An exporter that declares ``options`` (:mod:`seatkit.options`) is called
+    ``export(result, directory, options=...)`` with the recipe's ``params``
+    for it checked and its defaults filled in.
+    """
+    from seatkit.params import component_params
+
+    template = registry.get("template", recipe["template"])
+    given = recipe.get("exporter_params") or {}
+    out = []
+    for name in recipe["exporters"]:
+        if name == REPORT_EXPORTER:
+            continue
+        declared = getattr(registry.get("exporter", name), "options", None)
+        keywords = None
+        if declared:
+            options = component_params(f"exporter {name!r}", declared, given.get(name), where=("exporters", name, "params"))
+            keywords = {"export": {"options": options}}
+        out.append(registry.guarded("exporter", name, template=template, keywords=keywords))
+    return out
 
 
 def _wants_baseline(recipe) -> bool:
@@ -165,7 +189,7 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
             return baseline_helper.result(job)
 
     # the template's next cage when the refiners refuse one (stages.refine_first_accepted)
-    refiners = [(r["name"], registry.get("refiner", r["name"]), r["params"]) for r in recipe["refiners"]]
+    refiners = [(r["name"], registry.guarded("refiner", r["name"], template=template), r["params"]) for r in recipe["refiners"]]
     walls = getattr(template, "walls_against", None)
     if walls is not None:
         walls = functools.partial(walls, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
@@ -239,5 +263,4 @@ def write_result(result: BuildResult, registry, *, overwrite: bool = False, prog
     """
     timer = StageTimer(progress)
     timer.timings = dict(result.timings)
-    exporters = [registry.get("exporter", name) for name in result.recipe["exporters"] if name != REPORT_EXPORTER]
-    _write(result, exporters, registry, timer, overwrite=overwrite)
+    _write(result, _exporters(result.recipe, registry), registry, timer, overwrite=overwrite)

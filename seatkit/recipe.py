@@ -12,8 +12,8 @@ parameters::
         frame: 0                    # BVH frame
         offset: [0, 0, 0]           # metres, optional placement
     pressure: {solver: qp, lambda: 0.013, mu: 0.5}
-    refiners: [optimize, catmull-clark-fit]
-    exporters: [usd, obj, surface, body-ply]
+    refiners: [optimize, {name: catmull-clark-fit, params: {fairness: 0.1}}]
+    exporters: [usd, obj, surface, body-ply]   # a name, or {name, params}
     surface_level: 3
     output: out/chair
     seed: 0
@@ -45,6 +45,7 @@ from seatkit.constants import (
 from seatkit.errors import ParamError, RecipeError
 from seatkit.io import recipe_id  # noqa: F401  (recipe_id is part of this module's API; it lives beside jsonable)
 from seatkit.messages import format_path, quote
+from seatkit.options import check_options
 from seatkit.yamlio import Document, load_yaml, validate
 
 DEFAULT_REFINERS = ("optimize", "catmull-clark-fit")
@@ -82,7 +83,7 @@ _NUMBER_OR_INF = {
     "anyOf": [_ranged("lambda"), {"const": math.inf}, {"type": "string", "enum": ["inf", "infinity"]}]
 }
 
-#: A refiner entry: a name, or ``{name, params}``.
+#: A refiner or exporter entry: a name, or ``{name, params}``.
 _REFINER = {
     "anyOf": [
         _NAME,
@@ -137,7 +138,9 @@ RECIPE_SCHEMA: dict = {
             },
         },
         "refiners": {"type": "array", "items": _REFINER},
-        "exporters": {"type": "array", "items": _NAME},
+        "exporters": {"type": "array", "items": _REFINER},
+        # the params of exporters written as {name, params}, by name (how a loaded recipe keeps them)
+        "exporter_params": {"type": "object", "additionalProperties": _PARAMS},
         "surface_level": _ranged("surface_level", "integer"),
         "evaluate": {
             "type": "object",
@@ -151,9 +154,13 @@ RECIPE_SCHEMA: dict = {
         },
         "output": {"anyOf": [_PATH, {"type": "null"}]},  # null: the default folder (seatkit.output.output_target)
         "seed": _ranged("seed", "integer"),
-        "structure": {"type": "object"},  # checked against seatkit.structure.build.SCHEMA in load_recipe
+        "structure": {"type": "object"},  # checked against seatkit.structure.build.OPTIONS in load_recipe
     },
 }
+
+
+#: Keys of a recipe that are present only when it has them.
+_OPTIONAL_KEYS = ("structure", "exporter_params")
 
 
 @dataclass(frozen=True, eq=False)
@@ -185,6 +192,8 @@ class Recipe(Mapping):
     seed: int
     #: the ``structure`` section (seatkit.structure.build.settings), None when the recipe has none
     structure: dict | None = None
+    #: ``{exporter name: params}`` of the exporters given as ``{name, params}``, None when none is
+    exporter_params: dict | None = None
 
     @classmethod
     def from_normalised(cls, data: Mapping) -> "Recipe":
@@ -212,7 +221,7 @@ class Recipe(Mapping):
         return len(self._keys())
 
     def _keys(self) -> tuple[str, ...]:
-        return tuple(f.name for f in fields(self) if f.name != "structure" or self.structure is not None)
+        return tuple(f.name for f in fields(self) if f.name not in _OPTIONAL_KEYS or getattr(self, f.name) is not None)
 
 
 def default_recipe() -> dict:
@@ -259,8 +268,13 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
         pressure["lambda"] = math.inf
     if "refiners" in data:
         recipe["refiners"] = [_refiner_entry(r) for r in data["refiners"]]
+    params = copy.deepcopy(dict(data.get("exporter_params") or {}))
     if "exporters" in data:
-        recipe["exporters"] = list(data["exporters"])
+        entries = [_refiner_entry(e) for e in data["exporters"]]
+        recipe["exporters"] = [e["name"] for e in entries]
+        params.update({e["name"]: e["params"] for e in entries if e["params"]})
+    if params:
+        recipe["exporter_params"] = params
     if "structure" in data:
         from seatkit.structure.build import enable, settings
 
@@ -341,9 +355,9 @@ def load_recipe(source: str | Path | Mapping | None = None) -> tuple[dict, Docum
         raise doc.error((), f"a recipe must be a mapping of keys (template, bodies, ...), got {type(doc.data).__name__}")
     validate(doc, RECIPE_SCHEMA)
     if isinstance(doc.data.get("structure"), dict):
-        from seatkit.structure.build import SCHEMA as STRUCTURE_SCHEMA
+        from seatkit.structure.build import OPTIONS as STRUCTURE_OPTIONS
 
-        validate(doc, {"type": "object", "properties": {"structure": STRUCTURE_SCHEMA}})
+        check_options("structure", STRUCTURE_OPTIONS, doc.data["structure"], fail=lambda path, message: doc.error(("structure", *path), message))
     return _normalise(doc.data, base_dir), doc
 
 
@@ -482,6 +496,8 @@ def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
         if isinstance(node_rec, dict) and "name" in node_rec:  # a refiner: written as a name or {name, params}
             node_doc = node_doc.get("name") if isinstance(node_doc, dict) else node_doc
             node_rec = node_rec["name"]
+        elif isinstance(node_doc, dict) and isinstance(node_rec, str):  # an exporter written as {name, params}
+            node_doc = node_doc.get("name")
         return node_doc == node_rec or (isinstance(node_doc, str) and looks_like_path(node_doc))
 
     def fail(path, message):
@@ -495,16 +511,38 @@ def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
         except RecipeError as e:
             fail(path, str(e))
 
+    def options_of(kind, name, path, given, params_path):
+        """Check ``given`` against the declared options of component ``name`` (:mod:`seatkit.options`)."""
+        component = _get(registry, kind, name)
+        if component is None:
+            return
+        declared = getattr(component, "options", None) or {}
+
+        def located(key_path, message):
+            full = params_path + tuple(key_path)
+            if document is not None and _in_document(document.data, full):
+                return document.error(full, message)
+            if document is not None and _in_document(document.data, params_path):
+                return document.error(params_path, f"{format_path(key_path)}: {message}" if key_path else message)
+            return RecipeError(f"{format_path(full)}: {message}")
+
+        check_options(f"{kind.replace('_', ' ')} {name!r}", declared, given, fail=located)
+
     need("template", recipe["template"], ("template",))
     need("pressure_solver", recipe["pressure"]["solver"], ("pressure", "solver"))
+    options_of("pressure_solver", recipe["pressure"]["solver"], ("pressure", "solver"), recipe["pressure"].get("options") or {}, ("pressure", "options"))
     for i, ref in enumerate(recipe["refiners"]):
         need("refiner", ref["name"], ("refiners", i))
+        options_of("refiner", ref["name"], ("refiners", i), ref["params"], ("refiners", i, "params"))
+    exporter_params = recipe.get("exporter_params") or {}
     for i, name in enumerate(recipe["exporters"]):
         need("exporter", name, ("exporters", i))
+        options_of("exporter", name, ("exporters", i), exporter_params.get(name, {}), ("exporters", i, "params"))
     if recipe["evaluate"]["enabled"] and recipe["evaluate"]["baseline"]:
         need("template", recipe["evaluate"]["baseline"], ("evaluate", "baseline"))
         for i, ref in enumerate(recipe["evaluate"]["baseline_refiners"]):
             need("refiner", ref["name"], ("evaluate", "baseline_refiners", i))
+            options_of("refiner", ref["name"], ("evaluate", "baseline_refiners", i), ref["params"], ("evaluate", "baseline_refiners", i, "params"))
     template = _get(registry, "template", recipe["template"])
     if template is not None:
         try:
@@ -552,6 +590,16 @@ def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
         if path is not None and not (isinstance(path, str) and _is_file(path)):
             fail(("bodies", i, "params", "path"), f"file not found: {quote(path)}")
         _check_pose(body["pose"], ("bodies", i, "pose"), fail, registry)
+
+
+def _in_document(data, path) -> bool:
+    """Whether the key path ``path`` exists in the parsed file ``data``."""
+    try:
+        for part in path:
+            data = data[part]
+    except (KeyError, IndexError, TypeError):
+        return False
+    return True
 
 
 def _get(registry, kind: str, name: str):

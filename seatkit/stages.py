@@ -129,17 +129,24 @@ def solve_importance(recipe: Mapping, bodies, registry) -> list:
 
 
 def refine(mesh, refiners, bodies, pressures, timer: StageTimer | None = None):
-    """``mesh`` after each ``(name, refiner, params)`` in turn, each timed as ``refine:NAME``."""
+    """``mesh`` after each ``(name, refiner, params)`` in turn, each timed as ``refine:NAME``.
+
+    Each refiner's cage is held to the template's constraints
+    (:func:`seatkit.template.checks.check_refined`).
+    """
     from seatkit.errors import SolverError
+    from seatkit.template.checks import check_refined
 
     timer = timer or StageTimer()
     for i, (name, refiner, params) in enumerate(refiners):
         with timer.stage(f"refine:{name}"):
             try:
-                mesh = refiner.refine(mesh, bodies, pressures, params=params)
+                refined = refiner.refine(mesh, bodies, pressures, params=params)
             except SolverError as e:
                 e.refiner_index = i  # where a repair of its refusal continues (refine_first_accepted)
                 raise
+            check_refined(mesh, refined, refiner=getattr(refiner, "component_label", None) or f"refiner {name!r}")
+            mesh = refined
     return mesh
 
 

@@ -66,13 +66,16 @@ def test_fake_plugin_components_are_registered_with_their_plugin(pm):
     pm.unregister(name="fake-stool")
 
 
-def test_duplicate_name_is_refused_naming_both_plugins(pm):
+def test_duplicate_name_disables_the_later_plugin_naming_both(pm):
     pm.register_plugin(TemplatePlugin("twin"), "first-plugin")
     pm.register_plugin(TemplatePlugin("twin"), "second-plugin")
-    with pytest.raises(PluginError) as err:
-        Registry(pm)
-    msg = str(err.value)
-    assert "'twin'" in msg and "first-plugin" in msg and "second-plugin" in msg
+    reg = Registry(pm)
+    assert reg.plugin_of("template", "twin") == "first-plugin"
+    assert "chair" in reg.names("template")  # the others are untouched
+    (line,) = [p for p in pm.problems if "twin" in p]
+    assert line.startswith('plugin "second-plugin" is disabled: ')
+    assert '"first-plugin"' in line and "'twin'" in line and "--disable-plugin first-plugin" in line
+    assert pm.get_plugin("second-plugin") is None and pm.infos["second-plugin"].disabled
 
 
 def test_broken_plugin_hook_is_reported_and_rest_keeps_working(pm):
@@ -156,8 +159,13 @@ def test_component_not_implementing_protocol_is_refused(pm):
             return [NoMethod()]
 
     pm.register_plugin(Bad(), "bad")
-    with pytest.raises(PluginError, match="does not implement Refiner"):
-        Registry(pm)
+    reg = Registry(pm)
+    assert "half" not in reg.names("refiner") and "optimize" in reg.names("refiner")
+    (line,) = pm.problems
+    assert line == (
+        'plugin "bad" is disabled: its refiner \'half\' does not implement Refiner: '
+        "it has no 'refine' (a Refiner has description, name, refine)"
+    )
 
 
 def test_unknown_hook_is_a_plugin_error(monkeypatch):
@@ -168,11 +176,14 @@ def test_unknown_hook_is_a_plugin_error(monkeypatch):
         def seatkit_register_templatez(self):
             return []
 
-    monkeypatch.setattr(plugins_mod, "BUILTIN_PLUGINS", {"typo": "typo_mod"})
-    monkeypatch.setattr(plugins_mod.importlib, "import_module", lambda name: Typo())
+    monkeypatch.setattr(plugins_mod, "BUILTIN_PLUGINS", {"typo": "typo_mod", "refiners": "seatkit_refiners"})
+    real = plugins_mod.importlib.import_module
+    monkeypatch.setattr(plugins_mod.importlib, "import_module", lambda name: Typo() if name == "typo_mod" else real(name))
     monkeypatch.setattr(plugins_mod, "_entry_points", lambda: [])
-    with pytest.raises(PluginError, match="unknown hook"):
-        get_plugin_manager(autoload=False)
+    pm = get_plugin_manager(autoload=False)
+    (line,) = pm.problems
+    assert line.startswith('plugin "typo" is disabled: it implements an unknown hook') and "seatkit_register_templatez" in line
+    assert pm.registry.names("refiner") == ["catmull-clark-fit", "optimize"]
 
 
 def test_builtins_are_packages_loaded_by_name_not_entry_points():

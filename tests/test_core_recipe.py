@@ -166,3 +166,44 @@ def test_check_recipe_returns_a_frozen_recipe_that_reads_as_its_mapping():
     assert isinstance(other, dict) and other["seed"] == 3 and recipe.seed == 0
     with pytest.raises(RecipeError, match="unknown key 'colour'"):
         Recipe.from_normalised({**data, "colour": "red"})
+
+
+def test_every_components_options_are_checked_against_one_schema_before_any_geometry(tmp_path):
+    # solvers, refiners (the design's and the baseline's), exporters and the structure section: seatkit.options
+    from seatkit.plugins import get_plugin_manager
+    from seatkit.recipe import check_recipe
+
+    registry = get_plugin_manager(autoload=False).registry
+    cases = [
+        ("pressure:\n  options: {backend: pqip}\n", "3: pressure.options.backend: expected one of auto, newton, piqp, clarabel, got 'pqip'; did you mean 'piqp'?"),
+        ("refiners:\n  - {name: optimize, params: {min_edge_lenght: 0.03}}\n", "3: refiners[0].params.min_edge_lenght: refiner 'optimize' has no option 'min_edge_lenght'; its options are: "),
+        ("evaluate:\n  baseline_refiners: [{name: catmull-clark-fit, params: {level: 9}}]\n", "3: evaluate.baseline_refiners[0].params.level: expected a whole number from 1 to 4, got 9"),
+        ("exporters:\n  - {name: obj, params: {scale: 2}}\n", "3: exporters[0].params.scale: exporter 'obj' has no option 'scale'; its options are: none"),
+        ("structure:\n  thicknes: 0.02\n", "3: structure.thicknes: structure has no option 'thicknes'; its options are: "),
+        ("structure:\n  layers: 9\n", "3: structure.layers: expected a whole number from 1 to 4, got 9"),
+    ]
+    for text, expected in cases:
+        path = write(tmp_path, "template: chair\n" + text)
+        with pytest.raises(RecipeError) as e:
+            data, document = load_recipe(path)
+            check_recipe(data, registry, document=document)
+        assert str(e.value).startswith(f"{path}:{expected}"), str(e.value)
+    assert "did you mean 'min_edge_length'?" in _error(tmp_path, registry, cases[1][0])
+    assert "did you mean 'thickness'?" in _error(tmp_path, registry, cases[4][0])
+    # the defaults come from the same declarations
+    from seatkit.options import defaults
+    from seatkit.refine import CCFIT_DEFAULTS, OPTIMIZE_DEFAULTS, CatmullClarkFitRefiner, OptimizeRefiner
+    from seatkit.structure.build import DEFAULTS, OPTIONS
+
+    assert OPTIMIZE_DEFAULTS == defaults(OptimizeRefiner.options) and CCFIT_DEFAULTS == defaults(CatmullClarkFitRefiner.options)
+    assert DEFAULTS == defaults(OPTIONS) and DEFAULTS["thickness"] == 0.02
+
+
+def _error(tmp_path, registry, text) -> str:
+    from seatkit.recipe import check_recipe
+
+    path = write(tmp_path, "template: chair\n" + text)
+    with pytest.raises(RecipeError) as e:
+        data, document = load_recipe(path)
+        check_recipe(data, registry, document=document)
+    return str(e.value)

@@ -160,3 +160,72 @@ def test_an_uninstalled_checkout_says_what_failed_to_import(tmp_path):
     assert "this checkout is not installed; run pip install -e . in it" in last
     assert "ModuleNotFoundError: No module named 'seatkit_bodies'" in last
     assert "Traceback" not in done.stderr
+
+
+RELAX = ROOT / "examples" / "seatkit-relax-plugin"
+
+
+@pytest.fixture(scope="module")
+def installed_relax(tmp_path_factory):
+    return _pip_install(tmp_path_factory.mktemp("site-relax"), RELAX, "seatkit_relax")
+
+
+def test_refiner_and_exporter_example_is_installed_and_builds(installed_relax, tmp_path):
+    import json
+    import xml.etree.ElementTree as ET
+
+    import numpy as np
+    import trimesh
+
+    plugins = run_seatkit(installed_relax, "plugins")
+    assert plugins.returncode == 0, plugins.stderr
+    assert "seatkit-relax" in plugins.stdout and "refiner: relax" in plugins.stdout and "exporter: profile-svg" in plugins.stdout
+    recipe = tmp_path / "recipe.yaml"
+    recipe.write_text(
+        "template: chair\n"
+        "refiners: [optimize, {name: relax, params: {iterations: 3, max_move: 0.015}}]\n"
+        "exporters: [obj, {name: profile-svg, params: {view: side, scale: 250}}]\n"
+        "evaluate: {enabled: false}\n"
+    )
+    out = tmp_path / "out"
+    done = run_seatkit(installed_relax, "build", "--recipe", str(recipe), "--out", str(out), "--quiet")
+    assert done.returncode == 0, done.stderr
+    report = json.loads((out / "report.json").read_text())
+    relax = report["control_mesh"]["meta"]["relax"]
+    assert relax["params"] == {"iterations": 3, "weight": 0.5, "max_move": 0.015}  # the given ones and the declared default
+    assert 0.0 < relax["largest_move_m"] <= 0.015 + 1e-12
+    cage = trimesh.load(out / "cage.obj", process=False)
+    V = np.asarray(cage.vertices)
+    ground = np.isclose(V[:, 1], 0.0, atol=1e-6)
+    assert ground.sum() >= 20  # the border ring is still on the floor (the refiner check holds it there)
+    # the drawing: one line per cage edge, the ground ring on the floor line, 250 px per metre
+    svg = ET.parse(out / "profile-side.svg").getroot()
+    ns = "{http://www.w3.org/2000/svg}"
+    edges = [l for l in svg.iter(f"{ns}line") if l.get("class") == "edge"]
+    (floor,) = [l for l in svg.iter(f"{ns}line") if l.get("class") == "floor"]
+    quads = np.array([[int(t.split("/")[0]) - 1 for t in line.split()[1:]] for line in (out / "cage.obj").read_text().splitlines() if line.startswith("f ")])
+    assert quads.shape[1] == 4
+    n_edges = len(np.unique(np.sort(np.stack([quads, np.roll(quads, -1, axis=1)], -1).reshape(-1, 2), axis=1), axis=0))
+    assert len(edges) == n_edges == len(V) + len(quads) - 1  # a disc: V - E + F = 1
+    ys = np.array([[float(l.get("y1")), float(l.get("y2"))] for l in edges]).ravel()
+    assert np.isclose(ys.max() - float(floor.get("y1")), -250 * min(V[:, 1].min(), 0.0), atol=0.02)  # the floor line at y = 0
+    assert np.isclose(np.ptp(ys), 250 * np.ptp(V[:, 1]), rtol=1e-3)
+    xs = np.array([[float(l.get("x1")), float(l.get("x2"))] for l in edges]).ravel()
+    assert np.isclose(np.ptp(xs), 250 * np.ptp(V[:, 2]), rtol=1e-3)
+    # a misspelt option of each: one line with the file's line and "did you mean", before any geometry
+    recipe.write_text(
+        "template: chair\n"
+        "refiners: [optimize, {name: relax, params: {iteratons: 3}}]\n"
+    )
+    done = run_seatkit(installed_relax, "build", "--recipe", str(recipe), "--out", str(out))
+    assert done.returncode == 1
+    assert done.stderr.strip() == (
+        f"seatkit: error: {recipe}:2: refiners[1].params.iteratons: refiner 'relax' has no option 'iteratons'; "
+        "its options are: iterations, max_move, weight; did you mean 'iterations'?"
+    )
+    recipe.write_text("template: chair\nexporters:\n  - name: profile-svg\n    params: {view: sied}\n")
+    done = run_seatkit(installed_relax, "build", "--recipe", str(recipe), "--out", str(out))
+    assert done.returncode == 1
+    assert done.stderr.strip() == (
+        f"seatkit: error: {recipe}:4: exporters[0].params.view: expected one of side, front, top, got 'sied'; did you mean 'side'?"
+    )

@@ -276,7 +276,7 @@ def test_template_params_errors_have_file_and_line(tmp_path):
         template: flat-patch
         template_params: {rowz: 3}
         """)
-    with pytest.raises(RecipeError, match=r"recipe.yaml:2: template_params.rowz: unknown parameter; expected one of cols"):
+    with pytest.raises(RecipeError, match=r"recipe.yaml:2: template_params.rowz: template 'flat-patch' has no option 'rowz'; its options are: cols, .*; did you mean 'rows'\?$"):
         _check(path)
 
 
@@ -423,8 +423,10 @@ def test_an_exporter_without_prepare_is_refused_at_registration():
 
     pm = get_plugin_manager(autoload=False)
     pm.register_plugin(P(), "old-exporters")
-    with pytest.raises(PluginError, match="exporter 'old' that does not implement Exporter"):
-        pm.registry  # noqa: B018
+    assert "old" not in pm.registry.names("exporter")
+    (line,) = pm.problems
+    assert line.startswith('plugin "old-exporters" is disabled: its exporter \'old\' does not implement Exporter: ')
+    assert "it has no 'prepare', 'prepare_ahead'" in line
     reg = get_plugin_manager(autoload=False).registry
     ahead = {n for n, e, _ in reg.items("exporter") if e.prepare_ahead}
     assert ahead == {"usd", "usdc", "shell", "report-html"}
@@ -451,6 +453,19 @@ def test_docs_option_tables_are_generated_from_the_step_schemas():
     for name, step in BUILTIN_STEPS.items():
         block = f"<!-- options of {name} -->\n{options_table(step)}\n<!-- end -->"
         assert block in docs, f"docs/templates.md: the options table of step {name!r} is not the one its schema gives; run python -m seatkit.template.steps docs/templates.md"
+
+
+
+def test_docs_option_tables_of_refiners_are_generated_from_their_declarations():
+    from seatkit.options import options_table as table
+    from seatkit.template.flat_patch import FLAT_PATCH_OPTIONS
+
+    docs = (ROOT / "docs" / "refiners.md").read_text()
+    registry = get_plugin_manager(autoload=False).registry
+    declared = {name: refiner.options for name, refiner, _ in registry.items("refiner")}
+    declared["flat-patch"] = FLAT_PATCH_OPTIONS
+    for name, options in declared.items():
+        assert f"<!-- options of {name} -->\n{table(options)}\n<!-- end -->" in docs, f"docs/refiners.md: the options table of {name!r} is not the one it declares"
 
 
 # -- fuzz: whatever a template or recipe gives a step, the answer is a located RecipeError or a plan

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from seatkit.constants import GRAVITY
-from seatkit.errors import InfeasibleSupportError, InputError
+from seatkit.errors import RecipeError, InfeasibleSupportError, InputError
 from seatkit.model import Body
 from seatkit.pressure import QPPressureSolver, contact_from_surface, solve_pressure
 from seatkit.geometry.normals import vertex_normals
@@ -216,8 +216,10 @@ def test_bad_inputs_are_reported(body):
     for mu in (-0.1, float("inf"), float("nan")):  # --mu inf was a ValueError inside the QP
         with pytest.raises(InputError, match="mu must be from 0 to 10"):
             solve_pressure(body, mu=mu)
-    with pytest.raises(InputError, match="unknown options"):
+    with pytest.raises(RecipeError, match=r"^pressure.options.bogus: pressure solver 'qp' has no option 'bogus'; its options are: backend, tol, weight_cap$"):
         QPPressureSolver().solve(body, options={"bogus": 1})
+    with pytest.raises(RecipeError, match=r"pressure.options.backend: expected one of auto, newton, piqp, clarabel, got 'pqip'; did you mean 'piqp'\?"):
+        QPPressureSolver().solve(body, options={"backend": "pqip"})
 
 
 def test_mixed_voronoi_areas_sum_to_the_surface():

@@ -42,10 +42,10 @@ def test_structure_command_writes_the_figures(chair_dir, tmp_path):
 @pytest.mark.parametrize(
     ("flags", "message"),
     [
-        (("--thickness", 0), "--thickness: shell thickness must be a positive number of metres"),
-        (("--thickness", -0.003), "--thickness: shell thickness must be a positive number of metres"),
-        (("--material", "oak"), "unknown material 'oak'; expected one of birch-plywood, mdf, pla, petg, aluminium-6061, steel, gfrp"),
-        (("--safety-factor", 0), "--safety-factor: expected a positive number"),
+        (("--thickness", 0), "--thickness: expected a number from 0.0001 to 0.5 (m), got 0.0"),
+        (("--thickness", -0.003), "--thickness: expected a number from 0.0001 to 0.5 (m), got -0.003"),
+        (("--material", "oak"), "--material: expected one of birch-plywood, mdf, pla, petg, aluminium-6061, steel, gfrp, got 'oak'"),
+        (("--safety-factor", 0), "--safety-factor: expected a number from 0.001 to 1000, got 0.0"),
     ],
 )
 def test_bad_flags_are_one_line_and_write_nothing(chair_dir, tmp_path, flags, message):
@@ -92,10 +92,11 @@ def test_build_with_structure_sizes_and_writes_that_shell(tmp_path):
 @pytest.mark.parametrize(
     ("flags", "message"),
     [
-        (("--material", "oak"), "structure.material: unknown material 'oak'; expected one of birch-plywood"),
-        (("--thickness", "0"), "structure.thickness: shell thickness must be a positive number of metres"),
-        (("--thickness", "-0.02"), "structure.thickness: shell thickness must be a positive number of metres"),
-        (("--max-deflection", "0"), "structure.max_deflection: expected a positive number of metres"),
+        (("--material", "oak"), "structure.material: expected one of birch-plywood, mdf, pla, petg, aluminium-6061, steel, gfrp, got 'oak'"),
+        (("--material", "steal"), "structure.material: expected one of birch-plywood, mdf, pla, petg, aluminium-6061, steel, gfrp, got 'steal'; did you mean 'steel'?"),
+        (("--thickness", "0"), "structure.thickness: expected a number from 0.0001 to 0.5 (m), got 0.0"),
+        (("--thickness", "-0.02"), "structure.thickness: expected a number from 0.0001 to 0.5 (m), got -0.02"),
+        (("--max-deflection", "0"), "structure.max_deflection: expected a number from 1e-06 to 1 (m), got 0.0"),
     ],
 )
 def test_build_flags_are_checked_before_any_work(tmp_path, flags, message):

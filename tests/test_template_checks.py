@@ -155,3 +155,114 @@ def test_a_cage_edge_through_a_coarse_body_is_found():
     got = crossing_faces(V, np.array([[0, 1, 2, 3]]), body, 0.0)
     np.testing.assert_array_equal(got, [0])
     np.testing.assert_array_equal(_brute_crossing(V, np.array([[0, 1, 2, 3]]), body, 0.0), [0])
+
+
+# --- sides and refiners' cages ---------------------------------------------------------------
+
+
+def _upright_chair():
+    """The chair's cage on the default body sitting upright, with the body and its pressure."""
+    from seatkit.body import load_pose, load_rig, pose_rig
+    from seatkit.pressure import solve_pressure
+    from seatkit.template import load_template
+    from seatkit.plugins import BUILTIN_PLUGINS  # noqa: F401  (the chair file lives in its plugin)
+    import seatkit_chair
+
+    body = pose_rig(load_rig("default-male"), load_pose("upright-sitting"), ground=True)
+    pressure = solve_pressure(body)
+    chair = [t for t in seatkit_chair.seatkit_register_templates() if t.name == "chair"][0]
+    return chair.fit([body], [pressure], seed=0), body, pressure
+
+
+def test_a_cage_oriented_away_from_the_body_is_refused_naming_a_face_and_its_segment():
+    import dataclasses
+
+    import pytest
+
+    from seatkit.errors import UnsupportedPoseError
+    from seatkit.template.checks import check_cage, wrong_side_faces
+
+    cage, body, _ = _upright_chair()
+    assert wrong_side_faces(cage, [body]) == []  # the fitted chair: every supporting face has the body in front
+    flipped = dataclasses.replace(cage, faces=cage.faces[:, ::-1].copy())  # the same surface, normals away from the body
+    found = wrong_side_faces(flipped, [body])
+    assert len(found) >= 5
+    whys = [why for _, _, why in found]
+    assert all(w.endswith("cm behind it (its normal points away from the body)") or w.startswith("it holds it from above") for w in whys)
+    assert any("behind it" in w for w in whys) and any("from above" in w for w in whys)  # the backrest and the seat
+    with pytest.raises(UnsupportedPoseError):  # touching the skin from behind, it also crosses the body
+        check_cage(flipped, [body], tolerance=0.0)
+
+
+def test_a_seat_on_the_lap_is_refused_and_the_same_seat_under_the_thighs_is_not():
+    import dataclasses
+
+    from seatkit.skeleton import SEGMENT_INDEX
+    from seatkit.template.checks import wrong_side_faces
+
+    cage, body, _ = _upright_chair()
+    thigh = body.vertices[np.argmax(body.weights, axis=1) == SEGMENT_INDEX["LeftUpLeg"]]
+    lo, hi = thigh.min(0), thigh.max(0)
+    x0, x1, z0, z1 = lo[0], hi[0], lo[2], hi[2]
+
+    def square(y, down):
+        V = np.array([[x0, y, z0], [x1, y, z0], [x1, y, z1], [x0, y, z1]])
+        F = np.array([[0, 1, 2, 3]]) if down else np.array([[3, 2, 1, 0]])
+        return dataclasses.replace(
+            cage, vertices=V, faces=F, face_segments=np.array([SEGMENT_INDEX["LeftUpLeg"]]), face_person=np.array([0]),
+            face_labels=("lap",), plane_points=V[:1], plane_normals=np.array([[0.0, 1.0, 0.0]]), vertex_weights=np.ones(4),
+            fixed=np.zeros(4, bool), ground=np.zeros(4, bool),
+        )
+
+    on_lap = square(hi[1] + 0.03, down=True)
+    assert np.cross(on_lap.vertices[2] - on_lap.vertices[0], on_lap.vertices[3] - on_lap.vertices[1])[1] < 0  # normal down, to the thigh
+    (found,) = wrong_side_faces(on_lap, [body])
+    assert found[0] == 0 and "from above" in found[2]
+    under = square(lo[1] - 0.01, down=False)
+    assert wrong_side_faces(under, [body]) == []
+
+
+def test_a_refiners_cage_is_held_to_the_templates_constraints():
+    import pytest
+
+    from seatkit.errors import PluginError
+    from seatkit.stages import refine
+    from seatkit.template.checks import BORDER_TOLERANCE, refined_problems
+
+    cage, body, pressure = _upright_chair()
+    assert refined_problems(cage, cage) == []
+    g = np.flatnonzero(cage.ground)
+    # sliding a ground vertex along its side of the ring is allowed (optimize's slide_border)
+    ring = cage.vertices[g][:, [0, 2]]
+    a = g[0]
+    nb = [b for b in g if b != a and np.isclose(cage.vertices[b, 0], cage.vertices[a, 0], atol=1e-9)]
+    slid = cage.vertices.copy()
+    slid[a] += 0.3 * (cage.vertices[nb[0]] - cage.vertices[a])
+    assert refined_problems(cage, cage.with_vertices(slid)) == []
+    # the border moved 25 cm outwards, a ground vertex lifted, a fixed topology changed: refused
+    out = cage.vertices.copy()
+    centre = ring.mean(0)
+    out[g[:, None], [0, 2]] += 0.25 * (ring - centre) / np.linalg.norm(ring - centre, axis=1, keepdims=True)
+    (problem,) = refined_problems(cage, cage.with_vertices(out))
+    assert "left the template's ground ring by " in problem
+    lifted = cage.vertices.copy()
+    lifted[g[3], 1] = 0.02
+    assert refined_problems(cage, cage.with_vertices(lifted))[0].startswith(f"ground vertex {g[3]} is 20.0 mm off the floor")
+    nudged = cage.vertices.copy()
+    nudged[g[3], [0, 2]] += 2 * BORDER_TOLERANCE * np.sign(nudged[g[3], [0, 2]] - centre)  # 2 mm outwards, across its side
+    assert refined_problems(cage, cage.with_vertices(nudged))
+
+    class Spreader:
+        name = "spreader"
+        description = "moves the border outwards"
+
+        def refine(self, mesh, bodies, pressures, *, params=None):
+            return mesh.with_vertices(out)
+
+    with pytest.raises(PluginError, match=r"^refiner 'spreader' broke the template's constraints: ground vertex \d+ left the template's ground ring by \d+\.\d cm"):
+        refine(cage, [("spreader", Spreader(), {})], [body], [pressure])
+    # as a build runs it, guarded: its plugin is named too
+    from seatkit.plugins import Guarded
+
+    with pytest.raises(PluginError, match=r"^refiner 'spreader' of plugin \"spread\" broke the template's constraints: ground vertex"):
+        refine(cage, [("spreader", Guarded(Spreader(), "refiner", "spread"), {})], [body], [pressure])

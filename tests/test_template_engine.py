@@ -103,7 +103,7 @@ def test_topology_and_self_intersection_checks():
 
 def test_a_long_bad_step_option_is_quoted_short():
     # a fuzzed template gave a 5135-character message: the value was echoed whole
-    from seatkit.template.options import Option, _check_value
+    from seatkit.options import Option, _check_value
 
     option = Option("number", "share of a segment's importance that may be occluded", 0.2, "1", 0.0, 1.0)
     _, problem, _ = _check_value(option, "a" * 5000, {})

@@ -24,6 +24,7 @@ from seatkit.constants import (
 )
 from seatkit.errors import InfeasibleSupportError, InputError, SolverError
 from seatkit.model import PressureField
+from seatkit.options import Option
 from seatkit.pressure.assembly import assemble, body_geometry, joint_loads, segment_gravity
 from seatkit.pressure.field import equilibrium_residuals
 from seatkit.pressure.regions import DEFAULT_EXCLUDE, exclusion_mask
@@ -300,10 +301,19 @@ def solve_pressure(
     )
 
 
+#: Options of the ``qp`` solver (a recipe's ``pressure.options``): their one declaration.
+QP_OPTIONS: dict[str, Option] = {
+    "backend": Option("choice", "QP backend: auto (dual Newton, PIQP fallback), newton, piqp or clarabel", "auto", choices=BACKENDS),
+    "weight_cap": Option("number", "largest local reaction weight (caps the paper's 1/|r|)", DEFAULT_WEIGHT_CAP, "1", 1.0, 1e12),
+    "tol": Option("number", "relative tolerance of the equilibrium equalities", EQUALITY_TOL_RELATIVE, "1", 1e-15, 1e-2),
+}
+
+
 class QPPressureSolver:
     """The paper's equilibrium QP (Section 4, Appendix A) as a component."""
 
     name = "qp"
+    options = QP_OPTIONS
     description = (
         "Paper Section 4: joint moments + weighted reactions with Coulomb friction pyramid "
         "(dual Newton, PIQP fallback)"
@@ -321,12 +331,10 @@ class QPPressureSolver:
     ) -> PressureField:
         """See :class:`seatkit.interfaces.PressureSolver`.
 
-        ``options`` keys: ``backend`` (``auto``, ``newton``, ``piqp``,
-        ``clarabel``), ``weight_cap`` (float), ``tol`` (float).
+        ``options``: :data:`QP_OPTIONS` (``backend``, ``weight_cap``,
+        ``tol``); another key or a bad value is a :class:`RecipeError`.
         """
-        options = dict(options or {})
-        unknown = set(options) - {"backend", "weight_cap", "tol"}
-        if unknown:
-            msg = f"pressure solver 'qp': unknown options {sorted(unknown)}; expected backend, weight_cap, tol"
-            raise InputError(msg)
+        from seatkit.params import component_params
+
+        options = component_params("pressure solver 'qp'", QP_OPTIONS, options, where=("pressure", "options"))
         return solve_pressure(body, contact=contact, lam=lam, mu=mu, exclude=exclude, **options)

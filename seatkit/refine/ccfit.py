@@ -99,12 +99,14 @@ from seatkit.geometry.skin import SkinDistance
 from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, inside_furniture, surface_depth_in_body
 from seatkit.model import Body, ControlMesh, PressureField, Surface
 from seatkit.pressure.contact import supported_vertices
+from seatkit.options import Option, defaults
 from seatkit.params import refiner_params
 from seatkit.refine.quality import mesh_edges
 from seatkit.side import beside
 
 __all__ = [
     "CCFIT_DEFAULTS",
+    "CCFIT_OPTIONS",
     "FitTargets",
     "supported_targets",
     "surface_distances",
@@ -114,28 +116,31 @@ __all__ = [
     "SurfaceLimitRefusal",
 ]
 
-#: Default parameters of ``catmull-clark-fit`` (lengths in m).
-CCFIT_DEFAULTS: dict[str, Any] = {
-    "level": 3,  # subdivision level of the limit samples
-    "importance_threshold": 0.02,  # body vertices with importance above this are supported
-    "fairness": 0.05,  # weight of |G (P - P0)|^2 per control point
-    "damping": 1e-4,  # weight of |P - P_k|^2 per control point (Levenberg step)
-    "point_to_point": 0.1,  # share of the point-to-point distance
-    "penetration_weight": 100.0,  # weight of a surface sample inside the body, relative to the mean importance
-    "clearance": 0.006,  # m, gap kept between the surface and the skin
-    "max_penetration": 0.003,  # m, allowed depth of a probe inside the body (2 mm under the 5 mm asked of the surface: it can reach deeper between the probes)
-    "min_facing": 0.2,  # a correspondence needs skin normal . surface normal below -min_facing
-    "max_distance": 1.0,  # m, correspondences farther than this are ignored
-    "retreat": True,  # probes inside the body leave it backwards along the surface normal
-    "retreat_agreement": 0.25,  # ... unless that way is against the skin's nearest way out (cosine below minus this)
-    "max_step": 0.03,  # m, the farthest a control point moves in one iteration
-    "max_iterations": 20,
-    "polish_iterations": 8,  # extra iterations with denser penetration probes, when needed
-    "extra_iterations": 60,  # more iterations of a phase while the penetration limit is not met and the depth still falls
-    "tolerance": 1e-4,  # m, stop when the mean distance improves less than this
-    "raise_on_penetration": False,  # SolverError when max_penetration cannot be met
-    "surface_limit": 0.005,  # m, SolverError when the final surface (level 4) reaches deeper into a body, or a body vertex lies deeper inside the furniture; 0: off
+#: Options of ``catmull-clark-fit`` (lengths in m): its parameters' one declaration.
+CCFIT_OPTIONS: dict[str, Option] = {
+    "level": Option("count", "subdivision level of the limit samples", 3, "", 1, 4),
+    "importance_threshold": Option("number", "body vertices with importance above this are supported", 0.02, "1", 0.0, 1.0),
+    "fairness": Option("number", "weight of |G (P - P0)|^2 per control point", 0.05, "1", 0.0, 1e6),
+    "damping": Option("number", "weight of |P - P_k|^2 per control point (Levenberg step)", 1e-4, "1", 0.0, 1e6),
+    "point_to_point": Option("number", "share of the point-to-point distance", 0.1, "1", 0.0, 1.0),
+    "penetration_weight": Option("number", "weight of a surface sample inside the body, relative to the mean importance", 100.0, "1", 0.0, 1e9),
+    "clearance": Option("number", "gap kept between the surface and the skin", 0.006, "m", 0.0, 0.1),
+    "max_penetration": Option("number", "allowed depth of a probe inside the body", 0.003, "m", 0.0, 0.1),
+    "min_facing": Option("number", "a correspondence needs skin normal . surface normal below -min_facing", 0.2, "1", -1.0, 1.0),
+    "max_distance": Option("number", "correspondences farther than this are ignored", 1.0, "m", 0.0, 100.0),
+    "retreat": Option("bool", "probes inside the body leave it backwards along the surface normal", True),
+    "retreat_agreement": Option("number", "... unless that way runs against the skin's nearest way out (cosine below minus this)", 0.25, "1", -1.0, 1.0),
+    "max_step": Option("number", "the farthest a control point moves in one iteration", 0.03, "m", 1e-6, 10.0),
+    "max_iterations": Option("count", "iterations of the fit", 20, "", 0, 100000),
+    "polish_iterations": Option("count", "extra iterations with denser penetration probes, when needed", 8, "", 0, 100000),
+    "extra_iterations": Option("count", "more iterations of a phase while the penetration limit is not met and the depth still falls", 60, "", 0, 100000),
+    "tolerance": Option("number", "stop when the mean distance improves less than this", 1e-4, "m", 0.0, 1.0),
+    "raise_on_penetration": Option("bool", "SolverError when max_penetration cannot be met", False),
+    "surface_limit": Option("number", "SolverError when the final surface (level 4) reaches deeper into a body, or a body vertex lies deeper inside the furniture; 0: off", 0.005, "m", 0.0, 1.0),
 }
+
+#: Default parameters of ``catmull-clark-fit`` (from :data:`CCFIT_OPTIONS`).
+CCFIT_DEFAULTS: dict[str, Any] = defaults(CCFIT_OPTIONS)
 
 #: Iterations without a deeper-probe improvement after which the extra iterations stop.
 _DEPTH_PATIENCE = 5
@@ -365,8 +370,7 @@ def fit_cage(
     bodies : sequence of Body
     pressures : sequence of PressureField
     params : mapping, optional
-        Overrides of :data:`CCFIT_DEFAULTS` (after the template's defaults in
-        ``mesh.meta["refiners"]["catmull-clark-fit"]``).
+        Overrides of :data:`CCFIT_DEFAULTS` (declared in :data:`CCFIT_OPTIONS`).
 
     Returns
     -------
@@ -417,7 +421,7 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     accepted only when the result measures within the limit), which the
     engine tries once every cage of the template has been refused.
     """
-    p = refiner_params("catmull-clark-fit", CCFIT_DEFAULTS, mesh.meta, params)
+    p = refiner_params("catmull-clark-fit", CCFIT_OPTIONS, params)
     params = dict(params or {})
     target = p["max_penetration"]
     rounds = []
@@ -613,7 +617,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
     from seatkit.subdivision import Cage, build_operators
 
     start = time.perf_counter()
-    p = refiner_params("catmull-clark-fit", CCFIT_DEFAULTS, mesh.meta, params)
+    p = refiner_params("catmull-clark-fit", CCFIT_OPTIONS, params)
     targets = supported_targets(mesh, bodies, pressures, threshold=p["importance_threshold"])
     cage = Cage.from_control_mesh(mesh)
     ops = build_operators(cage, p["level"])
@@ -966,6 +970,7 @@ class CatmullClarkFitRefiner:
 
     name = "catmull-clark-fit"
     description = "Catmull-Clark limit surface fitted to the supported body regions (Sit & Relax)"
+    options = CCFIT_OPTIONS
 
     def refine(
         self,

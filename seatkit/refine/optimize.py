@@ -88,27 +88,31 @@ import scipy.sparse as sp
 
 from seatkit.errors import SolverError
 from seatkit.model import Body, ControlMesh, PressureField
+from seatkit.options import Option, defaults
 from seatkit.params import refiner_params
 from seatkit.refine.quality import cage_quality, mesh_edges
 
-__all__ = ["OPTIMIZE_DEFAULTS", "CageEnergy", "optimize_cage", "OptimizeRefiner"]
+__all__ = ["OPTIMIZE_DEFAULTS", "OPTIMIZE_OPTIONS", "CageEnergy", "optimize_cage", "OptimizeRefiner"]
 
-#: Default parameters of ``optimize`` (weights dimensionless, lengths in m).
-OPTIMIZE_DEFAULTS: dict[str, Any] = {
-    "lambda_smooth": 1.0,  # lambda_S, the mesh term
-    "lambda_data": 10.0,  # lambda_D, the data term
-    "lambda_laplacian": 1.0,  # lambda_S^l
-    "lambda_regular": 1.0,  # lambda_S^A1, (sum alpha - 2 pi)^2
-    "lambda_max_angle": 1.0,  # lambda_S^A2, sum (alpha - pi)^2
-    "lambda_vertex": 1.0,  # lambda_D^V
-    "lambda_plane": 1.0,  # lambda_D^P
-    "laplacian_weight_floor": 0.1,  # smallest neighbour weight in the Laplacian average
-    "min_edge_length": 0.02,  # m, hard constraint
-    "min_corner_angle_deg": 15.0,  # deg: no corner below min(its template angle, this); hard constraint
-    "slide_border": True,  # ground vertices slide along their rectangle edge
-    "max_iterations": 300,  # per L-BFGS-B run (one per penalty round)
-    "tolerance": 1e-9,  # L-BFGS-B's ftol: relative energy decrease that stops a run
+#: Options of ``optimize`` (weights dimensionless, lengths in m): its parameters' one declaration.
+OPTIMIZE_OPTIONS: dict[str, Option] = {
+    "lambda_smooth": Option("number", "lambda_S, weight of the mesh term", 1.0, "1", 0.0, 1e6),
+    "lambda_data": Option("number", "lambda_D, weight of the data term", 10.0, "1", 0.0, 1e6),
+    "lambda_laplacian": Option("number", "lambda_S^l, the Laplacian term", 1.0, "1", 0.0, 1e6),
+    "lambda_regular": Option("number", "lambda_S^A1, (sum alpha - 2 pi)^2", 1.0, "1", 0.0, 1e6),
+    "lambda_max_angle": Option("number", "lambda_S^A2, sum (alpha - pi)^2", 1.0, "1", 0.0, 1e6),
+    "lambda_vertex": Option("number", "lambda_D^V, the vertex term", 1.0, "1", 0.0, 1e6),
+    "lambda_plane": Option("number", "lambda_D^P, the plane term", 1.0, "1", 0.0, 1e6),
+    "laplacian_weight_floor": Option("number", "smallest neighbour weight in the Laplacian average", 0.1, "1", 0.0, 1.0),
+    "min_edge_length": Option("number", "shortest edge with a moving end (hard constraint)", 0.02, "m", 0.0, 1.0),
+    "min_corner_angle_deg": Option("number", "no corner below min(its template angle, this) (hard constraint); 0: off", 15.0, "deg", 0.0, 89.0),
+    "slide_border": Option("bool", "ground vertices slide along their rectangle edge", True),
+    "max_iterations": Option("count", "L-BFGS-B iterations per run (one run per penalty round)", 300, "", 1, 100000),
+    "tolerance": Option("number", "L-BFGS-B's ftol: relative energy decrease that ends a run", 1e-9, "1", 0.0, 1.0),
 }
+
+#: Default parameters of ``optimize`` (from :data:`OPTIMIZE_OPTIONS`).
+OPTIMIZE_DEFAULTS: dict[str, Any] = defaults(OPTIMIZE_OPTIONS)
 
 #: Relative tolerance when checking that a vertex lies on the ground rectangle.
 _RECT_TOL = 1e-6
@@ -761,8 +765,7 @@ def optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None = None) ->
     mesh : ControlMesh
         Quad cage from a template (faces (f, 4)).
     params : mapping, optional
-        Overrides of :data:`OPTIMIZE_DEFAULTS` (after the template's defaults in
-        ``mesh.meta["refiners"]["optimize"]``).
+        Overrides of :data:`OPTIMIZE_DEFAULTS` (declared in :data:`OPTIMIZE_OPTIONS`).
 
     Returns
     -------
@@ -978,7 +981,7 @@ def _check_solution(problem: _Problem, x, faces, e_start: float, e_total: float,
 
 def _optimize_cage(mesh: ControlMesh, params: Mapping[str, Any] | None) -> ControlMesh:
     start = time.perf_counter()
-    p = refiner_params("optimize", OPTIMIZE_DEFAULTS, mesh.meta, params)
+    p = refiner_params("optimize", OPTIMIZE_OPTIONS, params)
     vertices, faces = _checked_cage(mesh)
     problem = _build_problem(mesh, vertices, faces, p)
     e_start, _ = problem.energy.value_and_grad(problem.unpack(problem.z0))
@@ -1016,6 +1019,7 @@ class OptimizeRefiner:
 
     name = "optimize"
     description = "Mesh optimisation of the paper (Laplacian, angle, vertex and plane terms; L-BFGS-B)"
+    options = OPTIMIZE_OPTIONS
 
     def refine(
         self,

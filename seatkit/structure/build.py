@@ -23,7 +23,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from seatkit.errors import SeatkitError
+from seatkit.errors import ParamError
+from seatkit.options import Option, check_options, defaults, json_schema
 from seatkit.io import jsonable
 from seatkit.structure.analysis import (
     DEFAULT_LAYERS,
@@ -33,44 +34,32 @@ from seatkit.structure.analysis import (
     Analysis,
     StructureError,
     analyse,
-    check_thickness,
     size_thickness,
 )
-from seatkit.structure.materials import get_material
+from seatkit.structure.materials import MATERIALS
 
-__all__ = ["DEFAULTS", "SCHEMA", "StructureExporter", "enable", "run_structure", "settings", "write_structure"]
+__all__ = ["DEFAULTS", "OPTIONS", "SCHEMA", "StructureExporter", "enable", "run_structure", "settings", "write_structure"]
 
 DEFAULT_MATERIAL = "birch-plywood"
 DEFAULT_THICKNESS = 0.02
 
-DEFAULTS = {
-    "enabled": False,
-    "material": DEFAULT_MATERIAL,
-    "thickness": DEFAULT_THICKNESS,
-    "size_thickness": False,
-    "safety_factor": DEFAULT_SAFETY_FACTOR,
-    "max_deflection": DEFAULT_MAX_DEFLECTION,
-    "level": DEFAULT_LEVEL,
-    "layers": DEFAULT_LAYERS,
+#: Options of the ``structure`` section: their one declaration (:mod:`seatkit.options`).
+OPTIONS: dict[str, Option] = {
+    "enabled": Option("bool", "run the analysis in the build (seatkit build --structure)", False),
+    "material": Option("choice", "shell material (seatkit.structure.MATERIALS)", DEFAULT_MATERIAL, choices=tuple(MATERIALS)),
+    "thickness": Option("number", "shell thickness; also the thickness the shell exporter writes", DEFAULT_THICKNESS, "m", 1e-4, 0.5),
+    "size_thickness": Option("bool", "find the thinnest shell that keeps safety_factor and max_deflection", False),
+    "safety_factor": Option("number", "safety factor --size-thickness keeps", DEFAULT_SAFETY_FACTOR, "1", 1e-3, 1e3),
+    "max_deflection": Option("number", "deflection limit --size-thickness keeps", DEFAULT_MAX_DEFLECTION, "m", 1e-6, 1.0),
+    "level": Option("count", "mesh resolution: the elements are the level-L quads", DEFAULT_LEVEL, "", 1, 3),
+    "layers": Option("count", "elements through the thickness", DEFAULT_LAYERS, "", 1, 4),
 }
 
-_POSITIVE = {"type": "number", "exclusiveMinimum": 0}
+#: Defaults of the ``structure`` section (from :data:`OPTIONS`).
+DEFAULTS = defaults(OPTIONS)
 
-#: JSON schema of the recipe's ``structure`` section.
-SCHEMA = {
-    "type": "object",
-    "additionalProperties": False,
-    "properties": {
-        "enabled": {"type": "boolean"},
-        "material": {"type": "string", "minLength": 1},
-        "thickness": _POSITIVE,
-        "size_thickness": {"type": "boolean"},
-        "safety_factor": _POSITIVE,
-        "max_deflection": _POSITIVE,
-        "level": {"type": "integer", "minimum": 1, "maximum": 3},
-        "layers": {"type": "integer", "minimum": 1, "maximum": 4},
-    },
-}
+#: JSON schema of the recipe's ``structure`` section (from :data:`OPTIONS`).
+SCHEMA = json_schema(OPTIONS)
 
 #: Exporters a build with the analysis gets.
 EXPORTERS = ("structure", "shell")
@@ -84,24 +73,13 @@ def settings(data=None) -> dict:
 
 
 def check(section: dict) -> list[tuple[str, str]]:
-    """Problems of a filled ``structure`` section: (key, message) pairs."""
+    """Problems of a filled ``structure`` section (from a file or flags): (key, message) pairs, against :data:`OPTIONS`."""
     problems = []
-    try:
-        get_material(section["material"])
-    except SeatkitError as e:
-        problems.append(("material", str(e)))
-    try:
-        check_thickness(section["thickness"])
-    except StructureError as e:
-        problems.append(("thickness", str(e)))
-    for key, what in (("safety_factor", "a positive number (e.g. 2)"), ("max_deflection", "a positive number of metres (e.g. 0.01)")):
-        value = section[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not (0 < value < float("inf")):
-            problems.append((key, f"expected {what}, got {value!r}"))
-    for key, top in (("level", 3), ("layers", 4)):
-        value = section[key]
-        if isinstance(value, bool) or not isinstance(value, int) or not (1 <= value <= top):
-            problems.append((key, f"expected a whole number from 1 to {top}, got {value!r}"))
+    for key, value in section.items():
+        try:
+            check_options("structure", OPTIONS, {key: value}, fail=ParamError)
+        except ParamError as e:
+            problems.append((key, e.problem))
     return problems
 
 

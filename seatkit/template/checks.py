@@ -1,4 +1,10 @@
-"""Checks of a fitted cage: topology, self-intersection, body crossing, supportability.
+"""Checks of a fitted cage: topology, self-intersection, body crossing, sides, supportability.
+
+A cage is one oriented surface: each face's normal (its corners in order,
+``(c - a) x (d - b)``) points to the side the body is on. A face that
+supports a body segment with the segment behind it (a seat on the lap, its
+normals pointing down) is refused (:func:`wrong_side_faces`). A refiner's
+cage is held to the template's constraints (:func:`check_refined`).
 
 Non-planar quads are checked as four triangles around their centre (a close
 stand-in for the bilinear patch). Triangle-triangle intersection is tested
@@ -16,7 +22,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from seatkit.cache import IdentityCache
-from seatkit.errors import UnsupportedPoseError
+from seatkit.errors import PluginError, UnsupportedPoseError
 from seatkit.geometry.normals import vertex_normals as _triangle_normals
 from seatkit.geometry.surface import SurfaceQuery, inside_furniture
 from seatkit.model import Body, ControlMesh, Surface
@@ -31,6 +37,9 @@ __all__ = [
     "crossing_faces",
     "faces_cross_body",
     "check_cage",
+    "check_refined",
+    "refined_problems",
+    "wrong_side_faces",
     "check_supportability",
     "cast_parallel",
     "segments_cross_triangles",
@@ -474,6 +483,162 @@ def check_cage(mesh: ControlMesh, bodies, *, tolerance: float) -> None:
             names = sorted({mesh.face_labels[i] for i in bad})
             msg = f"{person_label(person, body)}: the fitted cage crosses the body at faces {', '.join(names)}: this topology cannot support the pose"
             raise UnsupportedPoseError(msg, parts=_parts(mesh, bad), diagnostics={"crossing_faces": bad.tolist(), **mesh.meta})
+    wrong = wrong_side_faces(mesh, bodies)
+    if wrong:
+        face, person, why = wrong[0]
+        segment = SEGMENTS[mesh.face_segments[face]]
+        more = f"; and {len(wrong) - 1} more face(s)" if len(wrong) > 1 else ""
+        msg = (
+            f"{person_label(person, bodies[person])}: face {mesh.face_labels[face]!r} supports {segment} from the wrong side: "
+            f"{why}{more}; this topology cannot support the pose"
+        )
+        faces = np.array([f for f, _, _ in wrong])
+        raise UnsupportedPoseError(msg, parts=_parts(mesh, faces), diagnostics={"wrong_side_faces": faces.tolist(), **mesh.meta})
+
+
+#: A face supports its segment from the wrong side when the segment's body
+#: vertices nearest its centre lie behind its plane: their median more than
+#: this deep, m (a face touching the skin has them on both sides, within
+#: millimetres; a face crossing the limb is refused by the crossing check).
+WRONG_SIDE_DEPTH = 0.02
+
+#: Body vertices of the segment, nearest the face's centre, that the side is read from.
+WRONG_SIDE_SAMPLES = 30
+
+#: ... and at most this share of them in front of the face.
+WRONG_SIDE_FRONT_SHARE = 0.2
+
+#: A supporting face whose normal points within this of straight down (to
+#: the body below it: a seat on the lap) holds nothing up, rad. The library
+#: chairs' lowest supporting normal is a lumbar face's, about 30 deg below
+#: the horizontal (60 deg from straight down).
+DOWN_ANGLE = np.radians(30.0)
+
+
+def face_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
+    """Unit normals ``(c - a) x (d - b)`` of the quads (the side the body is on), (m, 3) float64."""
+    corner = vertices[quads]  # (m, 4, 3)
+    n = np.cross(corner[:, 2] - corner[:, 0], corner[:, 3] - corner[:, 1])
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
+def wrong_side_faces(mesh: ControlMesh, bodies) -> list[tuple[int, int, str]]:
+    """Faces that support their segment from the wrong side: ``(face, person, why)``, in face order.
+
+    A face supporting a segment (``face_segments`` >= 0) of person
+    ``face_person`` (person 0 when it is -1 and there is one person) is on
+    the wrong side when
+
+    * the segment lies behind it: the :data:`WRONG_SIDE_SAMPLES` body
+      vertices of that segment nearest its centre have a median signed
+      distance to its plane below ``-WRONG_SIDE_DEPTH`` and at most
+      :data:`WRONG_SIDE_FRONT_SHARE` of them lie in front (the surface is
+      oriented away from the body there); or
+    * it holds the segment from above: its normal (towards the body) points
+      within :data:`DOWN_ANGLE` of straight down (a seat on the lap).
+    """
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    quads = np.asarray(mesh.faces)
+    normals = face_normals(vertices, quads)
+    centres = vertices[quads].mean(axis=1)
+    person_of = np.asarray(mesh.face_person) if mesh.face_person is not None else np.full(len(quads), -1)
+    found = []
+    for face in np.flatnonzero(np.asarray(mesh.face_segments) >= 0):
+        person = int(person_of[face]) if person_of[face] >= 0 else (0 if len(bodies) == 1 else -1)
+        if person < 0 or person >= len(bodies):
+            continue
+        if normals[face, 1] < -np.cos(DOWN_ANGLE):
+            down = np.degrees(np.arccos(np.clip(-normals[face, 1], -1.0, 1.0)))
+            found.append((int(face), person, f"it holds it from above, its normal {down:.0f} deg from straight down (a support pushes a body up or sideways)"))
+            continue
+        body = bodies[person]
+        points = body.vertices[np.argmax(body.weights, axis=1) == mesh.face_segments[face]]
+        if len(points) == 0:
+            continue
+        # the segment's vertices nearest the face's centre, and their signed distances to its plane
+        near = points[np.argsort(np.linalg.norm(points - centres[face], axis=1))[:WRONG_SIDE_SAMPLES]]
+        signed = (near - centres[face]) @ normals[face]
+        depth = -float(np.median(signed))
+        if depth > WRONG_SIDE_DEPTH and np.mean(signed > 0) <= WRONG_SIDE_FRONT_SHARE:
+            found.append((int(face), person, f"the segment lies {depth * 100:.1f} cm behind it (its normal points away from the body)"))
+    return found
+
+
+#: A refined cage's ground vertices stay on the floor within this, m.
+FLOOR_TOLERANCE = 1e-6
+
+#: ... and within this of the template's ground ring (they may slide along it), m.
+BORDER_TOLERANCE = 1e-3
+
+#: Other fixed vertices stay where the template put them, within this, m.
+FIXED_TOLERANCE = 1e-6
+
+
+def refined_problems(before: ControlMesh, after: ControlMesh) -> list[str]:
+    """What a refined cage ``after`` breaks of the template's cage ``before``'s constraints (empty: none).
+
+    A refiner returns the same topology (faces, vertex count), finite
+    positions, its ground vertices on the floor (``|y|`` within
+    :data:`FLOOR_TOLERANCE`) and on the template's ground ring (within
+    :data:`BORDER_TOLERANCE` of the polyline of ``before``'s ground edges, in
+    plan: the walls stand where they stood, a vertex may slide along its
+    side), and its other fixed vertices where they were (within
+    :data:`FIXED_TOLERANCE`).
+    """
+    if not isinstance(before, ControlMesh):
+        return []  # no template cage to hold it to (a stand-in of the build's stages)
+    if not isinstance(after, ControlMesh):
+        return [f"it returned {type(after).__name__}, not a ControlMesh"]
+    v0 = np.asarray(before.vertices, dtype=np.float64)
+    v1 = np.asarray(after.vertices, dtype=np.float64)
+    if v1.shape != v0.shape or np.asarray(after.faces).shape != np.asarray(before.faces).shape or not np.array_equal(after.faces, before.faces):
+        return [f"its cage has {v1.shape[0]} vertices and {len(after.faces)} faces; the template's has {v0.shape[0]} and {len(before.faces)} with the same faces (a refiner keeps the topology)"]
+    bad = ~np.isfinite(v1).all(axis=1)
+    if bad.any():
+        return [f"{int(bad.sum())} vertices are not finite (vertex {int(np.flatnonzero(bad)[0])})"]
+    problems = []
+    ground = np.asarray(before.ground, bool)
+    off_floor = np.abs(v1[ground, 1])
+    if off_floor.size and off_floor.max() > FLOOR_TOLERANCE:
+        i = np.flatnonzero(ground)[int(np.argmax(off_floor))]
+        problems.append(f"ground vertex {i} is {off_floor.max() * 1000:.1f} mm off the floor (y = {v1[i, 1]:.4f} m)")
+    # ground edges of the template: both ends on the ground
+    corners = np.asarray(before.faces)
+    edges = np.stack([corners, np.roll(corners, -1, axis=1)], axis=-1).reshape(-1, 2)
+    edges = edges[ground[edges].all(axis=1)]
+    if len(edges) and ground.any():
+        a, b = v0[edges[:, 0]][:, [0, 2]], v0[edges[:, 1]][:, [0, 2]]  # (e, 2) in plan
+        p = v1[ground][:, [0, 2]]  # (g, 2)
+        ab = b - a
+        t = np.clip(np.einsum("gec,ec->ge", p[:, None] - a[None], ab) / np.maximum(np.einsum("ec,ec->e", ab, ab), 1e-300), 0.0, 1.0)
+        closest = a[None] + t[..., None] * ab[None]  # (g, e, 2)
+        away = np.linalg.norm(p[:, None] - closest, axis=-1).min(axis=1)  # (g,)
+        if away.max() > BORDER_TOLERANCE:
+            i = np.flatnonzero(ground)[int(np.argmax(away))]
+            problems.append(f"ground vertex {i} left the template's ground ring by {away.max() * 100:.1f} cm (the walls must stand where they stood)")
+    fixed = np.asarray(before.fixed, bool) & ~ground
+    if fixed.any():
+        moved = np.linalg.norm(v1[fixed] - v0[fixed], axis=1)
+        if moved.max() > FIXED_TOLERANCE:
+            i = np.flatnonzero(fixed)[int(np.argmax(moved))]
+            problems.append(f"fixed vertex {i} moved {moved.max() * 1000:.1f} mm")
+    return problems
+
+
+def check_refined(before: ControlMesh, after: ControlMesh, *, refiner: str) -> None:
+    """Raise unless the cage ``after`` of ``refiner`` (how messages name it: ``refiner 'x' of plugin "p"``) keeps the template's constraints (:func:`refined_problems`).
+
+    Raises
+    ------
+    PluginError
+        ``refiner 'x' of plugin "p" broke the template's constraints: ...``:
+        a refiner bug, not a refusal of the cage (that is a SolverError), so
+        the build stops.
+    """
+    problems = refined_problems(before, after)
+    if problems:
+        msg = f"{refiner} broke the template's constraints: {'; '.join(problems)}"
+        raise PluginError(msg)
 
 
 #: Subdivision level of the limit surface the enclosure check reads (16 quads per cage face).

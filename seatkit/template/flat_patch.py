@@ -30,11 +30,12 @@ import numpy as np
 
 from seatkit.errors import RecipeError, UnsupportedPoseError
 from seatkit.model import Body, ControlMesh, PressureField
-from seatkit.params import merge_params
+from seatkit.options import Option, defaults
+from seatkit.params import component_params
 from seatkit.skeleton import SEGMENT_INDEX, SEGMENTS
 from seatkit.template.quad_grid import grid_faces, grid_ring
 
-__all__ = ["FLAT_PATCH_DEFAULTS", "CHAIR_SEGMENTS", "flat_patch_cage", "FlatPatchTemplate"]
+__all__ = ["FLAT_PATCH_DEFAULTS", "FLAT_PATCH_OPTIONS", "CHAIR_SEGMENTS", "flat_patch_cage", "FlatPatchTemplate"]
 
 #: The body segments the chair template supports (feet, shanks, thighs,
 #: hips, lumbar and back rows); the baseline supports the same by default.
@@ -52,16 +53,19 @@ CHAIR_SEGMENTS: tuple[str, ...] = (
     "Spine3",
 )
 
-#: Default parameters of the ``flat-patch`` template (lengths in m).
-FLAT_PATCH_DEFAULTS: dict[str, Any] = {
-    "rows": 11,  # faces front to back, border rings included (the chair: 7 + 4)
-    "cols": 7,  # faces left to right, border rings included (the chair: 3 + 4)
-    "height": -1.0,  # m; negative: under the body, at the lowest supported vertex (>= min_height)
-    "min_height": 0.02,  # m, lowest flat-part height (keeps the rim off the ground ring)
-    "margin": 0.05,  # m, ground rectangle beyond the footprint on every side
-    "importance_threshold": 0.02,  # supported body vertices: importance above this
-    "segments": list(CHAIR_SEGMENTS),  # supported body segments, by name
+#: Options of the ``flat-patch`` template (its ``template_params``; lengths in m).
+FLAT_PATCH_OPTIONS: dict[str, Option] = {
+    "rows": Option("count", "faces front to back, border rings included (the chair: 7 + 4)", 11, "", 3, 200),
+    "cols": Option("count", "faces left to right, border rings included (the chair: 3 + 4)", 7, "", 3, 200),
+    "height": Option("number", "height of the flat part; negative: under the body, at the lowest supported vertex (>= min_height)", -1.0, "m", None, 5.0),
+    "min_height": Option("number", "lowest flat-part height (keeps the rim off the ground ring)", 0.02, "m", 0.0, 5.0),
+    "margin": Option("number", "ground rectangle beyond the footprint on every side", 0.05, "m", 0.0, 5.0),
+    "importance_threshold": Option("number", "supported body vertices: importance above this", 0.02, "1", 0.0, 1.0),
+    "segments": Option("segments", "supported body segments, by name", list(CHAIR_SEGMENTS)),
 }
+
+#: Default parameters of the ``flat-patch`` template (from :data:`FLAT_PATCH_OPTIONS`).
+FLAT_PATCH_DEFAULTS: dict[str, Any] = defaults(FLAT_PATCH_OPTIONS)
 
 
 def flat_patch_cage(
@@ -139,21 +143,19 @@ class FlatPatchTemplate:
     description = "Flat quad patch under the body at the chair's resolution (Sit & Relax baseline)"
     #: Its parameters (``template_params``); ``segments`` makes a build's
     #: baseline support the same body segments as the design it is compared with.
-    parameters = tuple(FLAT_PATCH_DEFAULTS)
+    parameters = tuple(FLAT_PATCH_OPTIONS)
+    options = FLAT_PATCH_OPTIONS
 
     def bind(self, steps):
         """Itself: the flat patch uses no template steps."""
         return self
 
     def check_params(self, params) -> None:
-        """Check ``template_params`` (keys and types of :data:`FLAT_PATCH_DEFAULTS`)."""
+        """Check ``template_params`` against :data:`FLAT_PATCH_OPTIONS`."""
         from seatkit.errors import ParamError
+        from seatkit.options import check_options
 
-        for key, value in dict(params or {}).items():
-            try:
-                merge_params("flat-patch", FLAT_PATCH_DEFAULTS, {key: value})
-            except RecipeError as e:
-                raise ParamError((key,), str(e).split(": ", 1)[-1]) from None
+        check_options("template 'flat-patch'", FLAT_PATCH_OPTIONS, params, fail=ParamError)
 
     def fit(
         self,
@@ -185,7 +187,10 @@ class FlatPatchTemplate:
         UnsupportedPoseError
             When no body vertex is supported.
         """
-        p = merge_params("flat-patch", FLAT_PATCH_DEFAULTS, params)
+        params = dict(params or {})
+        if isinstance(params.get("segments"), (list, tuple)):  # the library may give segment ids (a cage's meta)
+            params["segments"] = [SEGMENTS[int(s)] if isinstance(s, (int, np.integer)) and 0 <= int(s) < len(SEGMENTS) else s for s in params["segments"]]
+        p = component_params("template 'flat-patch'", FLAT_PATCH_OPTIONS, params, where=("template_params",))
         if p["rows"] < 3 or p["cols"] < 3:
             msg = f"flat-patch: rows and cols must be at least 3, got {p['rows']} x {p['cols']}"
             raise RecipeError(msg)
