@@ -26,6 +26,7 @@ from typing import Any, Iterator, Mapping, Sequence
 import numpy as np
 
 from seatkit.errors import InputError, ParamError, RecipeError, UnsupportedPoseError
+from seatkit.interfaces import HasFallback, HasLastResort, RepairsFaces, WallsInsideHands
 from seatkit.model import Body, ControlMesh, PressureField
 from seatkit.template.checks import check_cage, enclosed_parts
 from seatkit.template.grid import Block, FaceState, FitState, GridMesh, segment_of_vertex
@@ -189,7 +190,7 @@ class YamlTemplate:
                 raise InputError(f"person {i}: pressure has shape {p.pressure.shape}, the body has {len(b.vertices)} vertices")
         p, per_step = self._overrides(params)
         bound = self._bound_plan()
-        if last_resort and not any(getattr(step, "has_last_resort", lambda o: False)({**o, **per_step.get(i, {})}) for i, (step, o) in enumerate(bound)):
+        if last_resort and not any(isinstance(step, HasLastResort) and step.has_last_resort({**o, **per_step.get(i, {})}) for i, (step, o) in enumerate(bound)):
             return
         # Several starts (docs/templates.md, "Seed-independent success"): the
         # seed's own RANSAC stream first; when its cage is refused, the same
@@ -309,7 +310,7 @@ class YamlTemplate:
         for i, (step, options) in enumerate(bound):
             if i in dropped:
                 state.meta.setdefault("dropped_steps", []).append(self.spec.steps[i]["step"])
-                if hasattr(step, "fallback"):  # the step says what doing without it means (no-backrest)
+                if isinstance(step, HasFallback):  # the step says what doing without it means (no-backrest)
                     step.fallback(state, options=dict(per_step.get(i, options)))
                 continue
             step.run(state, options=dict(per_step.get(i, options)))
@@ -317,9 +318,9 @@ class YamlTemplate:
             state.grid = join_blocks(state)
         state.meta["faces"] = _face_report(state)
         state.meta["supported_segments"] = state.supported_segments()
-        repairs = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and hasattr(step, "repair")]
+        repairs = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and isinstance(step, RepairsFaces)]
         mesh = _checked_cage(state, bodies, p, repairs)
-        fixers = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and hasattr(step, "repair_enclosure")]
+        fixers = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and isinstance(step, WallsInsideHands)]
         return mesh, _Start(state, mesh, bodies, p, fixers, repairs)
 
     def _block(self, person: int, body: Body, pressure: PressureField) -> Block:
