@@ -201,7 +201,7 @@ def bind(template, bodies, pressures, *, params, seed, first: Iterator[ControlMe
         done: set[int] = set()
         while True:
             # the rejected design closest to the limit that is not pushed out yet
-            over = sorted((t.verdict.depth_m, i) for i, t in enumerate(tried) if i not in done and t.refined is not None and not t.verdict.accepted and t.candidate.origin is not Origin.PUSHED_OUT)
+            over = sorted((t.verdict.depth_m, i) for i, t in enumerate(tried) if i not in done and t.refined is not None and not t.verdict.accepted and t.candidate.origin in _PUSHABLE)
             found = None
             for _, i in over:
                 done.add(i)
@@ -240,6 +240,9 @@ def bind(template, bodies, pressures, *, params, seed, first: Iterator[ControlMe
 
 
 SOURCES = tuple(BUDGETS)
+
+#: The rejected designs a push-out answers: the template's own cages and those walled against a rejected surface, not a rescue of a rescue.
+_PUSHABLE = (Origin.START, Origin.WALLS_AGAINST)
 
 
 def search(sources: Sequence[Source], refine: Callable[[ControlMesh], ControlMesh], bodies, *, fit_last: bool = True, stage=None) -> Outcome:
