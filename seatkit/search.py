@@ -29,6 +29,7 @@ of the budgets (docs/templates.md, "The design search").
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import enum
 from dataclasses import dataclass, field, replace
@@ -123,7 +124,7 @@ class Outcome:
         """One line saying why no candidate became the design: the first one's reason, and how many were tried."""
         if not self.tried:
             return "the design search had no candidate"
-        kinds = ", ".join(f"{n} {o}" for o, n in _counts(t.candidate.origin.value for t in self.tried).items())
+        kinds = ", ".join(f"{n} {o}" for o, n in collections.Counter(t.candidate.origin.value for t in self.tried).items())
         return f"no design within the limits: {self.tried[0].verdict.reason} (the first cage; {len(self.tried)} candidates tried: {kinds}); the design is refused rather than returned sinking into the person"
 
     def report(self) -> dict:
@@ -292,13 +293,6 @@ def search(sources: Sequence[Source], refine: Callable[[ControlMesh], ControlMes
                 return outcome
         if not progressed:
             return outcome
-
-
-def _counts(values) -> dict:
-    out: dict = {}
-    for v in values:
-        out[v] = out.get(v, 0) + 1
-    return out
 
 
 def _start(cage: ControlMesh) -> int:
