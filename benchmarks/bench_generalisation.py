@@ -154,7 +154,7 @@ def run_task(task):
     for seed in build_seeds if table1 and verdict.supportable else ():
         # a full build's own template fit counts as that seed's fit
         recipe = {"template": "chair", "seed": seed, "bodies": [{"model": body_name, "pose": str(path)}]}
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         try:
             r = build(recipe, pm=_STATE["pm"], write=False, processes=False)
             ours, base = r.metrics["ours"][0], r.metrics["baseline"][0]
@@ -163,6 +163,9 @@ def run_task(task):
                 "seed": seed,
                 "ok": True,
                 "seconds": time.perf_counter() - t0,
+                "cpu_seconds": time.process_time() - c0,
+                # which candidate of the design search became the design (seatkit.search; absent before it)
+                "search": _search_route(r.control_mesh.meta.get("search")),
                 "ours": {k: ours[k] for k in (*WIN_KEYS, "max_penetration_m")},
                 "flat": {k: base.get(k, float("inf")) for k in WIN_KEYS},
             }
@@ -170,7 +173,7 @@ def run_task(task):
         except UnsupportedPoseError:
             continue  # fitted again below, to record the refusal like any other
         except SeatkitError as e:
-            done = {"seed": seed, "ok": False, "seconds": time.perf_counter() - t0, "reason": f"{type(e).__name__}: {e}"}
+            done = {"seed": seed, "ok": False, "seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0, "reason": f"{type(e).__name__}: {e}"}
         # "build" is the first seed's (Table 1), "builds" every seed's
         if seed == seeds[0]:
             out["build"] = done
@@ -188,6 +191,13 @@ def run_task(task):
     return out
 
 
+def _search_route(report) -> dict | None:
+    """The winner's origin and how many candidates the design search refined (None: no search report)."""
+    if not report:
+        return None
+    return {"origin": report["winner"]["origin"], "candidates": len(report["candidates"])}
+
+
 def _case_ok(r) -> bool:
     """Every seed's template fit and every full build of a case succeeded."""
     return all(f["ok"] for f in r["fits"]) and all(b["ok"] for b in r.get("builds", [r["build"]] if "build" in r else []))
@@ -198,7 +208,8 @@ def tasks(args):
 
     out = []
     for i in range(args.poses):
-        out.append((i, FAMILIES[i % len(FAMILIES)]))
+        if args.indices is None or i in args.indices:
+            out.append((i, FAMILIES[i % len(FAMILIES)]))
     for j in range(args.unsupported):
         out.append((args.poses + j, UNSUPPORTED_FAMILIES[j % len(UNSUPPORTED_FAMILIES)]))
     cases = [(i, fam, body) for i, fam in out for body in args.bodies]
@@ -303,9 +314,16 @@ def summarise(results, args, wall) -> str:
                      f"{retried} of {len(fit_s)} successful fits needed a fallback start")
     if rule_s:
         lines.append(f"- refusal by the pose rule: median {1000 * statistics.median(rule_s):.0f} ms")
-    if good:
-        bs = [b["seconds"] for b in good]
-        lines.append(f"- full build (one process, no export): median {statistics.median(bs):.2f} s, max {max(bs):.2f} s")
+    every_good = [b for r in supp for b in r.get("builds", [r["build"]] if "build" in r else []) if b["ok"]]
+    if every_good:
+        bs = [b["seconds"] for b in every_good]
+        lines.append(f"- full build (one process, no export), every finished build: median {statistics.median(bs):.2f} s, max {max(bs):.2f} s ({max(bs) / statistics.median(bs):.1f}x the median)")
+        cpu = [b["cpu_seconds"] for b in every_good if "cpu_seconds" in b]
+        if cpu:
+            lines.append(f"- the same in CPU time (the build's process): median {statistics.median(cpu):.2f} s, max {max(cpu):.2f} s ({max(cpu) / statistics.median(cpu):.1f}x the median)")
+        routes = collections.Counter((b["search"]["origin"], b["search"]["candidates"]) for b in every_good if b.get("search"))
+        if routes:
+            lines.append("- design search, winning candidate (origin, candidates refined): " + ", ".join(f"{o} after {n}: {k}" for (o, n), k in sorted(routes.items())))
     return "\n".join(lines)
 
 
@@ -383,6 +401,7 @@ def main() -> None:
     ap.add_argument("--bodies", nargs="+", default=["default-male", "default-female"])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2])
     ap.add_argument("--draw-seed", type=int, default=2026)
+    ap.add_argument("--indices", nargs="+", type=int, help="only these draw indices of the plausible poses (0 .. --poses - 1)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--no-table1", dest="table1", action="store_false", help="template fits only, no full builds")
     ap.add_argument("--table1-every", type=int, default=1, help="full build (Table 1) for every K-th pose-and-body case only")

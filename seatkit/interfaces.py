@@ -14,7 +14,7 @@ hold no per-build state, so one instance serves many builds and threads.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Mapping, Protocol, Sequence, runtime_checkable
+from typing import Any, Iterator, Mapping, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
@@ -149,21 +149,11 @@ class SupportTemplate(Protocol):
 
         Notes
         -----
-        A template may also define ``fits(bodies, pressures, *, params=None,
-        seed=0)``, an iterator of its valid cages in order of preference whose
-        first is ``fit``'s (:meth:`seatkit.template.YamlTemplate.fits`: one per
-        start that gives a valid cage). When a refiner refuses a cage
-        (:class:`~seatkit.errors.SolverError`), a build refines the next one
-        (:func:`seatkit.stages.refine_first_accepted`); without ``fits`` the
-        template offers one cage. When every cage is refused, a refusal with a
-        ``repair()`` (the surface fit's last local repair) is tried before the
-        build is refused (docs/plugins.md); then, a template with
-        ``walls_against(bodies, pressures, cage, refused, *, params=None,
-        seed=0)`` is asked for a cage built against the surface a refusal
-        kept (its ``closest``: the YAML engine's walls inside the hands that
-        surface encloses), which is refined in turn; last, the cages of
-        ``last_resort_fits(bodies, pressures, *, params=None, seed=0)`` if the
-        template has it (the YAML engine's last-resort cages).
+        A template may offer more than one cage, and more kinds of cage, by
+        having the methods of :class:`OffersStarts`, :class:`OffersWallsAgainst`
+        and :class:`OffersLastResort` (the YAML engine has all three); the
+        design search (:mod:`seatkit.search`) checks which once, when it is
+        given the template, and asks for them in its declared order.
         """
         ...
 
@@ -282,6 +272,55 @@ class TemplateStep(Protocol):
     def run(self, state: Any, *, options: Mapping[str, Any]) -> None:
         """Advance the fitting ``state`` in place."""
         ...
+
+
+@runtime_checkable
+class OffersStarts(Protocol):
+    """A template with several starts: ``fits`` yields its valid cages in its order of preference, ``fit``'s first."""
+
+    def fits(self, bodies: Sequence[Body], pressures: Sequence[PressureField], *, params: Mapping[str, Any] | None = None, seed: int = 0) -> Iterator[ControlMesh]: ...
+
+
+@runtime_checkable
+class OffersWallsAgainst(Protocol):
+    """A template that rebuilds one of its cages with walls inside the hands a refused surface (its control points ``refused``) encloses; None when it has none to offer."""
+
+    def walls_against(self, bodies: Sequence[Body], pressures: Sequence[PressureField], cage: ControlMesh, refused: np.ndarray, *, params: Mapping[str, Any] | None = None, seed: int = 0) -> ControlMesh | None: ...
+
+
+@runtime_checkable
+class OffersLastResort(Protocol):
+    """A template with last-resort cages (the YAML engine: its steps' last-resort options applied), empty when it has none."""
+
+    def last_resort_fits(self, bodies: Sequence[Body], pressures: Sequence[PressureField], *, params: Mapping[str, Any] | None = None, seed: int = 0) -> Iterator[ControlMesh]: ...
+
+
+@runtime_checkable
+class RepairsFaces(Protocol):
+    """A template step that can repair the faces the engine's final check names (the clearance step); True when it changed the grid."""
+
+    def repair(self, state: Any, faces: Sequence[int], *, options: Mapping[str, Any]) -> bool: ...
+
+
+@runtime_checkable
+class WallsInsideHands(Protocol):
+    """A template step that can put walls inside enclosed body parts (``enclosed``: vertex indices per person); True when it changed the grid."""
+
+    def repair_enclosure(self, state: Any, enclosed: Sequence, *, options: Mapping[str, Any], every_row: bool = False) -> bool: ...
+
+
+@runtime_checkable
+class HasFallback(Protocol):
+    """An optional template step that says what doing without it means when the engine drops it (no-backrest)."""
+
+    def fallback(self, state: Any, *, options: Mapping[str, Any]) -> None: ...
+
+
+@runtime_checkable
+class HasLastResort(Protocol):
+    """A template step with a last-resort change: ``has_last_resort(options)`` says whether these options ask for one."""
+
+    def has_last_resort(self, options: Mapping[str, Any]) -> bool: ...
 
 
 #: Component kinds, by the registration hook that returns them.

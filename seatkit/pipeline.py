@@ -19,7 +19,7 @@ beside the others (docs/architecture.md, "Processes of one build").
 
 from __future__ import annotations
 
-import functools
+import itertools
 from concurrent.futures import wait
 from contextlib import ExitStack, nullcontext
 from pathlib import Path
@@ -29,6 +29,8 @@ from seatkit.export.report_json import REPORT_EXPORTER
 from seatkit.model import BuildResult
 from seatkit.output import MAX_DESIGN_NAME, claim_output, design_name, output_target, save_unsupported, staging_folder
 from seatkit.recipe import Recipe, check_recipe, load_recipe, recipe_id
+from seatkit.search import bind as bind_search
+from seatkit.search import search, template_cages
 from seatkit.stages import (
     StageTimer,
     baseline_components,
@@ -36,9 +38,8 @@ from seatkit.stages import (
     fit_baseline,
     fit_baseline_with,
     make_bodies,
-    refine_first_accepted,
+    refine,
     solve_importance,
-    template_cages,
     total_seconds,
 )
 
@@ -166,9 +167,8 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         pressures = solve_importance(recipe, bodies, registry)
 
     template = registry.get("template", recipe["template"])
-    cages_of = functools.partial(template_cages, template, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
     with timer.stage("template"):
-        cages = cages_of()
+        cages = template_cages(template, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
         try:
             initial = next(cages)
         except UnsupportedPoseError as e:
@@ -188,13 +188,12 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         def baseline():
             return baseline_helper.result(job)
 
-    # the template's next cage when the refiners refuse one (stages.refine_first_accepted)
+    # which cage becomes the design: the design search (seatkit.search)
     refiners = [(r["name"], registry.guarded("refiner", r["name"], template=template), r["params"]) for r in recipe["refiners"]]
-    walls = getattr(template, "walls_against", None)
-    if walls is not None:
-        walls = functools.partial(walls, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
-    last_resort = functools.partial(cages_of, last_resort=True)
-    initial, mesh = refine_first_accepted(cages, initial, refiners, bodies, pressures, timer, walls=walls, last_resort=last_resort)
+    sources = bind_search(template, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"], first=itertools.chain([initial], cages))
+    fit_last = bool(refiners) and refiners[-1][0] == "catmull-clark-fit"
+    outcome = search(sources, lambda cage: refine(cage, refiners, bodies, pressures, timer), bodies, fit_last=fit_last, stage=timer.stage)
+    initial, mesh = outcome.design()
     if baseline is not None and design_segments(initial) != segments:
         baseline = None  # a later cage supports other segments: its baseline is fitted here, in evaluate_result
 

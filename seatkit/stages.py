@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import time
 from contextlib import contextmanager
-from typing import Callable, Iterator, Mapping
+from typing import Callable, Mapping
 
 import numpy as np
 
@@ -134,197 +134,15 @@ def refine(mesh, refiners, bodies, pressures, timer: StageTimer | None = None):
     Each refiner's cage is held to the template's constraints
     (:func:`seatkit.template.checks.check_refined`).
     """
-    from seatkit.errors import SolverError
     from seatkit.template.checks import check_refined
 
     timer = timer or StageTimer()
-    for i, (name, refiner, params) in enumerate(refiners):
+    for name, refiner, params in refiners:
         with timer.stage(f"refine:{name}"):
-            try:
-                refined = refiner.refine(mesh, bodies, pressures, params=params)
-            except SolverError as e:
-                e.refiner_index = i  # where a repair of its refusal continues (refine_first_accepted)
-                raise
+            refined = refiner.refine(mesh, bodies, pressures, params=params)
             check_refined(mesh, refined, refiner=getattr(refiner, "component_label", None) or f"refiner {name!r}")
             mesh = refined
     return mesh
-
-
-#: Cages of the template refined in all, at most, before a build is refused
-#: because its refiners refuse them (each one more costs a template start and
-#: the refiners again: about a second for the chair).
-MAX_REFINED_CAGES = 4
-
-
-def template_cages(template, bodies, pressures, *, params, seed, last_resort: bool = False) -> Iterator:
-    """The template's valid cages in its order of preference.
-
-    Its ``fits`` where it has one (:meth:`seatkit.template.YamlTemplate.fits`:
-    one cage per start that gives a valid one), else the single cage of its
-    ``fit``. Lazy: a cage is fitted only when it is asked for. With
-    ``last_resort``, the cages of its ``last_resort_fits``
-    (:meth:`seatkit.template.YamlTemplate.last_resort_fits`), none for a
-    template without one.
-    """
-    if last_resort:
-        fits = getattr(template, "last_resort_fits", None)
-        if fits is not None:
-            yield from fits(bodies, pressures, params=params, seed=seed)
-        return
-    fits = getattr(template, "fits", None)
-    if fits is None:
-        yield template.fit(bodies, pressures, params=params, seed=seed)
-    else:
-        yield from fits(bodies, pressures, params=params, seed=seed)
-
-
-def refine_first_accepted(cages: Iterator, cage, refiners, bodies, pressures, timer: StageTimer | None = None, *, walls=None, last_resort=None) -> tuple:
-    """``(cage, refined)``: the first of the template's cages that the refiners accept, and it refined.
-
-    ``cage`` is the template's first cage, ``cages`` the rest of
-    :func:`template_cages`. A refiner refuses a cage by raising
-    :class:`~seatkit.errors.SolverError`: the surface fit's guarantee (its
-    surface would reach more than 5 mm into the person, or the person into
-    the furniture), or a fit that cannot be solved. Another start of the
-    template is another design of the same pose, so the next cage is
-    refined instead, up to :data:`MAX_REFINED_CAGES` in all; a cage that is
-    refused by every refiner run, or a template with no other cage, raises
-    the first refusal. The refusals of earlier cages are kept in the accepted
-    cage's ``meta["refiner_refusals"]`` (and the refined cage's). The seed
-    thus picks among designs the whole build accepts, not only the template.
-
-    When every cage is refused, a refusal that carries a last local repair
-    (the surface fit's, :class:`seatkit.refine.ccfit.SurfaceLimitRefusal`:
-    its refit closest to the limit with the offending spots pushed away
-    from the body) is tried, in the cages' order; the first repaired cage
-    that the rest of the refiners accept is the design (its refusal in
-    ``meta["repaired_refusal"]``). Only a build that would otherwise be
-    refused runs a repair: every design that builds without one is the same.
-
-    Then ``walls`` (a callable ``(cage, refused control points) -> cage or
-    None``: the template's :meth:`~seatkit.template.YamlTemplate.walls_against`)
-    is asked, cage by cage in their order, for the cage rebuilt with walls
-    inside the hands the refused surface (a refusal's ``closest``) encloses,
-    and that cage is refined, its own refusal repaired locally as above; the
-    first accepted is the design (``meta["fit_attempts"]["walls_against_refusal"]``,
-    and the refusal it answers in ``meta["walls_against"]``). It too runs
-    only in a build that would otherwise be refused
-    (docs/templates.md, "Walls against the refused surface"); a ``walls``
-    that raises :class:`~seatkit.errors.UnsupportedPoseError` offers nothing.
-
-    Last, when none of those is accepted either, ``last_resort`` (a callable
-    giving an iterator of further cages: the template's last-resort cages,
-    :func:`template_cages` with ``last_resort``) is asked for up to
-    :data:`MAX_REFINED_CAGES` more cages, refined, and then repaired, the
-    same way; the first accepted is the design (``meta["fit_attempts"]
-    ["last_resort"]``; docs/templates.md, "Last resort: feet on the leg
-    rest"). The walls come first: they answer what a refused surface
-    names, where the last resort changes the whole cage. A template
-    that refuses every last-resort start, or has none, leaves the refusal
-    as it was: the first cage's.
-    """
-    from seatkit.errors import SolverError, UnsupportedPoseError
-
-    timer = timer or StageTimer()
-    refused: list = []  # (cage, its refusal)
-
-    def accepted(cage, refined, repaired=None, against=None):
-        if against is not None:
-            cage.meta["walls_against"] = refined.meta["walls_against"] = str(against)
-        if refused:
-            refusals = [str(e) for _, e in refused]
-            cage.meta["refiner_refusals"] = refusals
-            refined.meta["refiner_refusals"] = list(refusals)
-        if repaired is not None:
-            refined.meta["repaired_refusal"] = str(repaired)
-        return cage, refined
-
-    def first_accepted(cage, cages) -> tuple | None:
-        """The first of ``cage`` and ``cages`` the refiners accept, else the first repaired one; None when none is."""
-        start = len(refused)
-        while True:
-            try:
-                return accepted(cage, refine(cage, refiners, bodies, pressures, timer))
-            except SolverError as e:
-                refused.append((cage, e))
-            nxt = None
-            if len(refused) - start < MAX_REFINED_CAGES:
-                with timer.stage("template"):
-                    nxt = next(cages, None)
-            if nxt is None:
-                break
-            cage = nxt
-        # every cage refused: the refusals' last local repairs, in the cages' order
-        for cage, e in refused[start:]:
-            refined = _repaired(e, refiners, bodies, pressures, timer)
-            if refined is not None:
-                return accepted(cage, refined, repaired=e)
-        return None
-
-    found = first_accepted(cage, cages)
-    if found is not None:
-        return found
-    # then the cages again with walls inside the hands their refused surfaces enclose
-    for cage, e in list(refused) if walls is not None else ():
-        closest = getattr(e, "closest", None)
-        if closest is None:
-            continue
-        with timer.stage("template"):
-            try:
-                offered = walls(cage, closest.vertices)
-            except UnsupportedPoseError:
-                continue  # a template that refuses the start again offers nothing: the refusal stays the first cage's
-        if offered is None:
-            continue
-        try:
-            return accepted(offered, refine(offered, refiners, bodies, pressures, timer), against=e)
-        except SolverError as again:
-            refined = _repaired(again, refiners, bodies, pressures, timer)
-            if refined is not None:
-                return accepted(offered, refined, repaired=again, against=e)
-    if last_resort is not None:
-        # the template's last-resort cages (the chair's feet on its shanks' planes), only now
-        with timer.stage("template"):
-            more = last_resort()
-            try:
-                cage = next(more, None)
-            except UnsupportedPoseError:
-                cage = None  # every last-resort start refused by the template's checks
-        if cage is not None:
-            found = first_accepted(cage, _until_refused(more))
-            if found is not None:
-                return found
-    first = refused[0][1]
-    if getattr(first, "repair", None) is not None:
-        first = SolverError(*first.args)  # the refusal as before: a SolverError, its repair let go
-    raise first from None
-
-
-def _repaired(refusal, refiners, bodies, pressures, timer: StageTimer):
-    """The refusal's last local repair (its ``repair()``), refined by the refiners after the one that refused; None when it fails."""
-    from seatkit.errors import SolverError
-
-    repair = getattr(refusal, "repair", None)
-    if repair is None:
-        return None
-    with timer.stage(f"refine:{refiners[refusal.refiner_index][0]}"):
-        repaired = repair()
-    if repaired is None:
-        return None
-    try:
-        return refine(repaired, refiners[refusal.refiner_index + 1 :], bodies, pressures, timer)
-    except SolverError:
-        return None
-
-
-def _until_refused(cages: Iterator) -> Iterator:
-    """``cages`` until the template refuses the rest (an :class:`~seatkit.errors.UnsupportedPoseError` ends them)."""
-    from seatkit.errors import UnsupportedPoseError
-
-    try:
-        yield from cages
-    except UnsupportedPoseError:
-        return
 
 
 def baseline_components(recipe: Mapping, registry) -> tuple:

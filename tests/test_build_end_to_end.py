@@ -38,3 +38,9 @@ def test_same_inputs_and_seed_give_byte_identical_files(tmp_path):
     assert ra.surface.vertices[:, 1].min() > -0.01
     report = json.loads((first / "report.json").read_text())
     assert set(report["timings_s"]) >= {"bodies", "pressure", "template", "refine:optimize", "refine:catmull-clark-fit", "export"}
+    # the design search names the winning candidate's origin and judged it within the 5 mm limit
+    search = report["search"]
+    won = search["candidates"][search["winner"]["candidate"] - 1]
+    assert won["accepted"] and won["origin"] == search["winner"]["origin"] in {"start", "pushed-out", "walls-against", "last-resort"}
+    assert won["depth_m"] <= 0.005 and all(c["reason"] for c in search["candidates"] if not c["accepted"])
+    assert "search" not in report["control_mesh"]["meta"]

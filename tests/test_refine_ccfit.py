@@ -153,20 +153,18 @@ def test_a_hand_hanging_under_the_seat_edge_is_guarded_not_refused(tmp_path):
 
 
 @pytest.mark.slow
-def test_fingertips_through_the_thigh_are_pushed_out_not_refused(tmp_path):
+def test_fingertips_through_the_thigh_still_get_a_chair_within_the_limit(tmp_path):
     """Generated pose reclined-153 (the generalisation benchmark's draw, seed 2026) on default-male.
 
     The left hand rests on the thigh with its fingertips through the thigh's
-    skin, down to the seat under it: every fit and refit of all four cages
-    left them 9-11 mm inside the furniture and the build was refused. The
-    last local repair pushes the seat under the fingertips away from the
-    body (no pull to the skin): the build succeeds within the unchanged 5 mm
-    guarantee, measured as the evaluation measures it.
+    skin, down to the seat under it: fits of the template's cages leave them
+    9-11 mm inside the furniture. The build still finishes with a design that
+    holds the person within the unchanged 5 mm guarantee, measured as the
+    evaluation measures it, whichever candidate of the design search it is.
     """
     result = _build_drawn(tmp_path, "reclined", 153, "default-male")
     report = result.control_mesh.meta["catmull-clark-fit"]
-    assert report["pushed_out"]["from"]["body_in_surface"] > 0.005  # the refit closest to the limit was over it
     assert max(report["final_depth"].values()) <= 0.005
-    assert result.control_mesh.meta["repaired_refusal"] in result.control_mesh.meta["refiner_refusals"]
     ours = result.metrics["ours"][0]
-    assert ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005
+    assert ours["supported"] and ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005
+    assert ours["avg_distance_m"] < result.metrics["baseline"][0]["avg_distance_m"]

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import pytest
 
-from seatkit.errors import SolverError
 from seatkit.pipeline import make_bodies, solve_importance
 from seatkit.plugins import get_plugin_manager
 from seatkit.recipe import load_recipe
@@ -40,14 +39,21 @@ def test_p95_male_armrest_sitting_stays_within_the_penetration_limit(p95_armrest
     assert max(final.values()) <= LIMIT
 
 
-def test_a_fit_that_cannot_meet_the_limit_is_refused(p95_armrest):
+def test_a_fit_that_cannot_meet_the_limit_is_rejected_by_the_acceptance_check(p95_armrest):
+    from seatkit.search import judge
+
     bodies, pressures, optimised = p95_armrest
     starved = {"max_iterations": 1, "polish_iterations": 0, "extra_iterations": 0}
-    with pytest.raises(SolverError, match=r"above the 5\.0 mm limit .*refused"):
-        CatmullClarkFitRefiner().refine(optimised, bodies, pressures, params=starved)
-    # switched off, the same fit returns the deep surface (the baseline's use)
+    fitted = CatmullClarkFitRefiner().refine(optimised, bodies, pressures, params=starved)
+    verdict = judge(fitted, bodies, measured=True)
+    assert not verdict.accepted and verdict.depth_m > LIMIT
+    assert "above the 5.0 mm limit" in verdict.reason
+    # the depths the check read are the surface's, measured again
+    assert judge(fitted, bodies) == verdict
+    assert fit_report(fitted, bodies, pressures)["max_body_depth"] > LIMIT or fit_report(fitted, bodies, pressures)["max_penetration"] > LIMIT
+    # switched off, the check accepts the deep surface (the baseline's use)
     deep = CatmullClarkFitRefiner().refine(optimised, bodies, pressures, params={**starved, "surface_limit": 0.0})
-    assert fit_report(deep, bodies, pressures)["max_body_depth"] > LIMIT
+    assert judge(deep, bodies).accepted and fit_report(deep, bodies, pressures)["max_body_depth"] > LIMIT
 
 
 @pytest.mark.parametrize(

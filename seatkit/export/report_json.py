@@ -46,6 +46,7 @@ def report_data(result) -> dict:
     from seatkit.io import recipe_id
 
     mesh = result.control_mesh
+    meta = {k: v for k, v in mesh.meta.items() if k != "search"}
     return {
         "seatkit_run": recipe_id(result.recipe),
         "recipe": jsonable(result.recipe),
@@ -54,8 +55,10 @@ def report_data(result) -> dict:
         "control_mesh": {
             "vertices": int(len(mesh.vertices)),
             "faces": int(len(mesh.faces)),
-            "meta": jsonable(mesh.meta),
+            "meta": jsonable(meta),
         },
+        # the design search (seatkit.search): the winning candidate's origin, every rejected candidate's reason
+        "search": jsonable(mesh.meta.get("search")),
         "pressure": [
             {
                 "status": pf.status,

@@ -68,18 +68,18 @@ Ground and fixed control points do not move. The best iterate (smallest
 mean distance among those within the penetration limit, else the
 shallowest) is kept; the penetration left is reported in ``meta``, and
 with ``raise_on_penetration`` a penetration above the limit is a
-:class:`~seatkit.errors.SolverError`. Last, the guarantee: the kept
-surface is measured as the evaluation measures it (surface below the skin,
-body vertices inside the furniture); deeper than ``surface_limit`` (5 mm),
-it is refitted with a tighter probe target (and, when a body vertex lies
-too deep inside the furniture, with every body vertex guarded: one the fit
-does not pull to, a hand hanging under the edge of the seat, pushes the
-surface back past it like a probe inside the body), and refused with a
-``SolverError`` if it stays too deep, never returned as a success. The
-refusal carries a last local repair (the offending spots' control points
-pushed away from the body, without the pull to the skin;
-:class:`SurfaceLimitRefusal`), which the build engine tries only when every
-cage of the template has been refused.
+:class:`~seatkit.errors.SolverError`. Last, the kept surface is measured
+as the evaluation measures it (surface below the skin, body vertices
+inside the furniture, ``meta["catmull-clark-fit"]["final_depth"]``);
+deeper than ``surface_limit`` (5 mm), it is refitted with a tighter probe
+target (and, when a body vertex lies too deep inside the furniture, with
+every body vertex guarded: one the fit does not pull to, a hand hanging
+under the edge of the seat, pushes the surface back past it like a probe
+inside the body). The fit returns the refit closest to the limit and
+judges nothing: the 5 mm guarantee is the design search's acceptance
+check (:mod:`seatkit.search`), which also offers :func:`push_out` (the
+offending spots' control points pushed away from the body, without the
+pull to the skin) as a candidate of its own.
 """
 
 from __future__ import annotations
@@ -113,7 +113,8 @@ __all__ = [
     "fit_report",
     "fit_cage",
     "CatmullClarkFitRefiner",
-    "SurfaceLimitRefusal",
+    "final_depths",
+    "push_out",
 ]
 
 #: Options of ``catmull-clark-fit`` (lengths in m): its parameters' one declaration.
@@ -136,7 +137,7 @@ CCFIT_OPTIONS: dict[str, Option] = {
     "extra_iterations": Option("count", "more iterations of a phase while the penetration limit is not met and the depth still falls", 60, "", 0, 100000),
     "tolerance": Option("number", "stop when the mean distance improves less than this", 1e-4, "m", 0.0, 1.0),
     "raise_on_penetration": Option("bool", "SolverError when max_penetration cannot be met", False),
-    "surface_limit": Option("number", "SolverError when the final surface (level 4) reaches deeper into a body, or a body vertex lies deeper inside the furniture; 0: off", 0.005, "m", 0.0, 1.0),
+    "surface_limit": Option("number", "refit with tighter probes while the final surface (level 4) reaches deeper into a body, or a body vertex deeper inside the furniture; the design search rejects a design over it; 0: off", 0.005, "m", 0.0, 1.0),
 }
 
 #: Default parameters of ``catmull-clark-fit`` (from :data:`CCFIT_OPTIONS`).
@@ -400,26 +401,25 @@ _MIN_PROBE_TARGET = 0.0005
 
 
 def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
-    """The fit, then its guarantee: a final surface deeper than ``surface_limit`` is refitted, then refused.
+    """The fit, refitted with tighter probes while its final surface is deeper than ``surface_limit``.
 
     The probes catch the surface inside the body at its samples; a body
     vertex can still lie a little deeper between them. When the final
     surface exceeds the limit, the fit is run again from the same cage with
     the probe target lowered by the excess (and 1 mm more), at most
-    ``_REPAIR_ROUNDS`` times; a surface still too deep is a SolverError.
-    When a body vertex lies deeper inside the furniture than the limit, the
-    refits also *guard* the body vertices the fit does not pull to (a hand
-    hanging beside the seat, under its edge): one inside the furniture (the
-    evaluation's ray parity, on the fit's tessellation, every iteration)
-    pushes its closest limit sample back past it by the clearance, as
-    firmly as a probe inside the body. (The closest sample's side alone
-    calls about 2,000 vertices of a seated body "behind" the surface, up to
-    23 cm deep, and those rows pushed the surface into the body.)
-    The refusal (:class:`SurfaceLimitRefusal`) carries a last local repair
-    of the refit closest to the limit (:func:`_push_out`: its offending
-    spots pushed away from the body without the fit's pull to the skin,
-    accepted only when the result measures within the limit), which the
-    engine tries once every cage of the template has been refused.
+    ``_REPAIR_ROUNDS`` times. When a body vertex lies deeper inside the
+    furniture than the limit, the refits also *guard* the body vertices the
+    fit does not pull to (a hand hanging beside the seat, under its edge):
+    one inside the furniture (the evaluation's ray parity, on the fit's
+    tessellation, every iteration) pushes its closest limit sample back
+    past it by the clearance, as firmly as a probe inside the body. (The
+    closest sample's side alone calls about 2,000 vertices of a seated body
+    "behind" the surface, up to 23 cm deep, and those rows pushed the
+    surface into the body.)
+
+    Returns the first fit within the limit, else the one closest to it:
+    the fit judges nothing. Its ``meta["catmull-clark-fit"]["final_depth"]``
+    is what the design search's acceptance check reads (:mod:`seatkit.search`).
     """
     p = refiner_params("catmull-clark-fit", CCFIT_OPTIONS, params)
     params = dict(params or {})
@@ -432,10 +432,8 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
         report = out.meta["catmull-clark-fit"]
         final = report["final_depth"]
         if final is None or max(final.values()) <= p["surface_limit"]:
-            if rounds:
-                report["repair_rounds"] = rounds
-                report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
-            return out
+            closest = out
+            break
         rounds.append({"probe_target": target, "guard": guard, **final})
         if closest is None or max(final.values()) < max(closest.meta["catmull-clark-fit"]["final_depth"].values()):
             closest = out
@@ -447,51 +445,38 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
         if target <= _MIN_PROBE_TARGET:
             break
         target = max(target - excess - 0.001, _MIN_PROBE_TARGET)
-    msg = (
-        f"catmull-clark-fit: the fitted surface reaches {final['surface_in_body'] * 1000:.1f} mm into the body "
-        f"and a body vertex lies {final['body_in_surface'] * 1000:.1f} mm inside the furniture, above the "
-        f"{p['surface_limit'] * 1000:.1f} mm limit (surface_limit), after {report['iterations']} iteration(s) "
-        f"and {len(rounds) - 1} refit(s) with tighter probes; the design is refused rather than returned sinking into the person"
-    )
-    raise SurfaceLimitRefusal(msg, lambda: _repaired(closest, bodies, p, rounds), closest=closest)
+    if rounds:
+        report = closest.meta["catmull-clark-fit"]
+        report["repair_rounds"] = rounds
+        report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
+    return closest
 
 
-class SurfaceLimitRefusal(SolverError):
-    """The fit's refusal of a surface over ``surface_limit``, with its last local repair.
+def push_out(mesh: ControlMesh, bodies: Sequence[Body]) -> ControlMesh | None:
+    """A fitted cage over its ``surface_limit`` with the offending spots pushed away from the body (:func:`_push_out`); None when that fails.
 
-    ``repair()`` runs :func:`_push_out` on the refit closest to the limit:
-    the repaired cage (its ``meta["catmull-clark-fit"]["pushed_out"]`` says
-    from which depths, in how many steps), or ``None``. The engine calls it
-    only once every cage the template offers has been refused
-    (:func:`seatkit.stages.refine_first_accepted`), so that a design that
-    builds without it is the same as before. Pickled (a refusal crossing a
-    process), it is a plain :class:`~seatkit.errors.SolverError`.
-    ``closest`` is that refit itself (or None): the build's last fallback
-    asks the template for walls inside the hands it encloses
-    (:meth:`seatkit.template.YamlTemplate.walls_against`).
+    ``mesh`` is the surface fit's result (its ``meta["catmull-clark-fit"]``
+    gives the parameters and the depths). The repaired cage's report says
+    from which depths, in how many steps (``pushed_out``) and its new
+    ``final_depth``.
     """
-
-    def __init__(self, message: str, repair=None, *, closest: ControlMesh | None = None):
-        super().__init__(message)
-        self.repair = repair or (lambda: None)
-        self.closest = closest
-
-    def __reduce__(self):
-        return (SolverError, self.args)
-
-
-def _repaired(closest: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any], rounds: list) -> ControlMesh | None:
-    """The refit ``closest`` to the limit after :func:`_push_out`, its report updated; ``None`` when that fails."""
-    pushed = _push_out(closest, bodies, p)
+    report = mesh.meta.get("catmull-clark-fit")
+    if not report or not report.get("final_depth"):
+        return None
+    p = report["params"]
+    pushed = _push_out(mesh, bodies, p)
     if pushed is None:
         return None
     out, final, steps = pushed
-    report = dict(closest.meta["catmull-clark-fit"])
-    report["repair_rounds"] = rounds
+    report = dict(report)
     report["pushed_out"] = {"steps": steps, "from": dict(report["final_depth"])}
     report["final_depth"] = final
-    report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
     return replace(out, meta={**out.meta, "catmull-clark-fit": report})
+
+
+def final_depths(mesh: ControlMesh, bodies: Sequence[Body], level: int = CCFIT_DEFAULTS["level"]) -> dict[str, float]:
+    """How deep the limit surface of ``mesh`` reaches into the bodies (``surface_in_body``) and they into it (``body_in_surface``), m."""
+    return _final_depths(mesh, bodies, level)
 
 
 #: Steps of the last local repair (:func:`_push_out`).

@@ -141,9 +141,9 @@ class _ObservedTemplate:
         return next(self.fits(bodies, pressures, params=params, seed=seed))
 
     def fits(self, bodies, pressures, *, params=None, seed=0):
-        """The template's cages (``seatkit.stages.template_cages``), each shown as the template preview when it is made."""
+        """The template's cages (``seatkit.search.template_cages``), each shown as the template preview when it is made."""
         from seatkit.side import beside
-        from seatkit.stages import template_cages
+        from seatkit.search import template_cages
 
         self._observe("posed", bodies=bodies, pressures=pressures)
         # the surface fit's skin distances of the new bodies, made beside the

@@ -26,6 +26,7 @@ from typing import Any, Iterator, Mapping, Sequence
 import numpy as np
 
 from seatkit.errors import InputError, ParamError, RecipeError, UnsupportedPoseError
+from seatkit.interfaces import HasFallback, HasLastResort, RepairsFaces, WallsInsideHands
 from seatkit.model import Body, ControlMesh, PressureField
 from seatkit.template.checks import check_cage, enclosed_parts
 from seatkit.template.grid import Block, FaceState, FitState, GridMesh, segment_of_vertex
@@ -158,9 +159,8 @@ class YamlTemplate:
         """Every valid cage, one per start that gives one, in the order of the starts.
 
         A generator: a start runs only when its cage is asked for. The first
-        cage is :meth:`fit`'s; the build asks for the next only when a
-        refiner refuses the one before (docs/templates.md, "Seed-independent
-        success"). When the first cage encloses a hand, the next is the same
+        cage is :meth:`fit`'s; the design search asks for the next only when
+        the one before is rejected (:mod:`seatkit.search`). When the first cage encloses a hand, the next is the same
         cage with walls inside the hand, if that one is valid and encloses
         less (docs/templates.md, "Hands inside the furniture"). Raises the
         first start's refusal when no start gives a valid cage, and a
@@ -172,10 +172,8 @@ class YamlTemplate:
         a template without one yields nothing. Their order differs: each
         stream with every step, then without the optional steps dropped in
         turn, before the next stream; a cage the same as one offered before
-        is skipped. The build asks for those cages
-        only when the refiners refused every other cage and its repair
-        (:meth:`last_resort_fits`; docs/templates.md, "Last resort: feet on
-        the leg rest").
+        is skipped (:meth:`last_resort_fits`; docs/templates.md,
+        "Last-resort cages: feet on the leg rest").
         """
         bodies, pressures = list(bodies), list(pressures)
         lo, hi = self.spec.people
@@ -189,7 +187,7 @@ class YamlTemplate:
                 raise InputError(f"person {i}: pressure has shape {p.pressure.shape}, the body has {len(b.vertices)} vertices")
         p, per_step = self._overrides(params)
         bound = self._bound_plan()
-        if last_resort and not any(getattr(step, "has_last_resort", lambda o: False)({**o, **per_step.get(i, {})}) for i, (step, o) in enumerate(bound)):
+        if last_resort and not any(isinstance(step, HasLastResort) and step.has_last_resort({**o, **per_step.get(i, {})}) for i, (step, o) in enumerate(bound)):
             return
         # Several starts (docs/templates.md, "Seed-independent success"): the
         # seed's own RANSAC stream first; when its cage is refused, the same
@@ -246,17 +244,15 @@ class YamlTemplate:
 
         ``cage`` is one of :meth:`fits`' cages, ``refused`` (its vertices'
         count, 3) the control points of the surface a refiner refused for
-        it (the surface fit's refit closest to its limit). The build asks
-        for this only when every cage it refined was refused and their last
-        local repairs failed (:func:`seatkit.stages.refine_first_accepted`),
-        so no design that builds otherwise changes. The cage's start is run
+        it (the surface fit's refit closest to its limit): the design
+        search's ``walls-against`` source (:mod:`seatkit.search`). The cage's start is run
         again (the same stream and dropped steps: the same cage), and the
         parts it does not hold (hands, forearms) that lie inside the
         furniture of the refused surface, deeper than ``max_penetration``,
         get walls inside them, beside every row, the backrest's too
-        (docs/templates.md, "Walls against the refused surface"). The walled
+        (docs/templates.md, "Walls against a rejected surface"). The walled
         cage passes the template's checks and their repairs, as any cage;
-        whether it is better is the refiners' to say.
+        whether it is better is the acceptance check's to say.
         """
         attempt = int(cage.meta.get("fit_attempts", {}).get("attempt", 0)) - 1
         if attempt < 0 or np.shape(refused) != np.shape(cage.vertices):
@@ -289,10 +285,8 @@ class YamlTemplate:
     ) -> Iterator[ControlMesh]:
         """The valid cages of every start with the template's last-resort changes (:meth:`fits` with ``last_resort``).
 
-        The build refines them only when the refiners refused every cage of
-        :meth:`fits` and its last local repair
-        (:func:`seatkit.stages.refine_first_accepted`); empty for a template
-        without last-resort changes.
+        The design search's ``last-resort`` source (:mod:`seatkit.search`);
+        empty for a template without last-resort changes.
         """
         return self.fits(bodies, pressures, params=params, seed=seed, last_resort=True)
 
@@ -309,7 +303,7 @@ class YamlTemplate:
         for i, (step, options) in enumerate(bound):
             if i in dropped:
                 state.meta.setdefault("dropped_steps", []).append(self.spec.steps[i]["step"])
-                if hasattr(step, "fallback"):  # the step says what doing without it means (no-backrest)
+                if isinstance(step, HasFallback):  # the step says what doing without it means (no-backrest)
                     step.fallback(state, options=dict(per_step.get(i, options)))
                 continue
             step.run(state, options=dict(per_step.get(i, options)))
@@ -317,9 +311,9 @@ class YamlTemplate:
             state.grid = join_blocks(state)
         state.meta["faces"] = _face_report(state)
         state.meta["supported_segments"] = state.supported_segments()
-        repairs = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and hasattr(step, "repair")]
+        repairs = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and isinstance(step, RepairsFaces)]
         mesh = _checked_cage(state, bodies, p, repairs)
-        fixers = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and hasattr(step, "repair_enclosure")]
+        fixers = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and isinstance(step, WallsInsideHands)]
         return mesh, _Start(state, mesh, bodies, p, fixers, repairs)
 
     def _block(self, person: int, body: Body, pressure: PressureField) -> Block:
