@@ -143,3 +143,24 @@ def test_each_person_on_a_bench_faces_plus_z(tmp_path, rig, capture):
     assert frames[0].is_identity and not frames[1].is_identity
     # side by side along +X, left to right in seat order
     assert bodies[0].vertices[:, 0].max() < bodies[1].vertices[:, 0].min()
+
+
+def test_the_rule_refuses_feet_under_the_body_only_when_the_calf_lies_under_the_seat(rig):
+    from seatkit.body import pose_rig
+    from seatkit.body.frame import to_canonical
+    from seatkit.template.pose_rule import DEFAULT_RULE, assess_pose
+
+    captures = CAPTURE.parent
+    # a low seat, the shins swung back a little under thighs that reach far ahead: the chair holds it
+    low = assess_pose(to_canonical(pose_rig(rig, load_pose(captures / "cmu-75_19.bvh", rig=rig)))[0])
+    assert low.supportable, low.reasons
+    legs = low.measures["legs"].values()
+    assert max(leg["shank_back_deg"] for leg in legs) > DEFAULT_RULE["max_shank_back_deg"]
+    assert min(leg["foot_ahead_thighs"] for leg in legs) > DEFAULT_RULE["min_foot_ahead"]
+    # perched on a step stool with the feet drawn back under the hips: refused, with the reason
+    perch = assess_pose(to_canonical(pose_rig(rig, load_pose(captures / "cmu-14_29.bvh", rig=rig)))[0])
+    assert not perch.supportable and all("feet under the body" in r for r in perch.reasons)
+    assert all(leg["foot_ahead_thighs"] < DEFAULT_RULE["min_foot_ahead"] for leg in perch.measures["legs"].values())
+    # the library's feet-tucked pose stays refused
+    tucked = assess_pose(pose_rig(rig, load_pose("feet-tucked")))
+    assert not tucked.supportable and any("feet under the body" in r for r in tucked.reasons)
