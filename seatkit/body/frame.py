@@ -40,7 +40,7 @@ import numpy as np
 from seatkit.model import Body, Pose
 from seatkit.skeleton import SEGMENT_INDEX as S
 
-__all__ = ["CAPTURE_FRAME_EXPORTERS", "MIN_LATERAL", "POSE_DECIMALS", "CanonicalFrame", "body_heading", "canonical_frame", "pose_canonical", "result_in_capture_frame", "to_canonical"]
+__all__ = ["CAPTURE_FRAME_EXPORTERS", "MIN_LATERAL", "POSE_DECIMALS", "CanonicalFrame", "body_heading", "canonical_frame", "pose_canonical", "result_in_capture_frame", "rotation_about_y", "to_canonical"]
 
 #: Horizontal length below which the summed left-right axis (at most 2) is
 #: taken as vertical (a body lying on its side): the chest's normal gives the heading instead.
