@@ -29,6 +29,19 @@ average and maximum pressure, and the means), and the time per template fit
 and per build. ``--markdown FILE`` writes the same as a Markdown section
 (docs/evaluation.md holds the last run's).
 
+With ``--captures DIR`` it also runs the real-capture set: every frame
+of every BVH file in DIR (benchmarks/captures: seated frames of the CMU
+motion-capture database, their sources in DIR/SOURCES.md), turned to each
+``--capture-headings`` heading (the root's rotation turned about the file's
+up axis, written to a temporary one-frame BVH: no stored copies), on every
+``--bodies`` body: whether the pose rule accepts it, whether the full
+default build (first ``--seeds`` seed) finishes, the paper's Table 1 wins
+over the flat patch, and whether every heading gives the same cage (the
+canonical frame, seatkit.body.frame). The real-capture run of
+docs/evaluation.md:
+
+    nice -n 10 python benchmarks/bench_generalisation.py --poses 0 --unsupported 0 --library-seeds 0 --seeds 0 --captures benchmarks/captures --workers 2 --results captures.jsonl --markdown captures.md
+
 Pose-and-body tasks run in ``--workers`` processes (concurrent.futures);
 each build runs in one process (``processes=False``) with BLAS on one
 thread. Run it niced on a shared machine:
@@ -201,6 +214,131 @@ def _search_route(report) -> dict | None:
 def _case_ok(r) -> bool:
     """Every seed's template fit and every full build of a case succeeded."""
     return all(f["ok"] for f in r["fits"]) and all(b["ok"] for b in r.get("builds", [r["build"]] if "build" in r else []))
+
+
+def turned_bvh(path, frame: int, degrees: float) -> str:
+    """One frame of a BVH file as BVH text, its root turned by ``degrees`` about the file's up axis.
+
+    The up axis is the rest skeleton's hips-to-head direction snapped to the
+    nearest file axis; the root's rotation channels (and its horizontal
+    position) are turned, every other channel is kept as written.
+    """
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    from seatkit.body.bvh import read_bvh
+    from seatkit.body.name_maps import BUILTIN_BVH_MAPS, candidate_maps, choose_map
+    from seatkit.skeleton import SEGMENT_INDEX
+
+    motion = read_bvh(path)
+    _, index = choose_map(motion.names, candidate_maps(None, BUILTIN_BVH_MAPS))
+    rest = motion.rest_positions()
+    up = rest[index[SEGMENT_INDEX["Head"]]] - rest[index[0]]
+    axis = np.zeros(3)
+    axis[int(np.argmax(np.abs(up)))] = np.sign(up[int(np.argmax(np.abs(up)))])
+    turn = Rotation.from_rotvec(np.radians(degrees) * axis)
+    row = motion.frames[frame].copy()
+    order, cols = motion.rotation_orders[0], motion.rotation_columns[0]
+    root = Rotation.from_euler(order, np.where(cols >= 0, row[cols], 0.0), degrees=True)
+    row[cols[cols >= 0]] = (turn * root).as_euler(order, degrees=True)[cols >= 0]
+    have = motion.position_columns >= 0
+    if have.all():
+        row[motion.position_columns] = turn.apply(row[motion.position_columns])
+    text = Path(path).read_text()
+    head = text[: text.upper().index("MOTION")]
+    return f"{head}MOTION\nFrames: 1\nFrame Time: {motion.frame_time:g}\n" + " ".join(repr(float(v)) for v in row) + "\n"
+
+
+def capture_tasks(args) -> list:
+    """(file, frame, heading, body, seed) for every frame of every BVH in ``args.captures``, at every heading, on every body."""
+    from seatkit.body.bvh import read_bvh
+
+    out = []
+    for path in sorted(Path(args.captures).glob("*.bvh")):
+        for frame in range(read_bvh(path).n_frames):
+            for heading in args.capture_headings:
+                for body in args.bodies:
+                    out.append((str(path), frame, float(heading), body, args.seeds[0]))
+    return out
+
+
+def run_capture(task):
+    """The rule's verdict and the full default build of one capture frame at one heading on one body."""
+    import numpy as np
+
+    from seatkit.body.frame import pose_canonical
+    from seatkit.body import load_pose
+    from seatkit.errors import SeatkitError
+    from seatkit.pipeline import build
+    from seatkit.plugins import get_plugin_manager  # noqa: F401  (the worker's plugin manager is _STATE["pm"])
+    from seatkit.template.pose_rule import assess_pose, template_rule
+
+    path, frame, heading, body_name, seed = task
+    name = f"{Path(path).stem}#{frame}"
+    tmp = _STATE["folder"] / body_name / f"{Path(path).stem}-{frame}-{heading:g}.bvh"
+    tmp.parent.mkdir(exist_ok=True)
+    tmp.write_text(turned_bvh(path, frame, heading))
+    model = _STATE["pm"].registry.get("body_model", body_name)
+    rig = model.make_body(params={})
+    body, frame_move = pose_canonical(model, rig, load_pose(tmp, rig=rig))
+    verdict = assess_pose(body, template_rule(_STATE["template"]))
+    out = {"capture": name, "heading": heading, "body": body_name, "rule_ok": verdict.supportable, "rule_reasons": verdict.reasons,
+           "capture_heading_deg": float(np.degrees(frame_move.heading))}
+    if verdict.supportable:
+        recipe = {"template": "chair", "seed": seed, "bodies": [{"model": body_name, "pose": str(tmp)}]}
+        t0 = time.perf_counter()
+        try:
+            r = build(recipe, pm=_STATE["pm"], write=False, processes=False)
+            ours, base = r.metrics["ours"][0], r.metrics["baseline"][0]
+            out["build"] = {
+                "ok": True,
+                "seconds": time.perf_counter() - t0,
+                "ours": {k: ours[k] for k in (*WIN_KEYS, "max_penetration_m")},
+                "flat": {k: base.get(k, float("inf")) for k in WIN_KEYS},
+                "cage": np.round(r.control_mesh.vertices, 9).tolist(),
+            }
+        except SeatkitError as e:
+            out["build"] = {"ok": False, "seconds": time.perf_counter() - t0, "reason": f"{type(e).__name__}: {e}"}
+    tmp.unlink()
+    return out
+
+
+def _capture_rows(captures, args) -> str:
+    """The real-capture section: per heading, accepted by the rule, built of accepted, Table 1 wins; the same design at every heading."""
+    import numpy as np
+
+    if not captures:
+        return ""
+    frames = sorted({r["capture"] for r in captures})
+    rows = ["", "", f"Real captures ({len(frames)} seated frames of {len({f.split('#')[0] for f in frames})} takes, {args.captures}) "
+            f"x headings {' '.join(f'{h:g}' for h in args.capture_headings)} deg x bodies {', '.join(args.bodies)}; full default build, seed {args.seeds[0]}:", ""]
+    rows += ["| heading | cases | accepted by the rule | built of accepted | Table 1: ours better in all three | deepest penetration (max) |", "|---|---|---|---|---|---|"]
+    for heading in args.capture_headings:
+        at = [r for r in captures if r["heading"] == float(heading)]
+        acc = [r for r in at if r["rule_ok"]]
+        built = [r for r in acc if r.get("build", {}).get("ok")]
+        wins = sum(all(r["build"]["ours"][k] < r["build"]["flat"][k] for k in WIN_KEYS) for r in built)
+        pen = max((r["build"]["ours"]["max_penetration_m"] for r in built), default=float("nan"))
+        rows.append(f"| {heading:g} | {len(at)} | {len(acc)} | {len(built)} of {len(acc)} | {wins} of {len(built)} | {1000 * pen:.1f} mm |")
+    # the same design at every heading: the largest distance between the cages of one capture and body
+    spread = []
+    for key in {(r["capture"], r["body"]) for r in captures}:
+        cages = [np.array(r["build"]["cage"]) for r in captures if (r["capture"], r["body"]) == key and r.get("build", {}).get("ok")]
+        if len(cages) > 1 and all(c.shape == cages[0].shape for c in cages):
+            spread.append(max(float(np.abs(c - cages[0]).max()) for c in cages))
+    if spread:
+        rows += ["", f"Same design at every heading: the cages of one capture and body differ by at most {max(spread):.1e} m over {len(spread)} capture-and-body pairs."]
+    verdicts = {(r["capture"], r["body"]): set() for r in captures}
+    for r in captures:
+        verdicts[(r["capture"], r["body"])].add(r["rule_ok"])
+    rows.append(f"Rule verdicts that change with the heading: {sum(len(v) > 1 for v in verdicts.values())} of {len(verdicts)}.")
+    refused = collections.Counter(reason_kind(x) for r in captures if not r["rule_ok"] for x in r["rule_reasons"])
+    if refused:
+        rows.append("Refused by the rule: " + ", ".join(f"{k} {n}" for k, n in refused.most_common()) + " (cases; a case may give several reasons).")
+    for r in captures:
+        if r["rule_ok"] and not r["build"]["ok"]:
+            rows.append(f"- build failed: {r['capture']} at {r['heading']:g} deg on {r['body']}: {r['build']['reason'][:160]}")
+    return "\n".join(rows)
 
 
 def tasks(args):
@@ -413,6 +551,8 @@ def main() -> None:
     ap.add_argument("--library-seeds", type=int, default=10, help="also fit every supported library pose with seeds 0..N-1 (0: skip)")
     ap.add_argument("--library-bodies", nargs="+", help="bodies for the library poses (default: the first of --bodies, the build's default)")
     ap.add_argument("--library-builds", action="store_true", help="also build every supported library pose in full with each of those seeds")
+    ap.add_argument("--captures", type=Path, help="also run the real-capture set: every frame of every BVH in this folder (benchmarks/captures)")
+    ap.add_argument("--capture-headings", nargs="+", type=float, default=[0.0, 90.0, 180.0, 270.0], help="headings (deg) each capture is turned to")
     ap.add_argument("--images", type=Path, help="only draw DIR/generated-<family>.png (the first draw of each family) and stop")
     ap.add_argument("--cages", type=Path, help="with --images: also draw the chair on a supportable draw of each family, DIR/chair-<family>.png")
     args = ap.parse_args()
@@ -426,15 +566,18 @@ def main() -> None:
     if args.library_seeds:
         extra = (True,) if args.library_builds else ()
         todo += [("library", (i.name, b, args.library_seeds, *extra)) for i in list_poses() if i.supported for b in (args.library_bodies or args.bodies[:1])]
+    if args.captures:
+        todo += [("capture", t) for t in capture_tasks(args)]
     done = {}
     if args.results and args.results.exists():
         for line in args.results.read_text().splitlines():
             if line.strip():
                 rec = json.loads(line)
                 done[(rec["kind"], rec["key"])] = rec["result"]
-    key = {"case": lambda t: f"{t[0]}:{t[1]}:{t[2]}:{t[3]}:{','.join(map(str, t[4]))}:{t[5]}" + (":every-seed" if t[6:] else ""), "library": lambda t: f"{t[0]}:{t[1]}:{t[2]}" + (":builds" if t[3:] else "")}
+    key = {"case": lambda t: f"{t[0]}:{t[1]}:{t[2]}:{t[3]}:{','.join(map(str, t[4]))}:{t[5]}" + (":every-seed" if t[6:] else ""), "library": lambda t: f"{t[0]}:{t[1]}:{t[2]}" + (":builds" if t[3:] else ""), "capture": lambda t: ":".join(map(str, t))}
     results = [done[("case", key["case"](t))] for kind, t in todo if kind == "case" and ("case", key["case"](t)) in done]
     library = [done[("library", key["library"](t))] for kind, t in todo if kind == "library" and ("library", key["library"](t)) in done]
+    captures = [done[("capture", key["capture"](t))] for kind, t in todo if kind == "capture" and ("capture", key["capture"](t)) in done]
     todo = [(kind, t) for kind, t in todo if (kind, key[kind](t)) not in done]
     if args.summarise_only:
         missing = sum(kind == "case" for kind, _ in todo)
@@ -443,6 +586,7 @@ def main() -> None:
         if missing or missing_lib:
             text = f"PARTIAL: {missing} pose-and-body cases and {missing_lib} library poses not run yet\n\n" + text
         text += _library_rows(sorted(library, key=lambda r: (r["pose"], r["body"])), args)
+        text += _capture_rows(captures, args)
         print(text)
         if args.markdown:
             args.markdown.write_text(text + "\n")
@@ -451,7 +595,8 @@ def main() -> None:
         print(f"resuming: {len(results) + len(library)} results read from {args.results}, {len(todo)} to go", flush=True)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as folder, ProcessPoolExecutor(args.workers, initializer=_init, initargs=(args.bodies, folder)) as pool:
-        futures = {pool.submit(run_task if kind == "case" else run_library, t): (kind, t) for kind, t in todo}
+        workers = {"case": run_task, "library": run_library, "capture": run_capture}
+        futures = {pool.submit(workers[kind], t): (kind, t) for kind, t in todo}
         for n, fut in enumerate(as_completed(futures), 1):
             kind, t = futures[fut]
             r = fut.result()
@@ -461,6 +606,10 @@ def main() -> None:
             if kind == "library":
                 library.append(r)
                 status = f"library, {r['ok']} of {t[2]} seeds fitted" + (f", {r['built']} built in full" if "built" in r else "")
+            elif kind == "capture":
+                captures.append(r)
+                r = {**r, "pose": f"{r['capture']} at {r['heading']:g} deg"}
+                status = "refused (rule)" if not r["rule_ok"] else ("built" if r["build"]["ok"] else "BUILD FAILED: " + r["build"]["reason"][:100])
             else:
                 results.append(r)
                 ok = _case_ok(r)
@@ -473,6 +622,7 @@ def main() -> None:
     results.sort(key=lambda r: (r["pose"], r["body"]))
     text = summarise(results, args, time.perf_counter() - t0)
     text += _library_rows(library, args)
+    text += _capture_rows(captures, args)
     bad_library = [r for r in library if r["refusals"] or r.get("build_refusals")]
     print()
     print(text)
@@ -480,7 +630,8 @@ def main() -> None:
         args.markdown.write_text(text + "\n")
     # a failure: a supportable case whose fit (any seed) or full build was refused
     bad = [r for r in results if r["rule_ok"] and not _case_ok(r)]
-    sys.exit(1 if bad or bad_library else 0)
+    bad_captures = [r for r in captures if r["rule_ok"] and not r["build"]["ok"]]
+    sys.exit(1 if bad or bad_library or bad_captures else 0)
 
 
 if __name__ == "__main__":

@@ -117,6 +117,9 @@ def build(
     ),
     seed: Optional[int] = typer.Option(None, "--seed", help="Random seed (RANSAC); same seed, same files."),
     level: Optional[int] = typer.Option(None, "--level", help="Subdivision level of the exported surface (1-4)."),
+    export_frame: Optional[str] = typer.Option(
+        None, "--export-frame", help="canonical (default: the person facing +Z, centred) or capture (the geometry files in the capture's own frame; one person)."
+    ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace an output folder seatkit did not write."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Print nothing but errors."),
     as_json: bool = typer.Option(False, "--json", help="Print a JSON summary on stdout (for scripts)."),
@@ -158,6 +161,7 @@ def build(
         output=str(out) if out is not None else None,
         seed=seed,
         surface_level=level,
+        export_frame=export_frame,
     )
     if merged["output"] is None and recipe is not None and not (template or pose or body or mass is not None or frame is not None):
         merged["output"] = str(Path("seatkit-out") / recipe.stem)  # the recipe's design, named after it

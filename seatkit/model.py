@@ -408,6 +408,10 @@ class BuildResult:
     shell_thickness_m : float or None
         The shell thickness the structural analysis chose (the ``shell``
         exporter uses it), m.
+    frames : list of seatkit.body.frame.CanonicalFrame or None
+        Per person, the rigid move from the capture's frame into the
+        template's (canonical) frame the design is fitted in; None where a
+        caller assembled the result from bodies already placed.
     """
 
     recipe: Any
@@ -424,6 +428,7 @@ class BuildResult:
     output: str | None = None
     structure: Any = None
     shell_thickness_m: float | None = None
+    frames: list | None = None
 
 
 def total_seconds(timings: Mapping[str, float]) -> float:

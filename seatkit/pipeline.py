@@ -38,6 +38,7 @@ from seatkit.stages import (
     fit_baseline,
     fit_baseline_with,
     make_bodies,
+    place_bodies,
     refine,
     solve_importance,
     total_seconds,
@@ -161,7 +162,7 @@ def _helper(stack: ExitStack, what: str, exporters: list, wanted: bool):
 def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper) -> BuildResult:
     """The stages from the bodies to the evaluation: the build's result, nothing written."""
     with timer.stage("bodies"):
-        bodies = make_bodies(recipe, registry)
+        bodies, frames = place_bodies(recipe, registry)
 
     with timer.stage("pressure"):
         pressures = solve_importance(recipe, bodies, registry)
@@ -202,7 +203,7 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
         surface = limit_surface(mesh, level=recipe["surface_level"])
 
-    result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings)
+    result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
     if recipe["evaluate"]["enabled"]:
         evaluate_result(result, registry, timer, baseline=baseline)
     if recipe.get("structure", {}).get("enabled"):
@@ -213,9 +214,25 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     return result
 
 
-def _run_exporters(exporters: list, result: BuildResult, directory: Path) -> list[dict]:
+def _run_exporters(exporters: list, result: BuildResult, directory: Path, capture: BuildResult | None = None) -> list[dict]:
     """Each exporter's ``{role: path}``, in order (the export helper's job)."""
-    return [exporter.export(result, directory) for exporter in exporters]
+    return [exporter.export(_exported(exporter, result, capture), directory) for exporter in exporters]
+
+
+def _exported(exporter, result: BuildResult, capture: BuildResult | None) -> BuildResult:
+    """The result ``exporter`` writes: in the capture's frame (``capture``) for the geometry exporters when the recipe asks."""
+    from seatkit.body.frame import CAPTURE_FRAME_EXPORTERS
+
+    return capture if capture is not None and exporter.name in CAPTURE_FRAME_EXPORTERS else result
+
+
+def _capture_result(result: BuildResult) -> BuildResult | None:
+    """The result in the capture's frame when the recipe's ``export_frame`` is ``capture``, else None."""
+    if result.recipe.get("export_frame") != "capture" or not result.frames:
+        return None
+    from seatkit.body.frame import result_in_capture_frame
+
+    return result_in_capture_frame(result)
 
 
 def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *, overwrite: bool, helper=None) -> None:
@@ -229,15 +246,16 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
 
     target = output_target(result.recipe)
     ahead = [i for i, e in enumerate(exporters) if e.prepare_ahead] if helper is not None else []
+    capture = _capture_result(result)
     with staging_folder(target, overwrite=overwrite) as staging:
         with timer.stage("export"):
-            job = helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging) if ahead else None
+            job = helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture) if ahead else None
             written = {}
             try:
                 for i, exporter in enumerate(exporters):
                     if i not in ahead:
                         exporter.prepare()
-                        written[i] = exporter.export(result, staging)
+                        written[i] = exporter.export(_exported(exporter, result, capture), staging)
             finally:  # the helper's files are in the staging folder before it is moved or deleted
                 if job is not None:
                     wait([job])

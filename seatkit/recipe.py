@@ -17,6 +17,7 @@ parameters::
     surface_level: 3
     output: out/chair
     seed: 0
+    export_frame: canonical         # or capture: geometry files in the capture's own frame
 
 :func:`load_recipe` validates the shape against :data:`RECIPE_SCHEMA`, fills
 defaults, applies command-line overrides, then :func:`check_recipe` checks
@@ -96,6 +97,10 @@ _REFINER = {
     ]
 }
 
+#: Frames the geometry files can be written in: the design's (each person
+#: facing +Z, centred; seatkit.body.frame) or the capture's own (one person).
+EXPORT_FRAMES = ("canonical", "capture")
+
 #: The baseline's refiners when the recipe names none: the Sit & Relax surface fit.
 DEFAULT_BASELINE_REFINERS = ("catmull-clark-fit",)
 
@@ -155,12 +160,13 @@ RECIPE_SCHEMA: dict = {
         "output": {"anyOf": [_PATH, {"type": "null"}]},  # null: the default folder (seatkit.output.output_target)
         "seed": _ranged("seed", "integer"),
         "structure": {"type": "object"},  # checked against seatkit.structure.build.OPTIONS in load_recipe
+        "export_frame": {"enum": list(EXPORT_FRAMES)},
     },
 }
 
 
 #: Keys of a recipe that are present only when it has them.
-_OPTIONAL_KEYS = ("structure", "exporter_params")
+_OPTIONAL_KEYS = ("structure", "exporter_params", "export_frame")
 
 
 @dataclass(frozen=True, eq=False)
@@ -194,6 +200,8 @@ class Recipe(Mapping):
     structure: dict | None = None
     #: ``{exporter name: params}`` of the exporters given as ``{name, params}``, None when none is
     exporter_params: dict | None = None
+    #: ``capture`` to write the geometry files in the capture's own frame; None (the default) for the canonical frame
+    export_frame: str | None = None
 
     @classmethod
     def from_normalised(cls, data: Mapping) -> "Recipe":
@@ -249,7 +257,7 @@ def default_recipe() -> dict:
 def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
     """Fill defaults into validated recipe data; resolve relative paths."""
     recipe = default_recipe()
-    for key in ("template", "surface_level", "output", "seed"):
+    for key in ("template", "surface_level", "output", "seed", "export_frame"):
         if key in data:
             recipe[key] = data[key]
     recipe["template_params"] = dict(data.get("template_params", {}))
@@ -404,6 +412,7 @@ def apply_overrides(
     surface_level: int | None = None,
     evaluate: bool | None = None,
     baseline: str | None = None,
+    export_frame: str | None = None,
 ) -> dict:
     """Return a copy of ``recipe`` (a normalised dict or a :class:`Recipe`) with command-line flags applied (flags win).
 
@@ -459,6 +468,8 @@ def apply_overrides(
         r["evaluate"]["enabled"] = bool(evaluate)
     if baseline is not None:
         r["evaluate"]["baseline"] = baseline or None
+    if export_frame is not None:
+        r["export_frame"] = export_frame
     return r
 
 
@@ -577,6 +588,11 @@ def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
     in_range(("surface_level",), recipe["surface_level"], "surface_level", integer=True)
     if "gap" in recipe["placement"]:
         in_range(("placement", "gap"), recipe["placement"]["gap"], "gap")
+    frame = recipe.get("export_frame")
+    if frame is not None and frame not in EXPORT_FRAMES:
+        fail(("export_frame",), f"expected one of {', '.join(EXPORT_FRAMES)}, got {quote(frame)}")
+    if frame == "capture" and len(recipe["bodies"]) != 1:
+        fail(("export_frame",), f"capture needs one person (got {len(recipe['bodies'])}): a bench's people are each turned to face +Z, so they share no capture frame")
     for i, body in enumerate(recipe["bodies"]):
         need("body_model", body["model"], ("bodies", i, "model"))
         in_range(("bodies", i, "frame"), body.get("frame", 0), "frame", integer=True)

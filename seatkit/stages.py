@@ -27,6 +27,7 @@ __all__ = [
     "fit_baseline",
     "fit_baseline_with",
     "make_bodies",
+    "place_bodies",
     "refine",
     "solve_importance",
     "total_seconds",
@@ -63,21 +64,47 @@ class StageTimer:
 
 
 def make_bodies(recipe: Mapping, registry) -> list[Body]:
-    """Pose every person of the recipe and place them in seat order.
+    """Pose every person of the recipe, each in the canonical frame, and place them in seat order (:func:`place_bodies`)."""
+    return place_bodies(recipe, registry)[0]
 
-    Explicit ``offset`` entries are used as given (metres). Otherwise, with
-    several people, they are placed side by side along +X, left to right in
-    seat order, their bounding boxes ``placement.gap`` apart (default
-    :data:`DEFAULT_SEAT_GAP`), the group centred on x = 0.
+
+def place_bodies(recipe: Mapping, registry) -> tuple[list[Body], list]:
+    """Pose every person of the recipe, bring each into the canonical frame, and place them in seat order.
+
+    Each posed body is turned to face +Z and centred
+    (:mod:`seatkit.body.frame`: the heading from the pelvis and the
+    shoulders, not the capture's root), so a capture gives the same design
+    at any heading. Then explicit ``offset`` entries are added as given
+    (metres, in that frame). Otherwise, with several people, they are placed
+    side by side along +X, left to right in seat order, their bounding boxes
+    ``placement.gap`` apart (default :data:`DEFAULT_SEAT_GAP`), the group
+    centred on x = 0.
+
+    Returns
+    -------
+    bodies : list of Body
+        In the template's frame, placed.
+    frames : list of seatkit.body.frame.CanonicalFrame
+        Per person, the move from the capture's frame into the canonical
+        one (before the placement; report.json's ``frames``).
     """
     from seatkit.body import load_pose
+    from seatkit.body.frame import pose_canonical
 
     bodies: list[Body] = []
+    frames: list = []
     for entry in recipe["bodies"]:
         model = registry.get("body_model", entry["model"])
         rig = model.make_body(params=entry["params"])
         pose = load_pose(entry["pose"], frame=entry.get("frame", 0), rig=rig, dirs=registry.pose_dirs)
-        bodies.append(model.pose(rig, pose, ground=True))
+        body, frame = pose_canonical(model, rig, pose)
+        bodies.append(body)
+        frames.append(frame)
+    return _placed(recipe, bodies), frames
+
+
+def _placed(recipe: Mapping, bodies: list[Body]) -> list[Body]:
+    """``bodies`` at their ``offset`` entries, or side by side (see :func:`place_bodies`)."""
     offsets = [e.get("offset") for e in recipe["bodies"]]
     if all(o is not None for o in offsets):
         placed = [b.translated(o) for b, o in zip(bodies, offsets)]

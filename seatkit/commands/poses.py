@@ -43,6 +43,7 @@ def _check(ctx, pose: str, body_name: str, template_name: str, frame) -> None:
     import click
 
     from seatkit.body import load_pose
+    from seatkit.body.frame import to_canonical
     from seatkit.cli import plugin_manager
     from seatkit.recipe import parse_body_spec
     from seatkit.template.pose_rule import assess_pose, template_rule
@@ -52,7 +53,8 @@ def _check(ctx, pose: str, body_name: str, template_name: str, frame) -> None:
     spec = parse_body_spec(body_name)
     model = registry.get("body_model", spec["model"])
     rig = model.make_body(params=dict(spec["params"]))
-    posed = model.pose(rig, load_pose(pose, frame=frame, rig=rig, dirs=registry.pose_dirs), ground=True)
+    # judged where the build judges it: in the canonical frame (seatkit.body.frame)
+    posed = to_canonical(model.pose(rig, load_pose(pose, frame=frame, rig=rig, dirs=registry.pose_dirs), ground=True))[0]
     rule = template_rule(template)
     if rule is None:
         click.echo(f"{pose}: template {template_name!r} declares no pose rule; only a build can tell (seatkit build --pose {pose})")

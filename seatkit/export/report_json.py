@@ -69,7 +69,25 @@ def report_data(result) -> dict:
             for pf in result.pressures
         ],
         "metrics": jsonable(result.metrics),
+        "frame": frame_report(result),
         "files": {k: Path(v).name for k, v in result.files.items()},
+    }
+
+
+def frame_report(result) -> dict:
+    """report.json's ``frame``: the frame the files are in and, per person, the move into the design's frame.
+
+    The design is fitted in the canonical frame (each person facing +Z,
+    the hip joints' midpoint above the origin; :mod:`seatkit.body.frame`);
+    ``people[i]`` says how person i's capture was turned and shifted into
+    it (before the seat placement). ``export`` is ``capture`` when the
+    geometry files were moved back into the capture's frame.
+    """
+    export = result.recipe.get("export_frame") or "canonical"
+    return {
+        "design": "canonical: +Y up, each person facing +Z, hip joints' midpoint above the origin",
+        "export": export,
+        "people": [f.report() for f in (result.frames or [])],
     }
 
 

@@ -13,7 +13,12 @@ docs/templates.md, "The pose rule"):
   the seat sideways and cross the back's columns;
 - **feet under the body**: a shank swung back under its thigh, the foot
   more than ``max_shank_back_deg`` behind the vertical through the knee
-  (towards the trunk): a seat under the thigh would cut through the calf;
+  (towards the trunk) and either less than ``min_foot_ahead`` thigh lengths
+  ahead of the hip joint (along the body's facing direction) or more than
+  ``max_shank_back_foot_ahead_deg`` behind: the calf lies under the seat,
+  and a seat under the thigh would cut through it (a shank swung back a
+  little under a thigh that reaches far ahead leaves the calf in front of
+  the seat: the chair holds it);
 - **kneeling**: the same, with the knee within ``kneel_height`` of the
   floor and the thigh more than 45 deg below level: the body rests on the shins, which the chair's leg rows cannot
   reach from below;
@@ -49,6 +54,8 @@ DEFAULT_RULE = {
     "max_roll_deg": 45.0,
     "max_thigh_turn_deg": 50.0,
     "max_shank_back_deg": 25.0,
+    "min_foot_ahead": 0.25,
+    "max_shank_back_foot_ahead_deg": 45.0,
     "kneel_height": 0.2,
 }
 
@@ -72,8 +79,9 @@ class PoseVerdict:
     parts : list of str
         The segments concerned.
     measures : dict
-        ``roll_deg``, per leg ``thigh_turn_deg``, ``shank_back_deg`` and
-        ``knee_height_m``, and the limits used.
+        ``roll_deg``, per leg ``thigh_turn_deg``, ``shank_back_deg``,
+        ``foot_ahead_thighs``, ``knee_height_m`` and ``thigh_down_deg``, and
+        the limits used.
     """
 
     supportable: bool
@@ -102,6 +110,8 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
     roll = float(np.degrees(np.arcsin(min(1.0, abs(lat[1])))))
     trunk = _unit(tips[S["Spine3"]] - j[S["Hips"]])
     front = _unit(_horizontal(np.cross(lat, trunk)))
+    # the direction the body faces, seen from above (as seatkit.body.frame finds it; the chest's when lying on the side)
+    facing = _unit(np.cross(_horizontal(lat), _UP)) if np.linalg.norm(_horizontal(lat)) > 0.3 else front
     # the trunk's left-right axis seen from above (the shoulders: the pelvis turns with the legs)
     shoulders = _unit(_horizontal(j[S["LeftArm"]] - j[S["RightArm"]]))
     measures: dict = {"roll_deg": roll, "limits": dict(r), "legs": {}}
@@ -128,7 +138,9 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
         back = float(np.degrees(np.arctan2(-(shank @ heading), max(-(shank @ _UP), 1e-9))))
         knee_h = float(knee[1] - floor)
         thigh_down = float(np.degrees(np.arcsin(np.clip(-_unit(thigh) @ _UP, -1.0, 1.0))))
-        leg = {"thigh_turn_deg": turn, "shank_back_deg": back, "knee_height_m": knee_h, "thigh_down_deg": thigh_down}
+        # how far the foot (ankle joint) is ahead of the hip joint, in thigh lengths, along the facing direction
+        ahead = float((ankle - hip) @ facing) / max(float(np.linalg.norm(thigh)), 1e-9)
+        leg = {"thigh_turn_deg": turn, "shank_back_deg": back, "knee_height_m": knee_h, "thigh_down_deg": thigh_down, "foot_ahead_thighs": ahead}
         measures["legs"][side] = leg
         name = side.lower()
         if roll <= r["max_roll_deg"] and turn > r["max_thigh_turn_deg"]:
@@ -143,10 +155,11 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
                 f"{back:.0f} deg under the thigh: the chair cannot reach the shins from below"
             )
             parts += [side + "Leg", side + "UpLeg"]
-        elif back > r["max_shank_back_deg"]:
+        elif back > r["max_shank_back_deg"] and (ahead < r["min_foot_ahead"] or back > r["max_shank_back_foot_ahead_deg"]):
             reasons.append(
                 f"feet under the body: the {name} foot is swung back {back:.0f} deg behind the knee (at most "
-                f"{r['max_shank_back_deg']:.0f}): a seat under the thigh would cut through the calf"
+                f"{r['max_shank_back_deg']:.0f}, or {r['max_shank_back_foot_ahead_deg']:.0f} with the foot at least {r['min_foot_ahead']:.2f} "
+                f"thigh lengths ahead of the hip; it is {ahead:.2f}): the calf lies under the seat, which would cut through it"
             )
             parts += [side + "Leg", side + "UpLeg"]
     # where the hands are, for the record (no limit: see the module docstring)
@@ -189,7 +202,9 @@ class PoseRuleStep:
     options = {
         "max_roll_deg": Option("number", "largest tilt of the body's left-right axis from horizontal", DEFAULT_RULE["max_roll_deg"], "deg", 0.0, 90.0),
         "max_thigh_turn_deg": Option("number", "largest turn of a thigh from straight ahead towards the line across the shoulders, seen from above", DEFAULT_RULE["max_thigh_turn_deg"], "deg", 0.0, 180.0),
-        "max_shank_back_deg": Option("number", "largest swing of a shank behind the vertical through its knee", DEFAULT_RULE["max_shank_back_deg"], "deg", 0.0, 180.0),
+        "max_shank_back_deg": Option("number", "largest swing of a shank behind the vertical through its knee (unless its foot is at least min_foot_ahead ahead of the hip)", DEFAULT_RULE["max_shank_back_deg"], "deg", 0.0, 180.0),
+        "max_shank_back_foot_ahead_deg": Option("number", "largest swing of a shank behind the vertical through its knee when its foot is at least min_foot_ahead ahead of the hip", DEFAULT_RULE["max_shank_back_foot_ahead_deg"], "deg", 0.0, 180.0),
+        "min_foot_ahead": Option("number", "a shank swung back further than max_shank_back_deg is refused when its foot is less than this far ahead of the hip joint", DEFAULT_RULE["min_foot_ahead"], "1", -2.0, 2.0),
         "kneel_height": Option("number", "a knee this close to the floor with its shank swung back is kneeling", DEFAULT_RULE["kneel_height"], "m", 0.0, 2.0),
     }
 
