@@ -39,12 +39,56 @@ def test_stature_is_within_a_centimetre_of_the_request(sex, stature):
 
 
 @pytest.mark.parametrize("name", PRESETS)
-def test_presets_match_the_survey_within_three_per_cent(name, measured):
+def test_presets_match_the_survey_on_what_sets_a_chair(name, measured):
+    """Fitted: stature, mass, sitting height, hip breadth, buttock-knee length, popliteal height within 0.5 %.
+
+    Not fitted, held to what the body model gives (docs/bodies.md, "What does
+    not match"): knee height sitting within 3.5 %, buttock-popliteal length
+    within 4.5 % (short: the posed knee is deeper than a person's).
+    """
     survey = preset_table()["presets"][name]["survey"]
     m = measured[name]
-    assert abs(m.stature - survey["stature"]) < 0.01
-    for key, figure in (("sitting_height", "sitting_height"), ("hip_breadth_sitting", "hip_breadth"), ("buttock_knee_length", "buttock_knee")):
-        assert abs(getattr(m, key) / survey[figure] - 1.0) < 0.03, (key, getattr(m, key), survey[figure])
+    fitted = (
+        ("stature", "stature"),
+        ("mass", "mass"),
+        ("sitting_height", "sitting_height"),
+        ("hip_breadth_sitting", "hip_breadth"),
+        ("buttock_knee_length", "buttock_knee"),
+        ("popliteal_height", "popliteal_height"),
+    )
+    for key, figure in fitted:
+        assert abs(getattr(m, key) / survey[figure] - 1.0) < 0.005, (key, getattr(m, key), survey[figure])
+    assert abs(m.knee_height_sitting / survey["knee_height_sitting"] - 1.0) < 0.035, m
+    assert abs(m.buttock_popliteal_length / survey["buttock_popliteal_length"] - 1.0) < 0.045, m
+
+
+@pytest.mark.parametrize("name", PRESETS)
+def test_seated_landmarks_are_where_a_person_has_them(name, measured):
+    """The knee's top above its underside, the back of the knee behind its front, the elbow above the seat."""
+    m = measured[name]
+    assert 0.09 < m.knee_height_sitting - m.popliteal_height < 0.16, m
+    assert 0.09 < m.buttock_knee_length - m.buttock_popliteal_length < 0.16, m
+    assert 0.10 < m.thigh_clearance < 0.30, m
+    assert 0.15 < m.elbow_rest_height < 0.35 and m.elbow_rest_height < m.sitting_height / 2, m
+
+
+@pytest.mark.parametrize(
+    ("sex", "stature", "mass", "ratios"),
+    [("male", 1.80, 80.0, (0.52, 0.35, 0.24)), ("female", 1.55, 50.0, (0.52, 0.35, 0.23)), ("male", 1.65, 62.0, (0.53, 0.34, 0.225)), ("female", 1.75, 90.0, (0.52, 0.35, 0.25))],
+)
+def test_popliteal_height_is_what_was_asked(sex, stature, mass, ratios):
+    """Bodies nobody fitted: popliteal height within 1 cm, sitting height and buttock-knee length within 2 cm."""
+    sit, bk, pop = (r * stature for r in ratios)
+    m = measure_rig(make_parametric_body(sex, stature=stature, mass=mass, sitting_height=sit, buttock_knee=bk, popliteal_height=pop))
+    assert abs(m.popliteal_height - pop) < 0.01, (m.popliteal_height, pop)
+    assert abs(m.sitting_height - sit) < 0.02 and abs(m.buttock_knee_length - bk) < 0.02, m
+    alone = measure_rig(make_parametric_body(sex, stature=stature, mass=mass, popliteal_height=pop))
+    assert abs(alone.popliteal_height - pop) < 0.01, (alone.popliteal_height, pop)
+
+
+def test_a_hip_joint_far_out_of_the_pelvis_is_one_line():
+    with pytest.raises(RecipeError, match="hip joints .* accepted up to 6 cm"):
+        make_parametric_body("male", stature=1.80, mass=80.0, sitting_height=0.85, buttock_knee=0.72, popliteal_height=0.53)
 
 
 @pytest.mark.parametrize("name", PRESETS)
@@ -55,7 +99,17 @@ def test_volume_times_density_is_the_mass(name, measured):
 
 def test_percentiles_are_ordered(measured):
     for sex in ("female", "male"):
-        for key in ("stature", "mass", "sitting_height", "hip_breadth_sitting", "buttock_knee_length", "volume"):
+        for key in (
+            "stature",
+            "mass",
+            "sitting_height",
+            "hip_breadth_sitting",
+            "buttock_knee_length",
+            "popliteal_height",
+            "knee_height_sitting",
+            "buttock_popliteal_length",
+            "volume",
+        ):
             values = [getattr(measured[f"p{p}-{sex}"], key) for p in (5, 50, 95)]
             assert values[0] < values[1] < values[2], (sex, key, values)
 

@@ -31,10 +31,19 @@ COLUMNS = {
     "hip_breadth": "hipbreadthsitting",
     "buttock_knee": "buttockkneelength",
     "popliteal_height": "poplitealheight",
+    "knee_height_sitting": "kneeheightsitting",
+    "buttock_popliteal_length": "buttockpopliteallength",
+    "thigh_clearance": "thighclearance",
+    "elbow_rest_height": "elbowrestheight",
     "waist_circumference": "waistcircumference",
     "buttock_circumference": "buttockcircumference",
 }
-MEASURED = {"sitting_height": "sitting_height", "hip_breadth": "hip_breadth_sitting", "buttock_knee": "buttock_knee_length"}
+MEASURED = {
+    "sitting_height": "sitting_height",
+    "hip_breadth": "hip_breadth_sitting",
+    "buttock_knee": "buttock_knee_length",
+    "popliteal_height": "popliteal_height",
+}
 
 
 def survey(folder: Path) -> tuple[dict, dict]:
@@ -61,11 +70,11 @@ def fit(name: str, fig: dict) -> dict:
 
     sex = name.split("-")[1]
     inputs = {k: fig[k] for k in MEASURED}
-    for _ in range(6):
+    for _ in range(10):
         rig = make_parametric_body(sex, stature=fig["stature"], mass=fig["mass"], **inputs)
         m = measure_rig(rig).as_dict()
         err = {k: m[MEASURED[k]] / fig[k] - 1.0 for k in MEASURED}
-        if max(abs(e) for e in err.values()) < 2e-3:
+        if max(abs(e) for e in err.values()) < 1e-3:
             break
         inputs = {k: inputs[k] / (1.0 + err[k]) for k in MEASURED}
     return {k: round(float(v), 5) for k, v in inputs.items()}, m
