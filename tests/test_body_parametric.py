@@ -262,12 +262,13 @@ def test_a_larger_body_gets_a_larger_seat():
     from seatkit.pipeline import build
 
     pm = get_plugin_manager()
-    dims = {}
+    dims, fits = {}, {}
     for name in ("p50-female", "p95-male"):
         recipe = {"template": "chair", "bodies": [{"model": name, "pose": "upright-sitting"}]}
         recipe["evaluate"] = {"enabled": True, "baseline": None}
         result = build(recipe, pm=pm, write=False)
         dims[name] = result.metrics["dimensions"][0]
+        fits[name] = result.metrics["person_fit"][0]
     small, large = dims["p50-female"], dims["p95-male"]
     for key in ("seat_height_m", "seat_depth_m"):
         assert large[key] > small[key] + 0.01, (key, small, large)
@@ -276,6 +277,16 @@ def test_a_larger_body_gets_a_larger_seat():
     for name, d in dims.items():
         popliteal = measure_rig(make_preset(name)).popliteal_height
         assert abs(d["seat_height_m"] - popliteal) < 0.05, (name, d, popliteal)
+    # the report sets the seat beside the person as ANSI/HFES 100 relates them; the p95-male's
+    # upright seat front is within 2 cm of his popliteal height plus the 25 mm shoe allowance
+    for name, fit in fits.items():
+        m = measure_rig(make_preset(name))
+        assert fit["popliteal_height_m"] == pytest.approx(m.popliteal_height, abs=1e-9), name
+        assert fit["buttock_popliteal_length_m"] == pytest.approx(m.buttock_popliteal_length, abs=1e-9), name
+        assert fit["seat_height_for_shoes_m"] == pytest.approx(m.popliteal_height + 0.025), name
+        assert fit["seat_height_difference_m"] == pytest.approx(dims[name]["seat_height_m"] - fit["seat_height_for_shoes_m"])
+        assert fit["measurements"]["stature"] == pytest.approx(m.stature), name
+    assert abs(fits["p95-male"]["seat_height_difference_m"]) < 0.02, fits["p95-male"]
 
 
 @settings(max_examples=25, deadline=None)
