@@ -294,12 +294,16 @@ def test_a_larger_body_gets_a_larger_seat():
     height=st.one_of(st.floats(1.3, 2.2), st.floats(allow_nan=True, allow_infinity=True, width=32)),
     mass=st.one_of(st.floats(20.0, 200.0), st.floats(allow_nan=True, allow_infinity=True, width=32)),
     sitting=st.one_of(st.none(), st.floats(0.6, 1.2), st.floats(allow_nan=True, allow_infinity=True, width=32)),
+    knee=st.one_of(st.none(), st.floats(0.45, 0.75)),
+    popliteal=st.one_of(st.none(), st.floats(0.25, 0.6), st.floats(allow_nan=True, allow_infinity=True, width=32)),
 )
-def test_any_parameters_give_a_body_or_one_line(height, mass, sitting):
+def test_any_parameters_give_a_body_or_one_line(height, mass, sitting, knee, popliteal):
     """Random parameters: a valid, finite body of that stature and mass, or a one-line RecipeError."""
-    params = {"height": height, "mass": mass} | ({} if sitting is None else {"sitting_height": sitting})
+    params = {"height": height, "mass": mass, "sitting_height": sitting, "buttock_knee": knee, "popliteal_height": popliteal}
     try:
-        rig = make_parametric_body("female", stature=height, mass=mass, sitting_height=sitting)
+        rig = make_parametric_body(
+            "female", stature=height, mass=mass, sitting_height=sitting, buttock_knee=knee, popliteal_height=popliteal
+        )
     except RecipeError as e:
         assert "\n" not in str(e) and ("accepted" in str(e) or "expected" in str(e)), params
         return

