@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 import pytest
 
 from seatkit.body import load_pose, load_rig, pose_rig
-from seatkit.body.measure import enclosed_volume, measure_rig
+from seatkit.body.measure import MEASUREMENTS, enclosed_volume, measure_rig
 from seatkit.body.anthropometry import body_density
 from seatkit.body.parametric import make_parametric_body
 from seatkit.body.presets import PRESETS, make_preset, preset_table
@@ -99,17 +99,7 @@ def test_volume_times_density_is_the_mass(name, measured):
 
 def test_percentiles_are_ordered(measured):
     for sex in ("female", "male"):
-        for key in (
-            "stature",
-            "mass",
-            "sitting_height",
-            "hip_breadth_sitting",
-            "buttock_knee_length",
-            "popliteal_height",
-            "knee_height_sitting",
-            "buttock_popliteal_length",
-            "volume",
-        ):
+        for key in MEASUREMENTS:
             values = [getattr(measured[f"p{p}-{sex}"], key) for p in (5, 50, 95)]
             assert values[0] < values[1] < values[2], (sex, key, values)
 
