@@ -125,6 +125,20 @@ def _placed(recipe: Mapping, bodies: list[Body]) -> list[Body]:
     return [b.translated([-centre, 0.0, 0.0]) for b in placed]
 
 
+def measure_people(recipe: Mapping, registry) -> list:
+    """Each person's survey measurements (:func:`seatkit.body.measure.measure_rig`), None where they cannot be taken."""
+    from seatkit.body.measure import measure_rig
+
+    out = []
+    for entry in recipe["bodies"]:
+        rig = registry.get("body_model", entry["model"]).make_body(params=entry["params"])
+        try:
+            out.append(measure_rig(rig))
+        except (ValueError, IndexError):  # a rig without the legs or arms a measurement reads
+            out.append(None)
+    return out
+
+
 def check_overlap(bodies: list[Body]) -> None:
     """Refuse people who overlap (closer than :data:`MIN_PERSON_GAP`), naming them."""
     from scipy.spatial import cKDTree
@@ -241,7 +255,7 @@ def evaluate_result(
         fits it while our refiners run, :mod:`seatkit.workers`); without
         it the baseline is fitted here, when the recipe asks for one.
     """
-    from seatkit.dimensions import support_dimensions
+    from seatkit.dimensions import person_fit, support_dimensions
     from seatkit.evaluate import design_segments, evaluate_design
     from seatkit.skeleton import SEGMENTS
 
@@ -261,11 +275,13 @@ def evaluate_result(
             pressure_settings=p,
             segments=segments,
         )
+    dimensions = support_dimensions(result.bodies, fields)
     metrics = {
         "support_distance_m": ev["support_distance"],
         "supported_segments": [SEGMENTS[s] for s in segments],
         "ours": ours,
-        "dimensions": support_dimensions(result.bodies, fields),
+        "dimensions": dimensions,
+        "person_fit": person_fit(measure_people(recipe, registry), dimensions),  # seat vs person (seatkit.dimensions)
     }
     result.contact_pressures = fields
     if ev.get("baseline"):

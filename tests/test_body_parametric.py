@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 import pytest
 
 from seatkit.body import load_pose, load_rig, pose_rig
-from seatkit.body.measure import enclosed_volume, measure_rig
+from seatkit.body.measure import MEASUREMENTS, enclosed_volume, measure_rig
 from seatkit.body.anthropometry import body_density
 from seatkit.body.parametric import make_parametric_body
 from seatkit.body.presets import PRESETS, make_preset, preset_table
@@ -39,12 +39,56 @@ def test_stature_is_within_a_centimetre_of_the_request(sex, stature):
 
 
 @pytest.mark.parametrize("name", PRESETS)
-def test_presets_match_the_survey_within_three_per_cent(name, measured):
+def test_presets_match_the_survey_on_what_sets_a_chair(name, measured):
+    """Fitted: stature, mass, sitting height, hip breadth, buttock-knee length, popliteal height within 0.5 %.
+
+    Not fitted, held to what the body model gives (docs/bodies.md, "What does
+    not match"): knee height sitting within 3.5 %, buttock-popliteal length
+    within 4.5 % (short: the posed knee is deeper than a person's).
+    """
     survey = preset_table()["presets"][name]["survey"]
     m = measured[name]
-    assert abs(m.stature - survey["stature"]) < 0.01
-    for key, figure in (("sitting_height", "sitting_height"), ("hip_breadth_sitting", "hip_breadth"), ("buttock_knee_length", "buttock_knee")):
-        assert abs(getattr(m, key) / survey[figure] - 1.0) < 0.03, (key, getattr(m, key), survey[figure])
+    fitted = (
+        ("stature", "stature"),
+        ("mass", "mass"),
+        ("sitting_height", "sitting_height"),
+        ("hip_breadth_sitting", "hip_breadth"),
+        ("buttock_knee_length", "buttock_knee"),
+        ("popliteal_height", "popliteal_height"),
+    )
+    for key, figure in fitted:
+        assert abs(getattr(m, key) / survey[figure] - 1.0) < 0.005, (key, getattr(m, key), survey[figure])
+    assert abs(m.knee_height_sitting / survey["knee_height_sitting"] - 1.0) < 0.035, m
+    assert abs(m.buttock_popliteal_length / survey["buttock_popliteal_length"] - 1.0) < 0.045, m
+
+
+@pytest.mark.parametrize("name", PRESETS)
+def test_seated_landmarks_are_where_a_person_has_them(name, measured):
+    """The knee's top above its underside, the back of the knee behind its front, the elbow above the seat."""
+    m = measured[name]
+    assert 0.09 < m.knee_height_sitting - m.popliteal_height < 0.16, m
+    assert 0.09 < m.buttock_knee_length - m.buttock_popliteal_length < 0.16, m
+    assert 0.10 < m.thigh_clearance < 0.30, m
+    assert 0.15 < m.elbow_rest_height < 0.35 and m.elbow_rest_height < m.sitting_height / 2, m
+
+
+@pytest.mark.parametrize(
+    ("sex", "stature", "mass", "ratios"),
+    [("male", 1.80, 80.0, (0.52, 0.35, 0.24)), ("female", 1.55, 50.0, (0.52, 0.35, 0.23)), ("male", 1.65, 62.0, (0.53, 0.34, 0.225)), ("female", 1.75, 90.0, (0.52, 0.35, 0.25))],
+)
+def test_popliteal_height_is_what_was_asked(sex, stature, mass, ratios):
+    """Bodies nobody fitted: popliteal height within 1 cm, sitting height and buttock-knee length within 2 cm."""
+    sit, bk, pop = (r * stature for r in ratios)
+    m = measure_rig(make_parametric_body(sex, stature=stature, mass=mass, sitting_height=sit, buttock_knee=bk, popliteal_height=pop))
+    assert abs(m.popliteal_height - pop) < 0.01, (m.popliteal_height, pop)
+    assert abs(m.sitting_height - sit) < 0.02 and abs(m.buttock_knee_length - bk) < 0.02, m
+    alone = measure_rig(make_parametric_body(sex, stature=stature, mass=mass, popliteal_height=pop))
+    assert abs(alone.popliteal_height - pop) < 0.01, (alone.popliteal_height, pop)
+
+
+def test_a_hip_joint_far_out_of_the_pelvis_is_one_line():
+    with pytest.raises(RecipeError, match="hip joints .* accepted up to 6 cm"):
+        make_parametric_body("male", stature=1.80, mass=80.0, sitting_height=0.85, buttock_knee=0.72, popliteal_height=0.53)
 
 
 @pytest.mark.parametrize("name", PRESETS)
@@ -55,7 +99,7 @@ def test_volume_times_density_is_the_mass(name, measured):
 
 def test_percentiles_are_ordered(measured):
     for sex in ("female", "male"):
-        for key in ("stature", "mass", "sitting_height", "hip_breadth_sitting", "buttock_knee_length", "volume"):
+        for key in MEASUREMENTS:
             values = [getattr(measured[f"p{p}-{sex}"], key) for p in (5, 50, 95)]
             assert values[0] < values[1] < values[2], (sex, key, values)
 
@@ -208,12 +252,13 @@ def test_a_larger_body_gets_a_larger_seat():
     from seatkit.pipeline import build
 
     pm = get_plugin_manager()
-    dims = {}
+    dims, fits = {}, {}
     for name in ("p50-female", "p95-male"):
         recipe = {"template": "chair", "bodies": [{"model": name, "pose": "upright-sitting"}]}
         recipe["evaluate"] = {"enabled": True, "baseline": None}
         result = build(recipe, pm=pm, write=False)
         dims[name] = result.metrics["dimensions"][0]
+        fits[name] = result.metrics["person_fit"][0]
     small, large = dims["p50-female"], dims["p95-male"]
     for key in ("seat_height_m", "seat_depth_m"):
         assert large[key] > small[key] + 0.01, (key, small, large)
@@ -222,6 +267,16 @@ def test_a_larger_body_gets_a_larger_seat():
     for name, d in dims.items():
         popliteal = measure_rig(make_preset(name)).popliteal_height
         assert abs(d["seat_height_m"] - popliteal) < 0.05, (name, d, popliteal)
+    # the report sets the seat beside the person as ANSI/HFES 100 relates them; the p95-male's
+    # upright seat front is within 2 cm of his popliteal height plus the 25 mm shoe allowance
+    for name, fit in fits.items():
+        m = measure_rig(make_preset(name))
+        assert fit["popliteal_height_m"] == pytest.approx(m.popliteal_height, abs=1e-9), name
+        assert fit["buttock_popliteal_length_m"] == pytest.approx(m.buttock_popliteal_length, abs=1e-9), name
+        assert fit["seat_height_for_shoes_m"] == pytest.approx(m.popliteal_height + 0.025), name
+        assert fit["seat_height_difference_m"] == pytest.approx(dims[name]["seat_height_m"] - fit["seat_height_for_shoes_m"])
+        assert fit["measurements"]["stature"] == pytest.approx(m.stature), name
+    assert abs(fits["p95-male"]["seat_height_difference_m"]) < 0.02, fits["p95-male"]
 
 
 @settings(max_examples=25, deadline=None)
@@ -229,12 +284,16 @@ def test_a_larger_body_gets_a_larger_seat():
     height=st.one_of(st.floats(1.3, 2.2), st.floats(allow_nan=True, allow_infinity=True, width=32)),
     mass=st.one_of(st.floats(20.0, 200.0), st.floats(allow_nan=True, allow_infinity=True, width=32)),
     sitting=st.one_of(st.none(), st.floats(0.6, 1.2), st.floats(allow_nan=True, allow_infinity=True, width=32)),
+    knee=st.one_of(st.none(), st.floats(0.45, 0.75)),
+    popliteal=st.one_of(st.none(), st.floats(0.25, 0.6), st.floats(allow_nan=True, allow_infinity=True, width=32)),
 )
-def test_any_parameters_give_a_body_or_one_line(height, mass, sitting):
+def test_any_parameters_give_a_body_or_one_line(height, mass, sitting, knee, popliteal):
     """Random parameters: a valid, finite body of that stature and mass, or a one-line RecipeError."""
-    params = {"height": height, "mass": mass} | ({} if sitting is None else {"sitting_height": sitting})
+    params = {"height": height, "mass": mass, "sitting_height": sitting, "buttock_knee": knee, "popliteal_height": popliteal}
     try:
-        rig = make_parametric_body("female", stature=height, mass=mass, sitting_height=sitting)
+        rig = make_parametric_body(
+            "female", stature=height, mass=mass, sitting_height=sitting, buttock_knee=knee, popliteal_height=popliteal
+        )
     except RecipeError as e:
         assert "\n" not in str(e) and ("accepted" in str(e) or "expected" in str(e)), params
         return

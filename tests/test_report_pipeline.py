@@ -35,3 +35,10 @@ def test_build_writes_the_report(tmp_path):
     assert result.timings["export"] < 5.0
     report = json.loads((out / "report.json").read_text())
     assert report["files"]["report_html"] == "report.html"
+    # the seat beside the person (seatkit.dimensions.person_fit), in report.json and report.html
+    fit = report["metrics"]["person_fit"][0]
+    assert fit["shoe_allowance_m"] == 0.025 and 0.3 < fit["popliteal_height_m"] < 0.6
+    assert fit["seat_height_for_shoes_m"] == fit["popliteal_height_m"] + fit["shoe_allowance_m"]
+    assert fit["measurements"]["buttock_popliteal_length"] == fit["buttock_popliteal_length_m"]
+    html = (out / "report.html").read_text()
+    assert "The seat beside person 1" in html and f"popliteal height {fit['popliteal_height_m']:.3f} m" in html

@@ -157,6 +157,9 @@ def test_page_designs_and_redesigns_offline(server, tmp_path):
         # our evaluation follows the design (contact pressure colours, Table 1)
         page.wait_for_function("() => window.seatkit.design.evaluated === true", timeout=180_000)
         assert page.locator("#table1 tbody tr td").nth(1).inner_text() != "-"
+        # the seat beside the person (report.json metrics.person_fit)
+        facts = page.locator("#facts").inner_text()
+        assert "popliteal height" in facts and "buttock-popliteal length" in facts, facts
         # the baseline follows once the sliders rest: Table 1 gets its second column
         page.wait_for_function("() => window.seatkit.design.metrics.baseline !== undefined", timeout=180_000)
         page.locator('#view-options button:text-is("back-left")').click()  # the pressure on the back and seat

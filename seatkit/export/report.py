@@ -737,8 +737,45 @@ def _metrics_html(result) -> str:
     for i, dims in enumerate(metrics.get("dimensions") or []):  # seatkit.dimensions
         cells = "".join(f"<tr><td>{html.escape(k[:-2].replace('_', ' '))}</td><td>{'-' if v is None else f'{v:.3f} m'}</td></tr>" for k, v in dims.items())
         parts.append(f"<h3>Seat dimensions where it carries person {i + 1}</h3><table>{cells}</table>")
+    parts += person_fit_html(metrics.get("person_fit") or [])
     parts.append(timings_html(result.timings or {}))
     return "\n".join(parts)
+
+
+def person_fit_html(fits: list[dict]) -> list[str]:
+    """The seat beside the person (seatkit.dimensions.person_fit): one table per measured person."""
+    parts = []
+    for i, fit in enumerate(fits):
+        if "popliteal_height_m" not in fit:
+            continue
+
+        def mm(v):
+            return "-" if v is None else f"{v * 1000:+.0f} mm"
+
+        def m(v):
+            return "-" if v is None else f"{v:.3f} m"
+
+        rows = [
+            ("seat height (front edge)", m(fit["seat_height_m"]),
+             f"popliteal height {m(fit['popliteal_height_m'])} + {fit['shoe_allowance_m'] * 1000:.0f} mm shoe allowance = "
+             f"{m(fit['seat_height_for_shoes_m'])}", mm(fit["seat_height_difference_m"])),
+            ("seat depth (loaded)", m(fit["seat_depth_m"]), f"buttock-popliteal length {m(fit['buttock_popliteal_length_m'])}",
+             mm(fit["seat_depth_difference_m"])),
+            ("seat width (loaded)", m(fit["seat_width_m"]), f"hip breadth, sitting {m(fit['hip_breadth_sitting_m'])}",
+             mm(fit["seat_width_difference_m"])),
+        ]
+        cells = "".join(f"<tr><td>{a}</td><td>{b}</td><td>{html.escape(c)}</td><td>{d}</td></tr>" for a, b, c, d in rows)
+        measured = fit.get("measurements") or {}
+        person = ", ".join(
+            f"{k.replace('_', ' ')} {v:.3f} m" for k, v in measured.items() if k not in ("mass", "volume")
+        )
+        parts.append(
+            f"<h3>The seat beside person {i + 1}</h3><p>{html.escape(fit['standard'])}. The person, measured on the "
+            f"bare-skin body as ANSUR II measures (docs/bodies.md): {html.escape(person)}; mass "
+            f"{measured.get('mass', float('nan')):.1f} kg.</p><table><tr><th>seat</th><th>designed</th>"
+            f"<th>the person, as the standard relates them</th><th>difference</th></tr>{cells}</table>"
+        )
+    return parts
 
 
 _TIMINGS_START, _TIMINGS_END = "<!-- seatkit:timings -->", "<!-- /seatkit:timings -->"

@@ -388,6 +388,13 @@ function showReport(report) {
     ["evaluation", t.evaluate != null ? `${t.evaluate.toFixed(2)} s` : "-"],
   ];
   if (t.baseline != null) rows.push(["baseline", `${t.baseline.toFixed(2)} s`]);
+  // the seat beside the person (report.json metrics.person_fit, ANSI/HFES 100 relations; docs/bodies.md)
+  const fit = (m.person_fit || [])[0];
+  const metres = (x) => (x == null ? "-" : `${x.toFixed(3)} m`);
+  if (fit && fit.popliteal_height_m != null) {
+    rows.push(["seat height", `${metres(fit.seat_height_m)} (popliteal height ${metres(fit.popliteal_height_m)} + ${(fit.shoe_allowance_m * 1000).toFixed(0)} mm shoes = ${metres(fit.seat_height_for_shoes_m)})`]);
+    rows.push(["seat depth", `${metres(fit.seat_depth_m)} (buttock-popliteal length ${metres(fit.buttock_popliteal_length_m)})`]);
+  }
   for (const [k, v] of rows) {
     const dt = document.createElement("dt"); dt.textContent = k;
     const dd = document.createElement("dd"); dd.textContent = v;
