@@ -416,6 +416,12 @@ def evaluate_result(
         "dimensions": support_dimensions(result.bodies, fields),
     }
     result.contact_pressures = fields
+    if ev.get("interface_pressure", True):
+        from seatkit.evaluate import evaluate_interface
+
+        with timer.stage("interface pressure"):
+            figures, result.interface_pressures = evaluate_interface(result.bodies, result.surface, mu=p.get("mu"))
+        metrics["interface"] = figures
     if ev.get("baseline"):
         with timer.stage("baseline (wait)"):
             if baseline is None:
