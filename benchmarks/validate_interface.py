@@ -12,8 +12,13 @@ Two experiments, each with the paper's model beside it:
    1992).
 
     python benchmarks/validate_interface.py [--body default-male]
+    python benchmarks/validate_interface.py --presets
+    python benchmarks/validate_interface.py --poses
 
-Prints Markdown tables.
+Prints Markdown tables. ``--presets`` runs experiment 1 on every preset
+body and both default bodies instead (the rate within the published spread);
+``--poses`` builds the default chair for every supportable library pose and
+prints the soft-tissue figures on each design.
 """
 
 from __future__ import annotations
@@ -49,9 +54,19 @@ def _trunk_angle(body) -> float:
     return float(np.degrees(np.arctan2(-d[2], d[1])))
 
 
-def flat_seat(model: str) -> dict:
+def posed(model: str, pose: str, pm):
+    """A body as the build makes it (registered body model, posed on the ground)."""
+    from seatkit.recipe import parse_body_spec
+
+    spec = parse_body_spec(model)
+    component = pm.registry.get("body_model", spec["model"])
+    rig = component.make_body(params=spec["params"])
+    return component.pose(rig, load_pose(pose, rig=rig, dirs=pm.registry.pose_dirs), ground=True)
+
+
+def flat_seat(model: str, pm=None) -> dict:
     """Experiment 1: both models on a rigid flat seat and floor."""
-    body = pose_rig(load_rig(model), load_pose("upright-sitting"))
+    body = posed(model, "upright-sitting", pm) if pm is not None else pose_rig(load_rig(model), load_pose("upright-sitting"))
     seat = _mask(body, SHARE_REGIONS["seat"])
     feet = _mask(body, ("RightFoot", "LeftFoot"))
     top = float(body.vertices[seat, 1].min())
@@ -95,8 +110,42 @@ def designed(model: str, pose: str, pm) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--body", default="default-male")
+    ap.add_argument("--presets", action="store_true", help="experiment 1 on every preset body")
+    ap.add_argument("--poses", action="store_true", help="the soft-tissue figures on the chair built for every library pose")
     args = ap.parse_args()
     pm = get_plugin_manager()
+    if args.poses:
+        from seatkit.body import list_poses
+
+        print("| pose | supported | peak | peak under the buttocks | seat | back | feet | arms | at the friction limit | max strain |")
+        print("|---|---|---|---|---|---|---|---|---|---|")
+        for info in list_poses():
+            if not info.supported:
+                continue
+            r = build({"template": "chair", "bodies": [{"model": args.body, "pose": info.name}], "evaluate": {"baseline": None}}, pm=pm, write=False)
+            m = r.metrics["interface"][0]
+            if not m["supported"]:
+                print(f"| {info.name} | no: {m['reason'][:120]} |" + " |" * 8)
+                continue
+            sh = m["load_share"]
+            print(
+                f"| {info.name} | yes | {m['peak_pa'] / 1e3:.1f} kPa | {m['seat_peak_pa'] / 1e3:.1f} kPa | {sh['seat']:.0%} | {sh['back']:.0%} | "
+                f"{sh['feet']:.0%} | {sh['arms']:.0%} | {m['friction']['at_limit_share']:.0%} | {m['max_strain']:.2f} |"
+            )
+        return
+    if args.presets:
+        print("| body | mass | peak under the buttocks (soft tissue) | within 17 +/- 4 kPa | paper's model | seat | feet |")
+        print("|---|---|---|---|---|---|---|")
+        inside = 0
+        names = ["default-male", "default-female"] + [f"p{p}-{s}" for s in ("male", "female") for p in (5, 50, 95)]
+        for name in names:
+            f = flat_seat(name, pm)
+            peak = f["seat_peak"][0]
+            ok = 13e3 <= peak <= 21e3
+            inside += ok
+            print(f"| {name} | {f['body'].mass:.1f} kg | {peak / 1e3:.1f} kPa | {'yes' if ok else 'no'} | {f['seat_peak'][1] / 1e3:.1f} kPa | {f['shares'][0]['seat']:.0%} | {f['shares'][0]['feet']:.0%} |")
+        print(f"\n{inside} of {len(names)} within the published spread")
+        return
     flat = flat_seat(args.body)
     up = designed(args.body, "upright-sitting", pm)
     rec = designed(args.body, "reclined-sitting", pm)
