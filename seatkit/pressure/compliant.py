@@ -71,6 +71,7 @@ from seatkit.errors import InfeasibleSupportError, InputError, SolverError
 from seatkit.model import PressureField
 from seatkit.pressure.areas import mixed_voronoi_areas
 from seatkit.pressure.assembly import joint_loads, segment_gravity
+from seatkit.pressure.solve import project_to_cone
 
 __all__ = [
     "MODEL_NAME",
@@ -321,12 +322,7 @@ def solve_compliant(
     if "Solved" not in status:
         msg = f"compliant contact: Clarabel returned {status}"
         raise SolverError(msg)
-    x = np.asarray(sol.x).reshape(k, 3)
-    x[:, 0] = np.maximum(x[:, 0], 0.0)
-    # round-off into the exact cone
-    tmag = np.linalg.norm(x[:, 1:], axis=1)
-    over = tmag > mu * x[:, 0]
-    x[over, 1:] *= (mu * x[over, 0] / np.maximum(tmag[over], 1e-300))[:, None]
+    x = project_to_cone(np.asarray(sol.x).reshape(k, 3), mu)  # round-off into the exact cone
     force = np.zeros((n, 3))
     force[idx] = np.einsum("kdi,ki->kd", frames, x)
     normal_force = np.zeros(n)
