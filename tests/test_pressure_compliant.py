@@ -45,9 +45,10 @@ def _solve(body, normal=(0.0, 1.0, 0.0), mu=0.5):
     return solve_compliant(body, contact, youngs_modulus=E, thickness=np.full(len(body.vertices), H), mu=mu)
 
 
-def test_flat_punch_on_an_elastic_foundation_gives_p_equal_k_d():
+@pytest.mark.parametrize("mu", [0.0, 0.5])
+def test_flat_punch_on_an_elastic_foundation_gives_p_equal_k_d(mu):
     body = _block()
-    field = _solve(body)
+    field = _solve(body, mu=mu)
     weight = 75.0 * GRAVITY
     loaded = field.pressure > 1.0
     # a centred rigid punch sinks evenly: the same pressure everywhere, W over the contact area

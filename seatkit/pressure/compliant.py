@@ -244,7 +244,7 @@ def solve_compliant(
         Tissue thickness per body vertex, m; default the distance to the
         bones (:func:`bone_distance`) clipped to the documented range.
     mu : float
-        Coulomb friction coefficient (> 0).
+        Coulomb friction coefficient (>= 0; 0: frictionless).
 
     Returns
     -------
@@ -263,8 +263,8 @@ def solve_compliant(
     import clarabel
 
     t0 = time.perf_counter()
-    if not (youngs_modulus > 0 and 0 <= poisson < 0.5 and mu > 0):
-        msg = f"compliant contact needs E > 0, 0 <= nu < 0.5 and mu > 0; got E = {youngs_modulus}, nu = {poisson}, mu = {mu}"
+    if not (youngs_modulus > 0 and 0 <= poisson < 0.5 and mu >= 0):
+        msg = f"compliant contact needs E > 0, 0 <= nu < 0.5 and mu >= 0; got E = {youngs_modulus}, nu = {poisson}, mu = {mu}"
         raise InputError(msg)
     n = len(body.vertices)
     area = mixed_voronoi_areas(body.vertices, body.faces)
@@ -300,12 +300,14 @@ def solve_compliant(
     size = max(float(np.ptp(body.vertices, axis=0).max()), 1e-3)
     E[3:] /= size
     b[3:] /= size
-    # cones: s = b - A x; zero cone for the 6 rows, (mu N, T1, T2) in SOC per vertex
-    rows = np.arange(3 * k) + 6
+    # cones: s = b - A x; zero cone for the 6 rows, N >= 0 (needed when mu = 0),
+    # and (mu N, T1, T2) in the second-order cone per vertex
     cone_vals = np.tile(np.array([-mu, -1.0, -1.0]), k)
-    A = sp.vstack([sp.csc_matrix(E), sp.csc_matrix((cone_vals, (rows - 6, np.arange(3 * k))), shape=(3 * k, 3 * k))]).tocsc()
-    bb = np.concatenate([b, np.zeros(3 * k)])
-    cones = [clarabel.ZeroConeT(6)] + [clarabel.SecondOrderConeT(3)] * k
+    push = sp.csc_matrix((-np.ones(k), (np.arange(k), 3 * np.arange(k))), shape=(k, 3 * k))
+    coulomb = sp.csc_matrix((cone_vals, (np.arange(3 * k), np.arange(3 * k))), shape=(3 * k, 3 * k))
+    A = sp.vstack([sp.csc_matrix(E), push, coulomb]).tocsc()
+    bb = np.concatenate([b, np.zeros(4 * k)])
+    cones = [clarabel.ZeroConeT(6), clarabel.NonnegativeConeT(k)] + [clarabel.SecondOrderConeT(3)] * k
     settings = clarabel.DefaultSettings()
     settings.verbose = False
     settings.tol_gap_abs = settings.tol_gap_rel = 1e-10
@@ -458,6 +460,7 @@ def interface_figures(body, field) -> dict:
         "contact_area_m2": float(field.area[loaded].sum()),
         "load_share": load_shares(body, field),
         "friction": friction_state(field, mu=field.params["mu"]),
+        "max_joint_moment_nm": float(np.linalg.norm(field.joint_moment, axis=1).max()),
         "max_compression_m": field.params["max_compression_m"],
         "max_strain": field.params["max_strain"],
         "youngs_modulus_pa": field.params["youngs_modulus_pa"],
