@@ -10,7 +10,9 @@ Two exporters (registered by the ``seatkit_exporters`` plugin):
     contact pressure on that surface when the evaluation computed it;
     ``comparison.png``  our surface beside the flat-patch baseline, both with
     their contact pressure on one colour scale, and the paper's Table 1
-    figures (only when the build evaluated a baseline).
+    figures (only when the build evaluated a baseline);
+    ``interface.png``  the body coloured by its interface pressure on our
+    surface from the soft-tissue model (only when the evaluation computed it).
 ``report-html``
     ``report.html``  an interactive 3D view (plotly ``Mesh3d``: the body with
     pressure colours, the limit surface translucent, the cage as lines, a
@@ -65,6 +67,7 @@ PNG_FILES = {
     "report_cage_png": "cage.png",
     "report_surface_png": "surface.png",
     "report_comparison_png": "comparison.png",
+    "report_interface_png": "interface.png",
 }
 
 #: Size of one rendered view, pixels.
@@ -192,6 +195,7 @@ class _Scene:
     baseline_name: str
     metrics: dict
     surface_level: int = 0
+    interface: np.ndarray | None = None  # (n,) Pa, the soft-tissue model on our surface, or None
     people: list = field(default_factory=list)  # one label per person (pose, body, mass)
     _rasters: dict = field(default_factory=dict)
     _frames: dict = field(default_factory=dict)
@@ -286,6 +290,7 @@ def _scene(result) -> _Scene:
         metrics=metrics,
         surface_level=int(getattr(result.surface, "level", 0) or 0),
         people=person_labels(bodies),
+        interface=_concat_fields(getattr(result, "interface_pressures", None), sizes),
     )
 
 
@@ -440,7 +445,7 @@ def _surface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
     if contact is None or vmax <= 0:
         return save(_sheet(title, panels), path)
     below = rs.composite(BACKGROUND, [_body_layer(scene, "from below", "body", contact, vmax)])
-    panels.append((_pil(below), f"{CONTACT_LABEL}, from below (surface hidden)"))
+    panels.append((_pil(below), "from below (surface hidden)"))
     title += f"; {CONTACT_LABEL}: peak {vmax / 1000:.1f} kPa (the top of the scale)"
     return save(_sheet(title, panels, colorbar=_colorbar(PANEL_HEIGHT, vmax, "kPa")), path)
 
@@ -509,10 +514,20 @@ def _comparison_png(scene: _Scene, path: Path, save=_write_png) -> Path:
             panels.append((_pil(rs.composite(BACKGROUND, [_body_layer(scene, "from below", "body", None, 0.0)])), f"{label}: {text}"))
             continue
         below = rs.composite(BACKGROUND, [_body_layer(scene, "from below", "body", contact, vmax)])
-        panels.append((_pil(below), f"{label}: {CONTACT_LABEL}, peak {contact.max() / 1000:.1f} kPa"))
+        panels.append((_pil(below), f"{label}: importance, peak {contact.max() / 1000:.1f} kPa"))
     bar = _colorbar(PANEL_HEIGHT, vmax, "kPa") if vmax > 0 else None
-    title = f"Ours vs the {scene.baseline_name} baseline ({CONTACT_LABEL} on one scale, up to {vmax / 1000:.1f} kPa)"
+    title = f"Ours vs {scene.baseline_name}: importance on one scale (paper's model), up to {vmax / 1000:.1f} kPa"
     return save(_sheet(title, panels, colorbar=bar, table=table_rows(scene.metrics, scene.people), table_head=("ours", scene.baseline_name), columns=2), path)
+
+
+def _interface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
+    """``interface.png``: the body coloured by the soft-tissue model's interface pressure on our surface."""
+    vmax = contact_scale(scene.interface)
+    panels = []
+    for view in ("from below", "back", "side"):
+        panels.append((_pil(rs.composite(BACKGROUND, [_body_layer(scene, view, "body", scene.interface, vmax)])), view))
+    title = f"Interface pressure on the design (soft tissue over the skeleton; pressure-mat comparable), peak {vmax / 1000:.1f} kPa"
+    return save(_sheet(title, panels, colorbar=_colorbar(PANEL_HEIGHT, vmax, "kPa")), path)
 
 
 def render_pngs(result, directory) -> dict[str, Path]:
@@ -531,6 +546,8 @@ def render_pngs(result, directory) -> dict[str, Path]:
         jobs.append(("report_surface_png", _surface_png))
         if scene.baseline_surface is not None:
             jobs.append(("report_comparison_png", _comparison_png))
+        if scene.interface is not None and contact_scale(scene.interface) > 0:
+            jobs.append(("report_interface_png", _interface_png))
     return _render(scene, jobs, directory)
 
 

@@ -93,6 +93,12 @@ MODEL_NAME = "winkler-soft-tissue"
 #: body sinks by a few centimetres at most under its weight.
 CONTACT_REACH_M = 0.04
 
+#: A skin vertex more than this far behind a designed surface (m) is on its
+#: far side (outside a thin part of the furniture, e.g. in front of the
+#: seat's front edge), not pressed into it: a design reaches at most a few
+#: millimetres into the body (its ``max_penetration_m``).
+BEHIND_M = 0.01
+
 #: A support whose normal makes less than this cosine with the skin's inward
 #: normal does not face that skin (the other side of a thin part).
 FACING_COS = 0.2
@@ -160,8 +166,9 @@ def contact_with_surface(body, surface, *, reach: float = CONTACT_REACH_M, query
 
     Skin vertices within ``reach`` of the surface whose closest surface point
     faces them (the surface normal there and the skin's inward normal agree
-    to within :data:`FACING_COS`); the gap is the signed offset along the
-    surface normal, which points to the body side
+    to within :data:`FACING_COS`) and that are not more than :data:`BEHIND_M`
+    behind it; the gap is the signed offset along the surface normal, which
+    points to the body side
     (:meth:`seatkit.geometry.surface.SurfaceQuery.closest_normals`).
     """
     from seatkit.geometry.surface import SurfaceQuery
@@ -173,7 +180,7 @@ def contact_with_surface(body, surface, *, reach: float = CONTACT_REACH_M, query
     # towards); skin facing away from it (the top of a foot above a floor)
     # is never pushed by it
     facing = -np.einsum("nd,nd->n", np.nan_to_num(normal), outward) >= FACING_COS
-    near = np.isfinite(distance) & (distance <= reach) & facing
+    near = np.isfinite(distance) & (distance <= reach) & facing & (side >= -BEHIND_M)
     index = np.flatnonzero(near)
     return SupportContact(index, side[index], normal[index], np.zeros(len(index), dtype=np.int64), ("surface",))
 
