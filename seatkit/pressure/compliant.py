@@ -258,8 +258,11 @@ def solve_compliant(
     PressureField
         ``force`` (world, N), ``normal_force`` along the support normal (N),
         ``pressure`` (Pa: interface pressure), ``params`` with the model's
-        name, parameters, the body's sink (m) and ``part_force`` (N, the
-        vertical force on each support part).
+        name and parameters, ``max_compression_m`` and ``max_strain`` (the
+        most compressed tissue column, m and as a fraction of its
+        thickness), ``at_friction_limit`` (share of the loaded contacts on
+        the cone) and ``part_force_n`` (N, the vertical force on each
+        support part).
 
     Raises
     ------
@@ -324,7 +327,7 @@ def solve_compliant(
     status = str(sol.status)
     if "Infeasible" in status:
         msg = (
-            f"body {body.name!r}: the support ({k} skin vertices within {CONTACT_REACH_M * 100:.0f} cm, on "
+            f"body {body.name!r}: the support ({k} candidate skin vertices, on "
             f"{', '.join(contact.parts)}) cannot hold its weight of {weight:.2f} N with friction mu = {mu}"
         )
         raise InfeasibleSupportError(msg)
