@@ -14,11 +14,13 @@ Two experiments, each with the paper's model beside it:
     python benchmarks/validate_interface.py [--body default-male]
     python benchmarks/validate_interface.py --presets
     python benchmarks/validate_interface.py --poses
+    python benchmarks/validate_interface.py --bodies
 
 Prints Markdown tables. ``--presets`` runs experiment 1 on every preset
 body and both default bodies instead (the rate within the published spread);
 ``--poses`` builds the default chair for every supportable library pose and
-prints the soft-tissue figures on each design.
+prints the soft-tissue figures on each design; ``--bodies`` does the same
+for every body, upright and reclined.
 """
 
 from __future__ import annotations
@@ -41,6 +43,10 @@ from seatkit.pressure.compliant import (
     solve_compliant,
 )
 from seatkit.skeleton import SEGMENT_INDEX
+
+
+#: Every body of the library: the two defaults and the six presets.
+BODIES = ["default-male", "default-female"] + [f"p{p}-{s}" for s in ("male", "female") for p in (5, 50, 95)]
 
 
 def _mask(body, names):
@@ -114,22 +120,24 @@ def main() -> None:
     ap.add_argument("--poses", action="store_true", help="the soft-tissue figures on the chair built for every library pose")
     args = ap.parse_args()
     pm = get_plugin_manager()
-    if args.poses:
+    if args.poses or args.bodies:
         from seatkit.body import list_poses
 
-        print("| pose | supported | peak | peak under the buttocks | seat | back | feet | arms | at the friction limit | max strain |")
-        print("|---|---|---|---|---|---|---|---|---|---|")
-        for info in list_poses():
-            if not info.supported:
-                continue
-            r = build({"template": "chair", "bodies": [{"model": args.body, "pose": info.name}], "evaluate": {"baseline": None}}, pm=pm, write=False)
+        if args.poses:
+            cases = [(args.body, info.name) for info in list_poses() if info.supported]
+        else:
+            cases = [(b, p) for b in BODIES if b != "default-male" for p in ("upright-sitting", "reclined-sitting")]
+        print("| body | pose | supported | peak | peak under the buttocks | seat | back | feet | arms | at the friction limit | max strain |")
+        print("|---|---|---|---|---|---|---|---|---|---|---|")
+        for body, pose in cases:
+            r = build({"template": "chair", "bodies": [{"model": body, "pose": pose}], "evaluate": {"baseline": None}}, pm=pm, write=False)
             m = r.metrics["interface"][0]
             if not m["supported"]:
-                print(f"| {info.name} | no: {m['reason'][:120]} |" + " |" * 8)
+                print(f"| {body} | {pose} | no: {m['reason'][:120]} |" + " |" * 8)
                 continue
             sh = m["load_share"]
             print(
-                f"| {info.name} | yes | {m['peak_pa'] / 1e3:.1f} kPa | {m['seat_peak_pa'] / 1e3:.1f} kPa | {sh['seat']:.0%} | {sh['back']:.0%} | "
+                f"| {body} | {pose} | yes | {m['peak_pa'] / 1e3:.1f} kPa | {m['seat_peak_pa'] / 1e3:.1f} kPa | {sh['seat']:.0%} | {sh['back']:.0%} | "
                 f"{sh['feet']:.0%} | {sh['arms']:.0%} | {m['friction']['at_limit_share']:.0%} | {m['max_strain']:.2f} |"
             )
         return
@@ -137,7 +145,7 @@ def main() -> None:
         print("| body | mass | peak under the buttocks (soft tissue) | within 17 +/- 4 kPa | paper's model | seat | feet |")
         print("|---|---|---|---|---|---|---|")
         inside = 0
-        names = ["default-male", "default-female"] + [f"p{p}-{s}" for s in ("male", "female") for p in (5, 50, 95)]
+        names = BODIES
         for name in names:
             f = flat_seat(name, pm)
             peak = f["seat_peak"][0]
