@@ -48,6 +48,16 @@ FORCE_TOL_RELATIVE = 1e-6  # relative error of the total reaction vs weight
 NORMAL_FORCE_TOL = 1e-9  # N: no normal force below -NORMAL_FORCE_TOL
 FRICTION_TOL = 1e-9  # N: friction pyramid slack allowed
 
+#: Soft tissue of the compliant contact model (seatkit.pressure.compliant).
+#: Young's modulus, Pa: gluteal subcutaneous fat (26.1 kPa) and muscle
+#: (62.2 kPa) in series, in equal parts (Isogai et al. 2022, J Phys Ther Sci
+#: 34:777, ultrasound with compression, their lowest loads).
+TISSUE_YOUNGS_MODULUS_PA = 1.0 / (0.5 / 26.1e3 + 0.5 / 62.2e3)
+#: Poisson ratio of soft tissue (nearly incompressible), dimensionless.
+TISSUE_POISSON = 0.49
+#: Tissue thickness (distance from the skin to the bone) is clipped to this range, m.
+TISSUE_THICKNESS_RANGE_M = (0.01, 0.12)
+
 #: Default random seed of a build (RANSAC sampling).
 DEFAULT_SEED = 0
 

@@ -166,6 +166,39 @@ def evaluate_design(
     return [m for m, _ in pairs], [f for _, f in pairs]
 
 
+def evaluate_interface(bodies: Sequence[Body], surface: Surface, *, mu: float | None = None) -> tuple[list, list]:
+    """Interface pressure of every person on a surface, from the soft-tissue contact model.
+
+    Not the paper's model: :mod:`seatkit.pressure.compliant` (soft tissue
+    over the skeleton, rigid surface, exact Coulomb cone) gives pressures
+    comparable with a pressure mat, where the figures above are the paper's
+    relative importance.
+
+    Returns
+    -------
+    figures : list of dict
+        One per person (:func:`seatkit.pressure.compliant.interface_figures`),
+        or ``{"supported": False, "reason": ...}``.
+    fields : list of PressureField or None
+    """
+    from seatkit.constants import DEFAULT_MU
+    from seatkit.pressure.compliant import contact_with_surface, interface_figures, solve_compliant
+
+    query = SurfaceQuery(surface)
+    mu = DEFAULT_MU if mu is None else float(mu)
+    figures, fields = [], []
+    for body in bodies:
+        try:
+            field = solve_compliant(body, contact_with_surface(body, surface, query=query), mu=mu)
+        except InfeasibleSupportError as e:
+            figures.append({"supported": False, "reason": str(e)})
+            fields.append(None)
+            continue
+        figures.append({"supported": True, **interface_figures(body, field)})
+        fields.append(field)
+    return figures, fields
+
+
 #: The Table 1 columns, in the paper's order, with units, and whether lower is better.
 TABLE_COLUMNS = (
     ("avg_distance_m", "avg. dist.", "cm", 100.0),

@@ -398,7 +398,12 @@ class BuildResult:
         Output files written, by role.
     contact_pressures : list of PressureField or None
         Each person's contact pressure on ``surface`` (set by the evaluation;
-        None for a person the surface cannot hold).
+        None for a person the surface cannot hold): the paper's model, a
+        relative importance.
+    interface_pressures : list of PressureField or None
+        Each person's interface pressure on ``surface`` from the soft-tissue
+        contact model (:mod:`seatkit.pressure.compliant`; None for a person
+        it cannot hold), when the evaluation computed it.
     baseline : Baseline or None
         The baseline design, when the evaluation fitted one.
     output : str or None
@@ -424,6 +429,7 @@ class BuildResult:
     timings: dict = field(default_factory=dict)
     files: dict = field(default_factory=dict)
     contact_pressures: list | None = None
+    interface_pressures: list | None = None
     baseline: Baseline | None = None
     output: str | None = None
     structure: Any = None

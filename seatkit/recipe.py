@@ -155,6 +155,7 @@ RECIPE_SCHEMA: dict = {
                 "baseline": {"anyOf": [_NAME, {"type": "null"}]},
                 "baseline_refiners": {"type": "array", "items": _REFINER},
                 "support_distance": _ranged("support_distance"),
+                "interface_pressure": {"type": "boolean"},
             },
         },
         "output": {"anyOf": [_PATH, {"type": "null"}]},  # null: the default folder (seatkit.output.output_target)

@@ -284,6 +284,12 @@ def evaluate_result(
         "person_fit": person_fit(measure_people(recipe, registry), dimensions),  # seat vs person (seatkit.dimensions)
     }
     result.contact_pressures = fields
+    if ev.get("interface_pressure", True):
+        from seatkit.evaluate import evaluate_interface
+
+        with timer.stage("interface pressure"):
+            figures, result.interface_pressures = evaluate_interface(result.bodies, result.surface, mu=p.get("mu"))
+        metrics["interface"] = figures
     if ev.get("baseline"):
         with timer.stage("baseline (wait)"):
             if baseline is None:

@@ -296,8 +296,21 @@ def test_body_ply_is_the_bytes_trimesh_wrote(tmp_path, result):
     from seatkit.export.meshes import pressure_colors, write_body_ply
 
     body, pressure = result.bodies[0], result.pressures[0]
-    ours = write_body_ply(body, pressure, tmp_path / "body.ply").read_bytes()
+    from dataclasses import replace
+
+    rng = np.random.default_rng(0)
+    interface = replace(pressure, force=rng.normal(size=(len(body.vertices), 3)), pressure=rng.random(len(body.vertices)) * 1e4)
+    ours = write_body_ply(body, pressure, tmp_path / "body.ply", interface=interface).read_bytes()
     mesh = trimesh.Trimesh(body.vertices, body.faces, vertex_colors=pressure_colors(pressure.pressure), process=False)
+    columns = {
+        "importance_pa": pressure.pressure,
+        "force_x": interface.force[:, 0],
+        "force_y": interface.force[:, 1],
+        "force_z": interface.force[:, 2],
+        "interface_pa": interface.pressure,
+    }
+    for name, values in columns.items():
+        mesh.vertex_attributes[name] = values.astype(np.float32)
     assert ours == mesh.export(file_type="ply")
 
 

@@ -115,6 +115,25 @@ def test_rigid_body_agrees_with_piqp(body):
     assert abs(a - b) <= 1e-6 * b
 
 
+def test_the_exact_friction_cone_holds_balances_the_body_and_costs_no_less_than_the_pyramid(body, field):
+    """The pyramid contains the circular cone, so the cone's optimum is never cheaper; no reaction leaves the cone."""
+    cone = solve_pressure(body, exclude=[], friction="cone")
+    weight = body.segment_mass.sum() * GRAVITY
+    np.testing.assert_allclose(cone.force.sum(axis=0), [0, weight, 0], atol=1e-6 * weight)
+    assert cone.residuals["segment_force"] < 1e-7 * weight and cone.residuals["segment_moment"] < 1e-7 * weight
+    normals = vertex_normals(body.vertices, body.faces)
+    rbar = np.einsum("ndi,nd->ni", tangent_frames(normals), cone.force)
+    mu = cone.params["mu"]
+    assert (np.linalg.norm(rbar[:, 1:], axis=1) - mu * rbar[:, 0]).max() <= 1e-9
+    # the pyramid's optimum lies outside the circular cone at its corners
+    rbar_p = np.einsum("ndi,nd->ni", tangent_frames(normals), field.force)
+    assert (np.linalg.norm(rbar_p[:, 1:], axis=1) > mu * rbar_p[:, 0] * (1 + 1e-3)).any()
+    pyramid_cost, cone_cost = _objective(body, field, 0.013), _objective(body, cone, 0.013)
+    assert cone_cost >= pyramid_cost * (1 - 1e-6)
+    with pytest.raises(InputError):
+        solve_pressure(body, friction="octagon")
+
+
 def test_moment_term_matters():
     """A smaller lambda lowers the joint moments (the paper's Pareto balance)."""
     body = seated_capsule_body(resolution=1)
@@ -216,7 +235,7 @@ def test_bad_inputs_are_reported(body):
     for mu in (-0.1, float("inf"), float("nan")):  # --mu inf was a ValueError inside the QP
         with pytest.raises(InputError, match="mu must be from 0 to 10"):
             solve_pressure(body, mu=mu)
-    with pytest.raises(RecipeError, match=r"^pressure.options.bogus: pressure solver 'qp' has no option 'bogus'; its options are: backend, tol, weight_cap$"):
+    with pytest.raises(RecipeError, match=r"^pressure.options.bogus: pressure solver 'qp' has no option 'bogus'; its options are: backend, friction, tol, weight_cap$"):
         QPPressureSolver().solve(body, options={"bogus": 1})
     with pytest.raises(RecipeError, match=r"pressure.options.backend: expected one of auto, newton, piqp, clarabel, got 'pqip'; did you mean 'piqp'\?"):
         QPPressureSolver().solve(body, options={"backend": "pqip"})

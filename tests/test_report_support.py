@@ -28,7 +28,7 @@ def evaluated_result():
 
 
 def plain_result():
-    """The same build without metrics, contact pressure or baseline."""
+    """The same build without metrics, contact or interface pressure, or baseline."""
     res = copy.copy(_built())
-    res.metrics, res.contact_pressures, res.baseline = {}, None, None
+    res.metrics, res.contact_pressures, res.interface_pressures, res.baseline = {}, None, None, None
     return res

@@ -6,6 +6,7 @@ average distance, average pressure and maximum pressure, and reach at most
 5 mm into the body. ``python benchmarks/table1.py`` prints the same figures.
 """
 
+import numpy as np
 import pytest
 
 from seatkit.body import list_poses
@@ -35,3 +36,12 @@ def test_ours_beats_the_flat_patch_as_in_table1(pm, pose):
     field = r.contact_pressures[0]
     weight = r.bodies[0].segment_mass.sum() * GRAVITY
     assert field.force.sum(axis=0)[1] == pytest.approx(weight, rel=1e-6)
+    # and so does the soft-tissue interface pressure on it, inside the exact Coulomb cone
+    soft, figures = r.interface_pressures[0], r.metrics["interface"][0]
+    assert figures["supported"] and figures["model"] == "winkler-soft-tissue"
+    np.testing.assert_allclose(soft.force.sum(axis=0), [0, weight, 0], atol=1e-6 * weight)
+    assert soft.residuals["net_moment"] < 1e-6 * weight
+    tangential = np.sqrt(np.maximum((soft.force**2).sum(axis=1) - soft.normal_force**2, 0))
+    assert (tangential <= soft.params["mu"] * soft.normal_force + 1e-9).all()
+    assert sum(figures["load_share"].values()) == pytest.approx(1.0, abs=1e-6)
+    assert figures["friction"]["above_coulomb_share"] == 0.0

@@ -46,6 +46,10 @@ def register(app: typer.Typer) -> None:
             help="Comma-separated regions carrying no load (default: face,hands,abdomen; 'none' for none).",
         ),
         frame: Optional[int] = typer.Option(None, "--frame", help="BVH frame to use (for a .bvh POSE)."),
+        friction: Optional[str] = typer.Option(
+            None, "--friction",
+            help="Friction model of the qp solver: pyramid (the paper's, default) or cone (the exact Coulomb cone, Clarabel).",
+        ),
     ) -> None:
         """Solve for the reaction forces holding the body ("supported everywhere") and write them."""
         import numpy as np
@@ -53,6 +57,7 @@ def register(app: typer.Typer) -> None:
         from seatkit.body import load_pose
         from seatkit.cli import plugin_manager
         from seatkit.export.pressure import write_ply, write_pressure_png
+        from seatkit.pressure.compliant import friction_state
         from seatkit.pressure.field import write_npz
         from seatkit.recipe import parse_body_spec
         from seatkit.skeleton import SEGMENTS
@@ -70,18 +75,22 @@ def register(app: typer.Typer) -> None:
         rig = model.make_body(params={**spec["params"], "mass": mass})
         posed = model.pose(rig, load_pose(pose, frame=frame, rig=rig, dirs=registry.pose_dirs), ground=True)
         options = {"backend": backend} if backend is not None else {}
+        if friction is not None:
+            options["friction"] = friction
         field = pressure_solver.solve(posed, lam=lam, mu=mu, exclude=names, options=options)
         out.mkdir(parents=True, exist_ok=True)
         npz = write_npz(out / "pressure.npz", posed, field)
         ply = write_ply(out / "pressure.ply", posed, field)
-        png = write_pressure_png(out / "pressure.png", posed, field, title=f"{posed.name}: pressure")
+        png = write_pressure_png(out / "pressure.png", posed, field, title=f"{posed.name}: relative importance (the paper's model)")
         moments = np.linalg.norm(field.joint_moment, axis=1)
         j = int(np.argmax(moments))
+        limit = friction_state(field, mu=mu)
         click.echo(
             f"{posed.name}: {field.params['n_contact']} contact vertices, total reaction "
             f"{field.force[:, 1].sum():.2f} N (weight {posed.mass * GRAVITY:.2f} N), max pressure {field.pressure.max():.0f} Pa, "
             f"max joint moment {moments[j]:.2f} N m at {SEGMENTS[j + 1]}, {field.params.get('backend', solver)} "
-            f"{field.solve_seconds:.3f} s"
+            f"{field.solve_seconds:.3f} s; {limit['at_limit_share']:.0%} of the loaded contacts at the friction limit "
+            f"({limit['above_coulomb_share']:.0%} beyond Coulomb's cone)"
         )
         for f in (npz, ply, png):
             click.echo(f"{f}")

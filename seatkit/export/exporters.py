@@ -177,10 +177,11 @@ class BodyPlyExporter:
         if len(pressures) != len(bodies):
             msg = f"body-ply needs one pressure per body, got {len(pressures)} for {len(bodies)} bodies"
             raise InputError(msg)
+        interface = list(getattr(result, "interface_pressures", None) or [None] * len(bodies))
         for i, (body, pressure) in enumerate(zip(bodies, pressures)):
             stem = "body" if i == 0 else f"body-{i}"
             role = "body_ply" if i == 0 else f"body_ply_{i}"
-            out[role] = write_body_ply(body, pressure, Path(directory) / f"{stem}.ply")
+            out[role] = write_body_ply(body, pressure, Path(directory) / f"{stem}.ply", interface=interface[i])
         return out
 
 

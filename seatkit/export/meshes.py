@@ -202,10 +202,12 @@ def write_surface(surface, path) -> Path:
 _PLY_HEADER = "ply\nformat binary_little_endian 1.0\ncomment https://github.com/mikedh/trimesh\n"
 
 
-def ply_bytes(vertices: np.ndarray, faces: np.ndarray, *, normals=None, colors=None) -> bytes:
+def ply_bytes(vertices: np.ndarray, faces: np.ndarray, *, normals=None, colors=None, scalars=None) -> bytes:
     """A binary little-endian PLY.
 
-    Float32 positions, optional float32 normals and uint8 RGBA colours, int32 triangles.
+    Float32 positions, optional float32 normals and uint8 RGBA colours, then
+    one float32 vertex property per entry of ``scalars`` (name -> (n,)
+    array, in order), int32 triangles.
     """
     vertices = np.asarray(vertices, dtype=np.float64)
     faces = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
@@ -217,8 +219,13 @@ def ply_bytes(vertices: np.ndarray, faces: np.ndarray, *, normals=None, colors=N
     if colors is not None:
         header.append("property uchar red\nproperty uchar green\nproperty uchar blue\nproperty uchar alpha\n")
         dtype.append(("rgba", "<u1", (4,)))
+    for name in scalars or {}:
+        header.append(f"property float {name}\n")
+        dtype.append((name, "<f4"))
     header.append(f"element face {len(faces)}\nproperty list uchar int vertex_indices\nend_header\n")
     vert = np.zeros(len(vertices), dtype=dtype)
+    for name, values in (scalars or {}).items():
+        vert[name] = np.asarray(values, dtype=np.float64)
     vert["vertex"] = vertices
     if normals is not None:
         vert["normals"] = np.asarray(normals, dtype=np.float64)
@@ -418,17 +425,28 @@ def pressure_colors(pressure: np.ndarray, *, cmap: str = "magma_r") -> np.ndarra
     return rgba
 
 
-def write_body_ply(body, pressure, path) -> Path:
+def write_body_ply(body, pressure, path, *, interface=None) -> Path:
     """Write the posed body as a PLY with vertex colours from ``pressure`` (Pa).
+
+    Vertex properties after the colours: ``importance_pa`` (``pressure``:
+    the paper's relative importance, Pa) and, with ``interface``, the contact
+    on the design from the soft-tissue model: ``force_x``, ``force_y``,
+    ``force_z`` (world force on the vertex, N) and ``interface_pa``
+    (interface pressure, Pa); zero off the contact.
 
     Parameters
     ----------
     body : seatkit.model.Body
     pressure : (n,) float64 or seatkit.model.PressureField
     path : str or Path
+    interface : seatkit.model.PressureField, optional
     """
     p = np.asarray(getattr(pressure, "pressure", pressure), dtype=np.float64)
     if p.shape != (len(body.vertices),):
         msg = f"pressure must have one value per body vertex ({len(body.vertices)}), got shape {p.shape}"
         raise InputError(msg)
-    return write_bytes_atomic(path, ply_bytes(body.vertices, body.faces, colors=pressure_colors(p)))
+    scalars = {"importance_pa": p}
+    if interface is not None:
+        force = np.asarray(interface.force, dtype=np.float64)
+        scalars.update(force_x=force[:, 0], force_y=force[:, 1], force_z=force[:, 2], interface_pa=interface.pressure)
+    return write_bytes_atomic(path, ply_bytes(body.vertices, body.faces, colors=pressure_colors(p), scalars=scalars))

@@ -10,7 +10,9 @@ Two exporters (registered by the ``seatkit_exporters`` plugin):
     contact pressure on that surface when the evaluation computed it;
     ``comparison.png``  our surface beside the flat-patch baseline, both with
     their contact pressure on one colour scale, and the paper's Table 1
-    figures (only when the build evaluated a baseline).
+    figures (only when the build evaluated a baseline);
+    ``interface.png``  the body coloured by its interface pressure on our
+    surface from the soft-tissue model (only when the evaluation computed it).
 ``report-html``
     ``report.html``  an interactive 3D view (plotly ``Mesh3d``: the body with
     pressure colours, the limit surface translucent, the cage as lines, a
@@ -65,6 +67,7 @@ PNG_FILES = {
     "report_cage_png": "cage.png",
     "report_surface_png": "surface.png",
     "report_comparison_png": "comparison.png",
+    "report_interface_png": "interface.png",
 }
 
 #: Size of one rendered view, pixels.
@@ -78,6 +81,22 @@ VIEWS = {
     "from below": (160.0, -50.0),
 }
 BACKGROUND = pic.BACKGROUND
+#: What the pictures call the paper's model on the body alone, and on the design (both relative importance, Pa).
+IMPORTANCE_TITLE = "Relative importance (the paper's model, supported everywhere; not an interface pressure)"
+CONTACT_LABEL = "relative importance on the design (paper's model)"
+#: What the report says of the Table 1 figures.
+TABLE1_NOTE = (
+    "The paper's Table 1 quantities: its model re-solved on the body's contact with each design; "
+    "avg. press. and max. press. are relative importance (Pa), not interface pressure."
+)
+#: What the report says of the soft-tissue figures.
+INTERFACE_NOTE = (
+    "Soft tissue over the skeleton (an elastic Winkler foundation, E from the literature) on the rigid design, "
+    "with Coulomb friction: an interface pressure comparable with a pressure mat on a hard seat. The pressures "
+    "above and in the pictures are the paper's model: a relative importance that shares the weight, in Pa but "
+    "not a measured pressure (docs/physics.md)."
+)
+
 #: Body colour where no pressure is drawn; surface and cage colours.
 BODY_RGB = np.array([0.86, 0.79, 0.72])
 SURFACE_RGB = np.array([0.42, 0.60, 0.80])
@@ -176,6 +195,7 @@ class _Scene:
     baseline_name: str
     metrics: dict
     surface_level: int = 0
+    interface: np.ndarray | None = None  # (n,) Pa, the soft-tissue model on our surface, or None
     people: list = field(default_factory=list)  # one label per person (pose, body, mass)
     _rasters: dict = field(default_factory=dict)
     _frames: dict = field(default_factory=dict)
@@ -270,6 +290,7 @@ def _scene(result) -> _Scene:
         metrics=metrics,
         surface_level=int(getattr(result.surface, "level", 0) or 0),
         people=person_labels(bodies),
+        interface=_concat_fields(getattr(result, "interface_pressures", None), sizes),
     )
 
 
@@ -368,7 +389,7 @@ def _pressure_png(scene: _Scene, path: Path, save=_write_png, title: str | None 
         img = rs.composite(BACKGROUND, [scene.layer("body", view, "body", colors)])
         panels.append((_pil(img), view))
     bar = _colorbar(PANEL_HEIGHT, vmax, "kPa")
-    title = f"{title or 'Importance pressure (supported everywhere)'}, peak {vmax / 1000:.2f} kPa"
+    title = f"{title or IMPORTANCE_TITLE}, peak {vmax / 1000:.2f} kPa"
     return save(_sheet(title, panels, colorbar=bar), path)
 
 
@@ -424,8 +445,8 @@ def _surface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
     if contact is None or vmax <= 0:
         return save(_sheet(title, panels), path)
     below = rs.composite(BACKGROUND, [_body_layer(scene, "from below", "body", contact, vmax)])
-    panels.append((_pil(below), "contact pressure, from below (surface hidden)"))
-    title += f"; contact pressure: peak {vmax / 1000:.1f} kPa (the top of the scale)"
+    panels.append((_pil(below), "from below (surface hidden)"))
+    title += f"; {CONTACT_LABEL}: peak {vmax / 1000:.1f} kPa (the top of the scale)"
     return save(_sheet(title, panels, colorbar=_colorbar(PANEL_HEIGHT, vmax, "kPa")), path)
 
 
@@ -493,10 +514,20 @@ def _comparison_png(scene: _Scene, path: Path, save=_write_png) -> Path:
             panels.append((_pil(rs.composite(BACKGROUND, [_body_layer(scene, "from below", "body", None, 0.0)])), f"{label}: {text}"))
             continue
         below = rs.composite(BACKGROUND, [_body_layer(scene, "from below", "body", contact, vmax)])
-        panels.append((_pil(below), f"{label}: contact pressure, peak {contact.max() / 1000:.1f} kPa"))
+        panels.append((_pil(below), f"{label}: importance, peak {contact.max() / 1000:.1f} kPa"))
     bar = _colorbar(PANEL_HEIGHT, vmax, "kPa") if vmax > 0 else None
-    title = f"Ours vs the {scene.baseline_name} baseline (contact pressure on one scale, up to {vmax / 1000:.1f} kPa)"
+    title = f"Ours vs {scene.baseline_name}: importance on one scale (paper's model), up to {vmax / 1000:.1f} kPa"
     return save(_sheet(title, panels, colorbar=bar, table=table_rows(scene.metrics, scene.people), table_head=("ours", scene.baseline_name), columns=2), path)
+
+
+def _interface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
+    """``interface.png``: the body coloured by the soft-tissue model's interface pressure on our surface."""
+    vmax = contact_scale(scene.interface)
+    panels = []
+    for view in ("from below", "back", "side"):
+        panels.append((_pil(rs.composite(BACKGROUND, [_body_layer(scene, view, "body", scene.interface, vmax)])), view))
+    title = f"Interface pressure on the design (soft tissue over the skeleton; pressure-mat comparable), peak {vmax / 1000:.1f} kPa"
+    return save(_sheet(title, panels, colorbar=_colorbar(PANEL_HEIGHT, vmax, "kPa")), path)
 
 
 def render_pngs(result, directory) -> dict[str, Path]:
@@ -515,6 +546,8 @@ def render_pngs(result, directory) -> dict[str, Path]:
         jobs.append(("report_surface_png", _surface_png))
         if scene.baseline_surface is not None:
             jobs.append(("report_comparison_png", _comparison_png))
+        if scene.interface is not None and contact_scale(scene.interface) > 0:
+            jobs.append(("report_interface_png", _interface_png))
     return _render(scene, jobs, directory)
 
 
@@ -649,9 +682,9 @@ def figure_dict(result) -> dict:
     # baseline's; without, by its importance pressure (pressure.png has both views)
     first = "contact" if has_contact else "importance"
     if has_contact:
-        add("contact", _pressure_trace(scene, scene.contact, vmax_contact, name="body: contact pressure (ours)", visible=True, title="contact<br>kPa"))
+        add("contact", _pressure_trace(scene, scene.contact, vmax_contact, name=f"body: {CONTACT_LABEL} (ours)", visible=True, title="importance on<br>the design, kPa"))
     else:
-        add("importance", _pressure_trace(scene, scene.importance, float(scene.importance.max()), name="body: importance pressure", visible=True, title="importance<br>kPa"))
+        add("importance", _pressure_trace(scene, scene.importance, float(scene.importance.max()), name="body: relative importance (paper's model)", visible=True, title="importance<br>kPa"))
     for group in (first,):
         if scene.surface is not None:
             add(group, _mesh_trace(scene.surface.vertices, scene.surface.faces, name="limit surface (ours)", visible=group == first, color="rgb(107,153,204)", opacity=HTML_SURFACE_OPACITY, flatshading=False))
@@ -660,16 +693,16 @@ def figure_dict(result) -> dict:
     if scene.baseline_surface is not None:
         name = scene.baseline_name
         if scene.baseline_contact is not None:
-            add("baseline", _pressure_trace(scene, scene.baseline_contact, vmax_contact, name=f"body: contact pressure ({name})", visible=False, title="contact<br>kPa"))
+            add("baseline", _pressure_trace(scene, scene.baseline_contact, vmax_contact, name=f"body: {CONTACT_LABEL} ({name})", visible=False, title="importance on<br>the design, kPa"))
         else:
             add("baseline", _mesh_trace(scene.body.vertices, scene.body.faces, name="body", visible=False, color="rgb(219,201,184)"))
         add("baseline", _mesh_trace(scene.baseline_surface.vertices, scene.baseline_surface.faces, name=f"limit surface ({name})", visible=False, color="rgb(204,148,102)", opacity=HTML_SURFACE_OPACITY))
         if scene.baseline_cage is not None:
             add("baseline", _cage_trace(scene.baseline_cage, name=f"cage ({name})", visible=False, color="rgb(150,80,30)"))
     labels = {
-        "importance": "Ours (importance pressure)",
-        "contact": "Ours (contact pressure)",
-        "baseline": f"Baseline: {scene.baseline_name} (contact pressure)",
+        "importance": "Ours (relative importance, paper's model)",
+        "contact": "Ours (paper's model on the design)",
+        "baseline": f"Baseline: {scene.baseline_name} (paper's model on the design)",
     }
     buttons = [
         {
@@ -715,12 +748,39 @@ def figure_dict(result) -> dict:
     return {"data": traces, "layout": layout}
 
 
+def interface_html(figures: list) -> str:
+    """The report's "Interface pressure" block: the soft-tissue model's figures per person (``metrics['interface']``)."""
+    if not figures:
+        return ""
+    parts = [
+        "<h2>Interface pressure (soft-tissue model)</h2>",
+        f"<p>{html.escape(INTERFACE_NOTE)}</p>",
+    ]
+    for i, fig in enumerate(figures):
+        parts.append(f"<h3>Person {i + 1}</h3><table>")
+        if not fig.get("supported", True):
+            parts.append(f"<tr><td>not supported</td><td>{html.escape(str(fig.get('reason', '')))}</td></tr></table>")
+            continue
+        rows = [
+            ("peak interface pressure", f"{fig['peak_pa'] / 1000:.1f} kPa"),
+            ("peak under the buttocks and thighs", f"{fig['seat_peak_pa'] / 1000:.1f} kPa"),
+            ("mean over the loaded skin", f"{fig['mean_loaded_pa'] / 1000:.1f} kPa"),
+            ("loaded skin area", f"{fig['contact_area_m2'] * 1e4:.0f} cm^2"),
+            *((f"share of the weight under the {k}", f"{v:.0%}") for k, v in fig["load_share"].items()),
+            ("contacts at the friction limit", f"{fig['friction']['at_limit_share']:.0%}"),
+            ("largest tissue compression", f"{fig['max_compression_m'] * 1000:.1f} mm ({fig['max_strain']:.0%} of its thickness)"),
+        ]
+        parts += [f"<tr><td>{html.escape(k)}</td><td>{html.escape(v)}</td></tr>" for k, v in rows] + ["</table>"]
+    return "\n".join(parts)
+
+
 def _metrics_html(result) -> str:
     metrics = result.metrics or {}
     parts = []
     if metrics.get("ours") or metrics.get("baseline"):
         rows, labels = table_rows(metrics, person_labels(result.bodies))
         base = html.escape(str(metrics.get("baseline_template") or "baseline"))
+        parts.append(f"<p>{html.escape(TABLE1_NOTE)}</p>")
         for person, ours, bl in rows:
             parts.append(f"<h3>{html.escape(person)}</h3><table><tr><th>quantity</th><th>ours</th><th>{base}</th></tr>")
             parts += [f"<tr><td>{html.escape(lab)}</td><td>{html.escape(a)}</td><td>{html.escape(b)}</td></tr>" for lab, a, b in zip(labels, ours, bl)]
@@ -734,6 +794,7 @@ def _metrics_html(result) -> str:
                 ("max deflection", f"{st['max_deflection_m'] * 1000:.3f} mm"), ("mass", f"{st['mass_kg']:.2f} kg"),
                 ("applied load", f"{st['applied_load_n']:.1f} N"), ("floor reaction", f"{st['floor_reaction_n']:.1f} N")]
         parts += [f"<tr><td>{k}</td><td>{v}</td></tr>" for k, v in rows] + ["</table>"]
+    parts.append(interface_html(metrics.get("interface") or []))
     for i, dims in enumerate(metrics.get("dimensions") or []):  # seatkit.dimensions
         cells = "".join(f"<tr><td>{html.escape(k[:-2].replace('_', ' '))}</td><td>{'-' if v is None else f'{v:.3f} m'}</td></tr>" for k, v in dims.items())
         parts.append(f"<h3>Seat dimensions where it carries person {i + 1}</h3><table>{cells}</table>")

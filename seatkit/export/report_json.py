@@ -17,15 +17,40 @@ from pathlib import Path
 
 import numpy as np
 
+from seatkit.constants import DEFAULT_MU
 from seatkit.io import jsonable, write_text_atomic
+from seatkit.pressure.compliant import friction_state
 
-__all__ = ["REPORT_EXPORTER", "ReportJsonExporter", "report_data", "versions"]
+__all__ = ["REPORT_EXPORTER", "ReportJsonExporter", "report_data", "versions", "FIGURE_MODELS", "IMPORTANCE_MEANING"]
 
 #: The registered name of the exporter of report.json.
 REPORT_EXPORTER = "report-json"
 
 #: Distributions whose versions report.json records.
 _DISTRIBUTIONS = ("seatkit", "numpy", "scipy", "pluggy", "qpsolvers", "piqp", "usd-core", "trimesh")
+
+
+#: What the importance figures are (report.json ``pressure[i].meaning``).
+IMPORTANCE_MEANING = (
+    "relative importance (the paper's Section 4 model, supported everywhere): how a support should share the weight, "
+    "in Pa but not an interface pressure"
+)
+
+#: Each pressure figure of report.json: its model, meaning and unit.
+FIGURE_MODELS = {
+    "pressure": {"model": "paper-qp", "meaning": IMPORTANCE_MEANING, "unit": "Pa"},
+    "metrics.ours / metrics.baseline (avg_pressure_pa, max_pressure_pa)": {
+        "model": "paper-qp",
+        "meaning": "the paper's Table 1: its model re-solved on the body's contact with the design, a relative importance",
+        "unit": "Pa",
+    },
+    "metrics.interface": {
+        "model": "winkler-soft-tissue",
+        "meaning": "interface pressure: soft tissue over the skeleton on the rigid design, comparable with a pressure mat "
+        "(docs/physics.md, validation)",
+        "unit": "Pa; load_share a fraction of the body weight",
+    },
+}
 
 
 def versions() -> dict:
@@ -61,13 +86,17 @@ def report_data(result) -> dict:
         "search": jsonable(mesh.meta.get("search")),
         "pressure": [
             {
+                "model": "paper-qp",
+                "meaning": IMPORTANCE_MEANING,
                 "status": pf.status,
                 "solve_seconds": pf.solve_seconds,
                 "max_pressure_pa": float(pf.pressure.max()),
                 "max_joint_moment_nm": float(np.linalg.norm(pf.joint_moment, axis=1).max()),
+                "friction": friction_state(pf, mu=pf.params.get("mu", DEFAULT_MU)),
             }
             for pf in result.pressures
         ],
+        "figures": FIGURE_MODELS,
         "metrics": jsonable(result.metrics),
         "frame": frame_report(result),
         "files": {k: Path(v).name for k, v in result.files.items()},

@@ -86,11 +86,17 @@ class SurfaceQuery:
             ``dot(point - closest, normal)``, m: positive on the side the
             normals point to (the body side), negative behind the surface.
         """
+        distance, side, _ = self.closest_normals(points, within=within)
+        return distance, side
+
+    def closest_normals(self, points: np.ndarray, *, within=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`query`, and the unit surface normal at each closest point, (k, 3) (``nan`` where not searched)."""
         points = np.asarray(points, dtype=np.float64)
         distance = np.full(len(points), np.inf)
         side = np.full(len(points), np.nan)
+        normal = np.full((len(points), 3), np.nan)
         if not len(points) or not len(self.triangles):
-            return distance, side
+            return distance, side, normal
         first, near = self.tree.query(points, k=3)
         nearest = first[:, 0] if first.ndim == 2 else first
         near = near.reshape(len(points), -1)
@@ -100,15 +106,15 @@ class SurfaceQuery:
         sure = wanted & (nearest < self.EXACT_WITHIN - self._ROUNDING)  # within EXACT_WITHIN after any search
         narrow = np.flatnonzero(wanted & ~sure)
         if narrow.size:
-            distance[narrow], side[narrow] = self._closest(points[narrow], near[narrow])
+            distance[narrow], side[narrow], normal[narrow] = self._closest(points[narrow], near[narrow])
         wide = np.flatnonzero(sure | (distance < self.EXACT_WITHIN))
         if wide.size:
             _, near = self.tree.query(points[wide], k=self.CANDIDATE_VERTICES)
-            distance[wide], side[wide] = self._closest(points[wide], near.reshape(len(wide), -1))
-        return distance, side
+            distance[wide], side[wide], normal[wide] = self._closest(points[wide], near.reshape(len(wide), -1))
+        return distance, side, normal
 
-    def _closest(self, points: np.ndarray, near: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Distance and side of each point over the triangles around its ``near`` vertices."""
+    def _closest(self, points: np.ndarray, near: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Distance, side and surface normal of each point over the triangles around its ``near`` vertices."""
         cand = self.rings[near].reshape(len(points), -1)  # (k, c)
         valid = cand >= 0
         tri = self.triangles[np.where(valid, cand, 0)]  # (k, c, 3)
@@ -124,7 +130,7 @@ class SurfaceQuery:
         n /= np.linalg.norm(n, axis=1, keepdims=True) + 1e-300
         distance = np.sqrt(d2[rows, best])
         side = np.einsum("ki,ki->k", points - q, n)
-        return distance, side
+        return distance, side, n
 
 
 def surface_depth_in_body(surface: Surface, body: Body) -> float:

@@ -28,7 +28,13 @@ from seatkit.options import Option
 from seatkit.pressure.assembly import assemble, body_geometry, joint_loads, segment_gravity
 from seatkit.pressure.field import equilibrium_residuals
 from seatkit.pressure.regions import DEFAULT_EXCLUDE, exclusion_mask
-from seatkit.pressure.solve import project_to_pyramid, solve_dual_newton, solve_full_qpsolvers
+from seatkit.pressure.solve import (
+    project_to_cone,
+    project_to_pyramid,
+    solve_dual_newton,
+    solve_full_cone,
+    solve_full_qpsolvers,
+)
 from seatkit.pressure.weights import DEFAULT_WEIGHT_CAP
 from seatkit.skeleton import N_SEGMENTS, SEGMENTS
 
@@ -37,6 +43,11 @@ __all__ = ["solve_pressure", "QPPressureSolver", "check_support", "BACKENDS"]
 #: ``auto``: Newton, falling back to PIQP; ``newton``: Newton only; any other
 #: name is handed to qpsolvers (``piqp``, ``clarabel`` ...).
 BACKENDS = ("auto", "newton", "piqp", "clarabel")
+
+#: Friction models: ``pyramid`` (the paper's linearised cone, four facets,
+#: up to sqrt(2) times Coulomb's limit at its corners) and ``cone`` (the exact
+#: circular Coulomb cone, a second-order cone solved with Clarabel).
+FRICTION_MODELS = ("pyramid", "cone")
 
 #: Tolerance of the equality residuals relative to the body weight (N, N m).
 EQUALITY_TOL_RELATIVE = 1e-9
@@ -145,6 +156,7 @@ def solve_pressure(
     backend: str = "auto",
     weight_cap: float = DEFAULT_WEIGHT_CAP,
     tol: float = EQUALITY_TOL_RELATIVE,
+    friction: str = "pyramid",
 ) -> PressureField:
     """Reaction forces holding a body in equilibrium (paper Section 4).
 
@@ -167,6 +179,10 @@ def solve_pressure(
         Cap of the local reaction weights.
     tol : float
         Equality residual tolerance relative to the body weight.
+    friction : str
+        ``pyramid`` (the paper's, default) or ``cone`` (the exact Coulomb
+        cone; the backend is then Clarabel's second-order cone solver,
+        whatever ``backend`` says).
 
     Returns
     -------
@@ -187,6 +203,9 @@ def solve_pressure(
         raise InputError(msg)
     if not MU_RANGE[0] <= mu <= MU_RANGE[1]:
         msg = f"mu must be from {MU_RANGE[0]:g} to {MU_RANGE[1]:g}, got {mu}"
+        raise InputError(msg)
+    if friction not in FRICTION_MODELS:
+        msg = f"friction must be one of {', '.join(FRICTION_MODELS)}, got {friction!r}"
         raise InputError(msg)
     exclude = DEFAULT_EXCLUDE if exclude is None else tuple(exclude)
     weights = _coerce_body(body)
@@ -213,7 +232,14 @@ def solve_pressure(
     iterations = 0
     rbar = None
     status = "failed"
-    if backend in ("auto", "newton"):
+    if friction == "cone":
+        check_support(body, prob, mu)
+        out = solve_full_cone(body, prob, mu, gravity=segment_gravity(body.segment_mass))
+        if not out["found"]:
+            msg = f"pressure SOCP (exact friction cone, Clarabel) returned status {out['status']!r} without a solution"
+            raise SolverError(msg)
+        rbar, status, used = project_to_cone(out["rbar"], mu), out["status"], "clarabel-cone"
+    elif backend in ("auto", "newton"):
         res = solve_dual_newton(prob, mu, tol=tol)
         iterations = res["iterations"]
         if res["converged"]:
@@ -247,6 +273,9 @@ def solve_pressure(
         contact=usable,
         mu=mu,
     )
+    if friction == "cone":
+        # the pyramid's check above is implied; the cone's own excess, N
+        residuals["cone_excess"] = float((np.linalg.norm(rbar[:, 1:], axis=1) - mu * rbar[:, 0]).max()) if len(rbar) else 0.0
     weight = float(body.segment_mass.sum() * GRAVITY)
     # moments are compared in N m with the weight times 1 m
     limits = {
@@ -256,6 +285,7 @@ def solve_pressure(
         "net_moment": 1e-7 * weight,
         "friction_excess": FRICTION_TOL,
         "force_outside_contact": 0.0,
+        **({"cone_excess": FRICTION_TOL} if friction == "cone" else {}),
     }
     bad = {k: residuals[k] for k, lim in limits.items() if residuals[k] > lim}
     if residuals["min_normal_force"] < -NORMAL_FORCE_TOL:
@@ -295,6 +325,7 @@ def solve_pressure(
             "exclude": list(exclude),
             "exclude_sources": sources,
             "weight_cap": weight_cap,
+            "friction": friction,
             "n_contact": int(usable.sum()),
             "assembly_seconds": t_assembled - t0,
         },
@@ -306,6 +337,7 @@ QP_OPTIONS: dict[str, Option] = {
     "backend": Option("choice", "QP backend: auto (dual Newton, PIQP fallback), newton, piqp or clarabel", "auto", choices=BACKENDS),
     "weight_cap": Option("number", "largest local reaction weight (caps the paper's 1/|r|)", DEFAULT_WEIGHT_CAP, "1", 1.0, 1e12),
     "tol": Option("number", "relative tolerance of the equilibrium equalities", EQUALITY_TOL_RELATIVE, "1", 1e-15, 1e-2),
+    "friction": Option("choice", "friction model: pyramid (the paper's linearised pyramid) or cone (the exact Coulomb cone, Clarabel)", "pyramid", choices=FRICTION_MODELS),
 }
 
 
@@ -332,7 +364,7 @@ class QPPressureSolver:
         """See :class:`seatkit.interfaces.PressureSolver`.
 
         ``options``: :data:`QP_OPTIONS` (``backend``, ``weight_cap``,
-        ``tol``); another key or a bad value is a :class:`RecipeError`.
+        ``tol``, ``friction``: ``pyramid``, the paper's, or ``cone``); another key or a bad value is a :class:`RecipeError`.
         """
         from seatkit.params import component_params
 

@@ -32,7 +32,14 @@ from seatkit.errors import SolverError
 from seatkit.pressure.assembly import ReducedProblem
 from seatkit.skeleton import N_JOINTS, N_SEGMENTS, PARENTS
 
-__all__ = ["solve_dual_newton", "solve_equality_only", "solve_full_qpsolvers", "project_to_pyramid"]
+__all__ = [
+    "solve_dual_newton",
+    "solve_equality_only",
+    "solve_full_qpsolvers",
+    "solve_full_cone",
+    "project_to_pyramid",
+    "project_to_cone",
+]
 
 
 def _vertex_minimisers(q: np.ndarray, Dp: np.ndarray, mu: float):
@@ -265,30 +272,20 @@ def _skew_blocks(a: np.ndarray) -> np.ndarray:
     return m
 
 
-def solve_full_qpsolvers(
-    body,
-    prob: ReducedProblem,
-    mu: float,
-    *,
-    solver: str = "piqp",
-    gravity: np.ndarray,
-) -> dict:
-    """The paper's formulation as written, solved with :mod:`qpsolvers`.
+def _full_problem(body, prob: ReducedProblem, gravity: np.ndarray):
+    """The paper's formulation as written: equality rows, right-hand side and objective diagonal.
 
-    Unknowns: ``F`` (20, 3), ``M`` (20, 3) per joint (what the parent exerts
-    on the child; action = reaction built in) and ``rbar`` (k, 3). Equalities:
-    force and moment balance of each segment about its centre of mass
-    (Eqs. 5-6, 126 rows). Inequalities: ``-n <= 0`` and the four faces of the
-    pyramid per vertex. Objective: ``c_M |M|^2 + sum D rbar^2`` (no ``M``
-    term when rigid).
+    Unknowns ``F`` (20, 3), ``M`` (20, 3) per joint, then ``rbar`` (k, 3).
 
     Returns
     -------
-    result : dict
-        ``rbar`` (k, 3), ``status`` (str), ``found`` (bool).
+    A : (126, 120 + 3k) scipy.sparse.csc_matrix
+    b : (126,) float64
+    pdiag : (120 + 3k,) float64
+        Diagonal of the objective's quadratic form (``1/2 x P x``).
+    offset : int
+        Index of the first reaction unknown (120).
     """
-    import qpsolvers
-
     k = len(prob.index)
     nF = 3 * N_JOINTS
     n_var = 2 * nF + 3 * k
@@ -337,6 +334,37 @@ def solve_full_qpsolvers(
     if not prob.rigid:
         pdiag[nF : 2 * nF] = 2.0 * prob.moment_weight
     pdiag[2 * nF :] = 2.0 * prob.D.ravel()
+    return A, b, pdiag, 2 * nF
+
+
+def solve_full_qpsolvers(
+    body,
+    prob: ReducedProblem,
+    mu: float,
+    *,
+    solver: str = "piqp",
+    gravity: np.ndarray,
+) -> dict:
+    """The paper's formulation as written, solved with :mod:`qpsolvers`.
+
+    Unknowns: ``F`` (20, 3), ``M`` (20, 3) per joint (what the parent exerts
+    on the child; action = reaction built in) and ``rbar`` (k, 3). Equalities:
+    force and moment balance of each segment about its centre of mass
+    (Eqs. 5-6, 126 rows). Inequalities: ``-n <= 0`` and the four faces of the
+    pyramid per vertex. Objective: ``c_M |M|^2 + sum D rbar^2`` (no ``M``
+    term when rigid).
+
+    Returns
+    -------
+    result : dict
+        ``rbar`` (k, 3), ``status`` (str), ``found`` (bool).
+    """
+    import qpsolvers
+
+    k = len(prob.index)
+    A, b, pdiag, off = _full_problem(body, prob, gravity)
+    n_var = A.shape[1]
+    nF = off // 2
     P = sp.diags(pdiag).tocsc()
     qvec = np.zeros(n_var)
     # inequalities per vertex: -n <= 0, t1 - mu n <= 0, -t1 - mu n <= 0, same for t2
@@ -364,3 +392,59 @@ def solve_full_qpsolvers(
     return {"rbar": rbar, "status": status, "found": found}
 
 
+
+
+def solve_full_cone(body, prob: ReducedProblem, mu: float, *, gravity: np.ndarray) -> dict:
+    """The paper's formulation with the exact Coulomb cone instead of the pyramid, solved with Clarabel.
+
+    The same unknowns, equalities and objective as :func:`solve_full_qpsolvers`;
+    each reaction lies in the circular cone ``|(t1, t2)| <= mu n`` (a
+    second-order cone, which Clarabel handles exactly), so no reaction is
+    up to ``sqrt(2)`` times Coulomb's limit as at the pyramid's corners.
+
+    Returns
+    -------
+    result : dict
+        ``rbar`` (k, 3), ``status`` (str), ``found`` (bool).
+    """
+    import clarabel
+
+    k = len(prob.index)
+    A, b, pdiag, off = _full_problem(body, prob, gravity)
+    n_var = A.shape[1]
+    P = sp.diags(pdiag).tocsc()
+    # s = b - A x in the cones: zero for the 126 balance rows, (mu n, t1, t2) per vertex
+    cols = off + np.arange(3 * k)
+    vals = np.tile(np.array([-mu, -1.0, -1.0]), k)
+    cone_rows = sp.csc_matrix((vals, (np.arange(3 * k), cols)), shape=(3 * k, n_var))
+    Aall = sp.vstack([A, cone_rows]).tocsc()
+    ball = np.concatenate([b, np.zeros(3 * k)])
+    cones = [clarabel.ZeroConeT(A.shape[0])] + [clarabel.SecondOrderConeT(3)] * k
+    settings = clarabel.DefaultSettings()
+    settings.verbose = False
+    solution = clarabel.DefaultSolver(P, np.zeros(n_var), Aall, ball, cones, settings).solve()
+    status = str(solution.status)
+    found = "Solved" in status
+    rbar = np.asarray(solution.x)[off:].reshape(k, 3) if found else np.zeros((k, 3))
+    return {"rbar": rbar, "status": "optimal" if found else status, "found": found}
+
+
+def project_to_cone(rbar: np.ndarray, mu: float) -> np.ndarray:
+    """Scale tangent-frame reactions into the circular friction cone (round-off clean-up).
+
+    Parameters
+    ----------
+    rbar : (k, 3) float64
+    mu : float
+
+    Returns
+    -------
+    (k, 3) float64
+        ``n >= 0`` and ``|(t1, t2)| <= mu n``.
+    """
+    out = rbar.copy()
+    out[:, 0] = np.maximum(out[:, 0], 0.0)
+    t = np.linalg.norm(out[:, 1:], axis=1)
+    over = t > mu * out[:, 0]
+    out[over, 1:] *= (mu * out[over, 0] / np.maximum(t[over], 1e-300))[:, None]
+    return out

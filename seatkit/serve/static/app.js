@@ -107,7 +107,7 @@ function showView(v) {
   if (v.surface) addChair(v);
   $("legend-max").textContent = (pmax / 1000).toFixed(1);
   $("legend-title").textContent = v.bodies[0].pressure_kind === "contact"
-    ? "contact pressure on the designed surface, kPa" : "pressure supported everywhere (importance), kPa";
+    ? "relative importance on the designed surface (paper's model), kPa" : "relative importance, supported everywhere (paper's model), kPa";
   if (!state.fitted && v.surface) {
     const box = new THREE.Box3().setFromObject(designGroup);
     const centre = box.getCenter(new THREE.Vector3());
