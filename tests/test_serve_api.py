@@ -544,3 +544,23 @@ def test_a_bench_for_two_people(client, designer):
     assert len(d["view"]["bodies"]) == 2 and len(d["metrics"]["ours"]) == 2
     xs = [_decode(b["positions"], "<f4").reshape(-1, 3)[:, 0] for b in d["view"]["bodies"]]
     assert xs[0].max() < xs[1].min() or xs[1].max() < xs[0].min()  # side by side, apart
+
+
+def test_designer_options_are_the_templates_declared_step_options(client, designer):
+    """Width, edge, base, softness, armrests, backrest: step options with the step's unit and range, set as a recipe sets them."""
+    chair = next(t for t in client.get("/api/options").json()["templates"] if t["name"] == "chair")
+    shown = [p for p in chair["params"] if not p["advanced"]]
+    assert {p["key"] for p in shown} >= {"steps.outer-columns.margin", "steps.border.width", "steps.armrests.min_load_fraction"}
+    for p in shown:
+        _, step, option = p["key"].split(".")
+        declared = designer.registry.get("template_step", step).options[option]
+        assert (p["unit"], p["minimum"], p["maximum"]) == (declared.unit, declared.minimum, declared.maximum)
+    # the same option the CLI and a recipe take: out of range is the recipe's one-line 422
+    r = client.post(FAST, json={"template_params": {"steps": {"outer-columns": {"margin": 7}}}})
+    assert r.status_code == 422 and "template_params.steps.outer-columns.margin" in r.json()["error"]
+    # and it changes the design: a wider margin, a wider back
+    width = lambda answer: float(np.ptp(designer.get(answer["id"]).result.control_mesh.vertices[:, 0]))  # noqa: E731
+    base = client.post(FAST, json={}).json()
+    wide = client.post(FAST, json={"template_params": {"steps": {"outer-columns": {"margin": 0.12}}}}).json()
+    assert wide["id"] != base["id"]
+    assert width(wide) > width(base) + 0.02  # the ground rectangle widens with the outer faces

@@ -319,7 +319,7 @@ class Designer:
                     "name": name,
                     "description": template.description,
                     "plugin": plugin,
-                    "params": _template_params(template),
+                    "params": _template_params(template, self.registry),
                     "people": [int(people[0]), int(people[1])],
                 }
             )
@@ -925,13 +925,54 @@ def _body_params(model) -> list[dict]:
     return out
 
 
-def _template_params(template) -> list[dict]:
-    """A template's parameters for the page, from its own declaration: a YAML template's ``parameters``, or a ``params_schema``."""
+#: The template step options offered as a designer's controls (the rest are behind the page's
+#: "advanced" fold): (step, option, label). Each is a declared option of the step (its unit and
+#: range are the step's), set as a recipe sets it: ``template_params: {steps: {STEP: {OPTION: value}}}``.
+DESIGNER_OPTIONS: tuple[tuple[str, str, str], ...] = (
+    ("outer-columns", "margin", "seat and back: width beyond the body"),
+    ("border", "width", "seat edge: surface beyond the body"),
+    ("border", "margin", "base: margin of the ground rectangle"),
+    ("clearance", "sink", "softness: deepest sink into the surface"),
+    ("armrests", "min_load_fraction", "armrests: share of the load an arm must carry"),
+    ("no-backrest", "min_load_fraction", "backrest: share of the load below which there is none"),
+)
+
+
+def _designer_options(spec, registry) -> list[dict]:
+    """The :data:`DESIGNER_OPTIONS` a YAML template has (a step it runs once), with the template's values as defaults."""
+    out = []
+    names = [entry.get("step") for entry in spec.steps]
+    for step, key, label in DESIGNER_OPTIONS:
+        if names.count(step) != 1:
+            continue
+        try:
+            declared = registry.get("template_step", step).options[key]
+        except (SeatkitError, KeyError, AttributeError):
+            continue
+        entry = spec.steps[names.index(step)]
+        out.append(
+            {
+                "key": f"steps.{entry.get('label', step)}.{key}",
+                "label": label,
+                "unit": declared.unit,
+                "default": entry.get(key, declared.default),
+                "minimum": declared.minimum,
+                "maximum": declared.maximum,
+                "description": f"{declared.description} (template_params: steps: {entry.get('label', step)}: {key})",
+                "advanced": False,
+            }
+        )
+    return out
+
+
+def _template_params(template, registry=None) -> list[dict]:
+    """A template's parameters for the page, from its own declaration: a YAML template's designer options and ``parameters``, or a ``params_schema``."""
     spec = getattr(template, "spec", None)
     if spec is not None and hasattr(spec, "parameters"):
         from seatkit.template.schema import PARAMETERS
 
-        return [
+        designer = _designer_options(spec, registry) if registry is not None else []
+        return designer + [
             {"key": k, "label": k, "unit": unit, "default": spec.parameters.get(k, default), "minimum": 0, "maximum": None, "description": meaning, "advanced": True}
             for k, (default, unit, meaning) in PARAMETERS.items()
         ]

@@ -459,6 +459,8 @@ function showError(message, unsupported = false) {
   $("refusal").querySelector("h2").textContent = unsupported ? "This pose cannot be supported" : "This input cannot be used";
   $("refusal-text").textContent = message;
   setProgress(unsupported ? "refused: see the reason on the right" : "error: see the message on the right", 1, "error");
+  // the view goes back to the design the figures belong to (a preview of the refused input may be on it)
+  if (state.lastView) showView(state.lastView);
   if (state.design) markStale(true);
 }
 
@@ -573,7 +575,15 @@ async function requestDesign() {
   }
   if (seq !== state.clientSeq) return;
   const recipe = { template: $("template-select").value, bodies };
-  const tp = fieldValues($("template-params"), true);
+  // only what differs from the template's own values; a designer option is a step option
+  // ("steps.STEP.OPTION"), set as a recipe sets it: template_params: {steps: {STEP: {OPTION: value}}}
+  const tp = {};
+  for (const [k, v] of Object.entries(fieldValues($("template-params"), true))) {
+    if (!k.startsWith("steps.")) { tp[k] = v; continue; }
+    const cut = k.lastIndexOf(".");
+    const step = k.slice(6, cut);
+    ((tp.steps = tp.steps || {})[step] = tp.steps[step] || {})[k.slice(cut + 1)] = v;
+  }
   if (Object.keys(tp).length) recipe.template_params = tp;
   // the design first (drawn as soon as it exists), then our evaluation (the contact pressure
   // colours, Table 1), then, once the sliders rest, the baseline's figures beside ours
@@ -582,7 +592,6 @@ async function requestDesign() {
   stopPolling();
   if (r.status === 409) return;
   if (!r.ok) {
-    if (r.data.kind === "unsupported") clearChair();
     showError(r.data.error, r.data.kind === "unsupported");
     return;
   }
@@ -592,6 +601,7 @@ async function requestDesign() {
   state.stale = false;
   document.body.classList.remove("stale");
   showView(r.data.view);
+  state.lastView = r.data.view;
   delete r.data.view;
   showReport(r.data);
   state.designsShown += 1;
@@ -606,6 +616,7 @@ async function requestDesign() {
     if (!e.ok) { if (e.status !== 409) setProgress(`evaluation: ${e.data.error}`, 1, "error"); return; }
     state.design = e.data;
     showView(e.data.view);
+    state.lastView = e.data.view;
     delete e.data.view;
     showReport(e.data);
     evaluated = (performance.now() - started) / 1000;
@@ -613,18 +624,6 @@ async function requestDesign() {
   state.lastEvaluated = evaluated;
   setProgress(`design shown in ${secs.toFixed(2)} s, evaluated after ${evaluated.toFixed(2)} s`, 1, "idle");
   baselineTimer = setTimeout(() => requestBaseline(seq, r.data.id, serverSeq), 700);
-}
-
-function clearChair() {
-  // the chair on screen belongs to another pose: do not leave it under this one
-  for (const child of [...designGroup.children]) {
-    if (child.name !== "body") {
-      child.geometry.dispose();
-      child.material.dispose();
-      designGroup.remove(child);
-    }
-  }
-  render();
 }
 
 async function requestBaseline(seq, id, serverSeq) {
