@@ -222,3 +222,20 @@ def test_uploads_are_evicted_least_recently_used(tmp_path):
     assert sum((d.uploads / n).stat().st_size for n in left) <= d.max_uploads_bytes
     assert newest in left and made[0] in left and made[5] in left
     assert made[1] not in left and made[2] not in left
+
+
+def test_memory_is_bounded(tmp_path):
+    """The designs kept are the most recently used, at most ``keep_designs``; the other caches have their own bounds."""
+    from seatkit.geometry import skin
+    from seatkit.subdivision import catmull_clark
+
+    d = Designer(tmp_path / "serve")
+    d.keep_designs = 2
+    ids = []
+    for model in ("p5-female", "p50-male", "p95-male"):
+        design = d.design(d.prepare({"bodies": [{"model": model}]}), d.new_request())
+        ids.append(design.id)
+    assert d.cache_report()["designs_in_memory"] == 2 and d.cache_report()["designs_kept_at_most"] == 2
+    assert d.get(ids[0]) is None and d.get(ids[2]) is not None
+    assert skin._CACHE.maxsize <= 16 and catmull_clark._OPS_CACHE.maxsize <= 64
+    assert all(m._keep <= 8 for m in d.registry._bodies.values())

@@ -176,6 +176,11 @@ def test_the_designers_path_offline(server, tmp_path):
         slider.dispatch_event("change")
         moved = _wait_design(page, n, "slider")
         assert moved["id"] != d["id"]
+        timing = page.evaluate("() => ({roundTrip: window.seatkit.lastRoundTrip, draw: window.seatkit.lastDraw})")
+        server = moved["seconds"]["design"]
+        # what the page waited for beyond the server's design: the requests, the JSON, the drawing (printed, not asserted)
+        print(f"slider move in the browser: design shown {timing['roundTrip']:.2f} s after the change "
+              f"(server design {server:.2f} s wall, {timing['roundTrip'] - server:.2f} s the rest), drawing {timing['draw']:.2f} s")
         assert _canvas_stats(page)["differ"] > 0.05
         page.locator('#view-options button:text-is("back-left")').click()  # the pressure on the back and seat
         page.wait_for_timeout(300)

@@ -296,6 +296,7 @@ class Designer:
         self._preview: dict = {}
         self.hits = 0  # designs answered from memory
         self.max_uploads_bytes = MAX_UPLOADS_BYTES
+        self.keep_designs = KEEP_DESIGNS
 
     # ---------------------------------------------------------------- options
     def options(self) -> dict:
@@ -655,7 +656,7 @@ class Designer:
                 self._idle(seq)
         with self._state:
             self._designs[ident] = design
-            while len(self._designs) > KEEP_DESIGNS:
+            while len(self._designs) > self.keep_designs:
                 self._designs.popitem(last=False)
         return design
 
@@ -906,6 +907,8 @@ class Designer:
             "rigs": rigs,
             "subdivision_operators": len(catmull_clark._OPS_CACHE),
             "designs_in_memory": len(self._designs),
+            "designs_kept_at_most": self.keep_designs,
+            "uploads_bytes_at_most": self.max_uploads_bytes,
             "design_hits": self.hits,
         }
 

@@ -600,7 +600,9 @@ async function requestDesign() {
   state.shownSeq = seq;
   state.stale = false;
   document.body.classList.remove("stale");
+  const drawStart = performance.now();
   showView(r.data.view);
+  state.lastDraw = (performance.now() - drawStart) / 1000; // building the meshes and one frame (software WebGL here)
   state.lastView = r.data.view;
   delete r.data.view;
   showReport(r.data);
