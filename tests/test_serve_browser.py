@@ -1,15 +1,16 @@
-"""The ``seatkit serve`` page in headless chromium (Debian's), offline.
+"""The ``seatkit serve`` page in headless chromium (Debian's), offline, along a designer's path.
 
 Playwright's Python package drives ``/usr/bin/chromium`` (it never downloads
 a browser here: ``executable_path`` is given). The app runs on uvicorn on a
-free localhost port. An unsupported pose must show its refusal. The network is blocked three ways: a dead proxy, a
-resolver that maps every host but the loopback to nothing, and a route
-that aborts, and records, every request not to the app; the test fails on
-any. The page must load, show a design, show a new one after a slider
-moves, draw a non-blank WebGL canvas, and log no console error.
+free localhost port. The network is blocked three ways: a dead proxy, a
+resolver that maps every host but the loopback to nothing, and a route that
+aborts, and records, every request not to the app; the test fails on any.
+The path: the first design, a body, its mass and height, rapid slider moves
+and one let rest, the switch to the bench, three different people, a
+refused pose, the files; no console error or warning at any point.
 
-Set ``SEATKIT_SERVE_SCREENSHOT=path.png`` to keep a screenshot (the one in
-docs/images/serve.png was made so).
+Set ``SEATKIT_SERVE_SCREENSHOTS=FOLDER`` to keep the screenshots
+(``serve-chair.png`` is docs/images/serve.png).
 
 Skipped with a reason when chromium or playwright is missing, unless ``CI``
 is set (then it fails: CI installs both).
