@@ -189,6 +189,13 @@ def test_work_per_request_is_bounded(client):
     _refused(client.post(FAST, json={"template": "chair", "bodies": [{}, {}]}), "bodies", "at most 1")
 
 
+def test_names_in_the_query_and_headers_are_capped(client, designer):
+    before = designer._latest
+    _refused(client.post("/api/upload", params={"filename": "x" * 5000 + ".yaml"}, content=b"joints: {}\n"), "filename")
+    _refused(client.post(FAST, json={}, headers={"X-Request-Id": "r" * 5000}), "X-Request-Id")
+    assert designer._latest == before
+
+
 def test_errors_in_the_body_for_the_page(client):
     """``?errors=200``: the same error JSON with its status, answered 200 (a browser logs no failed load)."""
     r = client.post(FAST + "&errors=200", json={"template": "no-such-template"})
@@ -237,5 +244,11 @@ def test_memory_is_bounded(tmp_path):
         ids.append(design.id)
     assert d.cache_report()["designs_in_memory"] == 2 and d.cache_report()["designs_kept_at_most"] == 2
     assert d.get(ids[0]) is None and d.get(ids[2]) is not None
+    # a dropped design's files leave the disk with it (they could no longer be served)
+    d.files(d.get(ids[2]))
+    assert (d.designs_dir / ids[2]).is_dir() and (d.recipes_dir / ids[2] / "recipe.zip").is_file()
+    for model in ("default-female", "default-male"):
+        d.design(d.prepare({"bodies": [{"model": model}]}), d.new_request())
+    assert not (d.designs_dir / ids[2]).exists() and not (d.recipes_dir / ids[2]).exists()
     assert skin._CACHE.maxsize <= 16 and catmull_clark._OPS_CACHE.maxsize <= 64
     assert all(m._keep <= 8 for m in d.registry._bodies.values())

@@ -235,14 +235,18 @@ def create_app(designer: Designer) -> Starlette:
 
     async def upload(request: Request):
         filename = request.query_params.get("filename", "")
+        if len(filename) > MAX_JSON_STRING:
+            raise RecipeError(f"filename: {len(filename)} characters; at most {MAX_JSON_STRING} are accepted")
         data = await _read_body(request, MAX_UPLOAD_BYTES, f"upload {filename!r}")
         return JSONResponse(await run_in_threadpool(designer.upload, filename, data))
 
     async def design(request: Request):
+        request_id = request.headers.get("x-request-id") or request.query_params.get("request")
+        if request_id is not None and len(request_id) > 100:
+            raise RecipeError(f"X-Request-Id: {len(request_id)} characters; at most 100 are accepted")
         data = await _json(request)
         recipe = await run_in_threadpool(designer.prepare, data)
-        seq = designer.new_request()  # only a valid recipe supersedes the running design
-        request_id = request.headers.get("x-request-id") or request.query_params.get("request")
+        seq = designer.new_request()  # only a valid request supersedes the running design
         evaluate = _flag(request, "evaluate", True)
         d = await run_in_threadpool(lambda: designer.design(recipe, seq, request_id, evaluate=evaluate))
         if evaluate or _flag(request, "baseline", True) or _flag(request, "files", True):

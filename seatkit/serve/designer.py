@@ -654,10 +654,20 @@ class Designer:
                 with self._state:
                     self._observing = None
                 self._idle(seq)
+        dropped = []
         with self._state:
             self._designs[ident] = design
             while len(self._designs) > self.keep_designs:
-                self._designs.popitem(last=False)
+                dropped.append(self._designs.popitem(last=False)[0])
+        if dropped:
+            import shutil
+
+            with self._run:  # not while a design's files are being written
+                for old in dropped:  # its files can no longer be served: they leave the disk too
+                    if old in self._designs:
+                        continue
+                    shutil.rmtree(self.designs_dir / old, ignore_errors=True)
+                    shutil.rmtree(self.recipes_dir / old, ignore_errors=True)
         return design
 
     def _evaluate(self, design: Design, seq: int | None) -> None:
