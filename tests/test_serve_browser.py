@@ -98,6 +98,18 @@ def _canvas_stats(page) -> dict:
     )
 
 
+def _warm_share(page) -> float:
+    """The share of the 3D view's pixels in the pressure colours (yellow to purple: red well above blue), as the screen shows them."""
+    import io
+
+    import numpy as np
+    from PIL import Image
+
+    shot = np.asarray(Image.open(io.BytesIO(page.locator("#view").screenshot())).convert("RGB")).astype(int)
+    r, b = shot[..., 0], shot[..., 2]
+    return float(((r > 150) & (r - b > 90)).mean())
+
+
 def _wait_design(page, before: int, what: str, timeout: int = 240_000) -> dict:
     """The design the page shows after ``before`` designs, once evaluated."""
     page.wait_for_function(f"() => window.seatkit.designsShown > {before} && window.seatkit.design.evaluated === true", timeout=timeout)
@@ -197,6 +209,11 @@ def test_the_designers_path_offline(server, tmp_path):
         print(f"slider move in the browser: design shown {timing['roundTrip']:.2f} s after the change "
               f"(server design {server:.2f} s wall, {timing['roundTrip'] - server:.2f} s the rest), drawing {timing['draw']:.2f} s")
         assert _canvas_stats(page)["differ"] > 0.05
+        # the contact pressure where it is: under the thighs and buttocks, seen from below through the see-through chair
+        page.locator('#view-options button:text-is("below")').click()
+        page.wait_for_timeout(300)
+        page.screenshot(path=str(shots / "serve-below.png"))
+        assert _warm_share(page) > 0.001
         page.locator('#view-options button:text-is("back-left")').click()  # the pressure on the back and seat
         page.wait_for_timeout(300)
         page.screenshot(path=str(shots / "serve-chair.png"))
