@@ -79,10 +79,8 @@ def test_a_pose_base_inside_the_servers_folders_is_read(client, designer):
 
 
 def test_the_loader_refuses_before_opening(tmp_path, monkeypatch):
-    """The restriction is the loader's: a base outside ``base_roots`` is refused before any file is opened."""
-    from pathlib import Path
-
-    from seatkit.body.poses import load_pose_file
+    """The restriction is the loader's: a base outside ``base_roots`` is refused before its file is read."""
+    from seatkit.body import poses
 
     outside = tmp_path / "outside"
     inside = tmp_path / "inside"
@@ -91,18 +89,15 @@ def test_the_loader_refuses_before_opening(tmp_path, monkeypatch):
     (outside / "other.yaml").write_text("joints: {RightLeg: {x: 10}}\n")
     pose = inside / "pose.yaml"
     pose.write_text("base: ../outside/other.yaml\n")
-    assert load_pose_file(pose).angles.any()  # without roots: read (the CLI's behaviour)
-    opened = []
-    real = Path.read_text
-
-    def spy(self, *a, **k):
-        opened.append(self.name)
-        return real(self, *a, **k)
-
-    monkeypatch.setattr(Path, "read_text", spy)
+    read = []
+    real = poses._compose
+    monkeypatch.setattr(poses, "_compose", lambda path: read.append(path.name) or real(path))
+    assert poses.load_pose_file(pose).angles.any()  # without roots: read (the command line's behaviour)
+    assert read == ["pose.yaml", "other.yaml"]
+    read.clear()
     with pytest.raises(RecipeError, match="outside the folders"):
-        load_pose_file(pose, base_roots=[inside])
-    assert "other.yaml" not in opened
+        poses.load_pose_file(pose, base_roots=[inside])
+    assert read == ["pose.yaml"]
 
 
 # ---------------------------------------------------------------- JSON caps
