@@ -123,6 +123,14 @@ def test_json_caps_name_the_field(client, designer, body, field, words):
     assert designer._latest == before  # refused: no sequence number taken
 
 
+@pytest.mark.parametrize("text", ['"' + '\\"' * 120_000, '"\\' * 120_000, '{"a\\":' * 40_000])
+def test_json_that_never_closes_a_string_is_refused(text):
+    """Strings whose quotes are all escaped: the depth scan reads each character once (a scan restarting at every
+    quote would read about 10^10 characters here, minutes of CPU, for one request under the size cap)."""
+    with pytest.raises(RecipeError, match="not valid JSON"):
+        parse_json(text.encode())
+
+
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.binary(max_size=400) | st.text(alphabet='[]{}":,0123456789.eE-+ aNtrufl\\', max_size=400).map(str.encode))
 def test_fuzz_json_is_a_value_or_one_line(data):

@@ -53,7 +53,9 @@ MAX_JSON_STRING = 512
 #: Most digits of a number in a JSON request (a float64 needs 17).
 MAX_JSON_DIGITS = 40
 
-_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*"(?:\s*:)?|[\[\]{}]')
+#: Strings (a key with its colon) and brackets; an unterminated string runs to the end of the text, so
+#: no match is tried twice over the same characters (linear time on any input).
+_TOKENS = re.compile(r'"(?:[^"\\]|\\.)*(?:"(?:\s*:)?)?|[\[\]{}]', re.DOTALL)
 
 
 def _error(e: Exception) -> JSONResponse:
@@ -150,7 +152,7 @@ def parse_json(data: bytes):
     for m in _TOKENS.finditer(text):
         t = m.group()
         if t[0] == '"':
-            key = t if t.endswith(":") else None
+            key = t if t.endswith(":") and len(t) > 1 else None
         elif t in "[{":
             stack.append(json.loads(key.rstrip(": \t\r\n")) if key else 0)
             key = None
