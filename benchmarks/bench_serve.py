@@ -20,7 +20,10 @@ With --compare, a `seatkit build` of the same pose (what a designer ran before
 the web app: a fresh process, every stage, the files) is timed after each move,
 alternating, so both see the same machine load.
 
-    python benchmarks/bench_serve.py [--moves 12] [--compare]
+With --switches N, then N new pose or body choices (a library pose on a
+preset body, a combination not designed before), timed the same way.
+
+    python benchmarks/bench_serve.py [--moves 12] [--compare] [--switches 8]
 """
 
 from __future__ import annotations
@@ -52,6 +55,11 @@ MOVES = [
 ]
 
 
+#: New pose or body choices (--switches): each library pose on each body, in turn.
+SWITCH_POSES = ["reclined-sitting", "armrest-sitting", "crossed-legs-knees", "lounger", "upright-sitting"]
+SWITCH_BODIES = ["p5-female", "p95-male", "default-female", "p50-male"]
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -62,6 +70,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--moves", type=int, default=12)
     ap.add_argument("--compare", action="store_true", help="alternate with a seatkit build of the same pose")
+    ap.add_argument("--switches", type=int, default=0, help="then this many new pose or body choices (a library pose on a preset body, never seen before)")
     args = ap.parse_args()
     seatkit = shutil.which("seatkit") or sys.exit("seatkit is not installed (pip install '.[serve]')")
     port = _free_port()
@@ -153,6 +162,15 @@ def main() -> None:
                 if args.compare and builds:
                     line += f", seatkit build {builds[-1]:.2f} s"
                 print(line, flush=True)
+            switch_trips, switch_cpu = [], []
+            combos = [(m, q) for q in SWITCH_POSES for m in SWITCH_BODIES]
+            for i in range(args.switches):
+                model, pose_name = combos[i % len(combos)]
+                t, c = time.perf_counter(), cpu()
+                r = client.post("/api/design?files=0&baseline=0&evaluate=0&view=1", json={"bodies": [{"model": model, "pose": pose_name}]})
+                switch_trips.append(time.perf_counter() - t)
+                switch_cpu.append(cpu() - c)
+                print(f"  switch {i} ({model}, {pose_name}): {r.status_code}, design shown {switch_trips[-1]:.2f} s (CPU {switch_cpu[-1]:.2f} s)", flush=True)
             status = client.get("/api/status").json()
         finally:
             proc.terminate()
@@ -172,6 +190,9 @@ def main() -> None:
     }
     for stage, values in previews.items():
         print(f"  {labels[stage]}: median {statistics.median(values):.2f} s ({len(values)} of {len(trips)} moves)")
+    if switch_trips:
+        print(f"new pose or body -> new design shown (POST /api/design, meshes included): {len(switch_trips)} choices")
+        print(f"  round trip: median {statistics.median(switch_trips):.2f} s; server CPU time median {statistics.median(switch_cpu):.2f} s")
     if builds:
         print(f"  seatkit build of the same pose (fresh process, all stages, files), alternating: median {statistics.median(builds):.2f} s")
     if stages:

@@ -60,15 +60,63 @@ def test_options_come_from_the_registry(client, designer):
     o = client.get("/api/options").json()
     reg = designer.pm.registry
     assert [t["name"] for t in o["templates"]] == reg.names("template")
-    assert [b["name"] for b in o["bodies"]] == [n for n in reg.names("body_model") if n != "file"]
+    available = [n for n, m, _ in reg.items("body_model") if n != "file" and getattr(m, "available", lambda: True)()]
+    assert [b["name"] for b in o["bodies"]] == available
     from seatkit.body import list_poses
 
     assert [p["name"] for p in o["poses"]] == [p.name for p in list_poses()]
     chair = next(t for t in o["templates"] if t["name"] == "chair")
     from seatkit.template.schema import PARAMETERS
 
-    assert {p["key"] for p in chair["params"]} == set(PARAMETERS)
-    assert all(p["unit"] for p in chair["params"])
+    internals = [p for p in chair["params"] if p["key"] in PARAMETERS]
+    assert {p["key"] for p in internals} == set(PARAMETERS)
+    assert all(p["unit"] and p["advanced"] for p in internals)  # the algorithm's internals: behind the fold
+
+
+def test_anny_is_offered_only_when_installed(client, designer, monkeypatch):
+    import importlib.util
+
+    names = lambda: [b["name"] for b in client.get("/api/options").json()["bodies"]]  # noqa: E731
+    installed = all(importlib.util.find_spec(m) is not None for m in ("anny", "torch"))
+    assert ("anny" in names()) == installed
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "anny" else real(name, *a))
+    assert "anny" not in names()
+
+
+def test_every_field_shows_the_bodys_own_values(client, designer):
+    """The mass and height fields start at the body's own values (not 75 kg for everyone)."""
+    bodies = {b["name"]: {p["key"]: p for p in b["params"]} for b in client.get("/api/options").json()["bodies"]}
+    for name, params in bodies.items():
+        assert {"mass"} <= set(params), name
+        rig = designer.registry.get("body_model", name).make_body(params={})
+        assert params["mass"]["default"] == pytest.approx(rig.mass), name
+        assert params["mass"]["unit"] == "kg"
+        if name != "anny":
+            assert params["height"]["unit"] == "m"
+            stature = rig.meta["parameters"]["stature_m"]
+            assert params["height"]["default"] == pytest.approx(stature), name
+    assert bodies["default-female"]["mass"]["default"] == pytest.approx(55.0)
+    assert bodies["p5-female"]["mass"]["default"] == pytest.approx(51.3)
+    assert bodies["p95-male"]["mass"]["default"] == pytest.approx(110.695)
+    assert bodies["p95-male"]["height"]["default"] == pytest.approx(1.87)
+
+
+def test_the_cache_key_is_the_value_used(client, designer):
+    """A body's own mass given or left out is the same design; another mass is another design, at that weight."""
+    own = client.post(FAST, json={"bodies": [{"model": "default-female"}]}).json()
+    same = client.post(FAST, json={"bodies": [{"model": "default-female", "params": {"mass": 55.0, "height": 1.62}}]}).json()
+    heavier = client.post(FAST, json={"bodies": [{"model": "default-female", "params": {"mass": 75}}]}).json()
+    assert same["id"] == own["id"]
+    assert heavier["id"] != own["id"]
+    assert own["people"][0]["mass_kg"] == pytest.approx(55.0) and own["people"][0]["height_m"] == pytest.approx(1.62)
+    assert heavier["people"][0]["mass_kg"] == pytest.approx(75.0)
+    # the pressure holds up the mass used: the support's total vertical force is that weight
+    for answer, mass in ((own, 55.0), (heavier, 75.0)):
+        result = designer.get(answer["id"]).result
+        body = result.bodies[0]
+        assert body.mass == pytest.approx(mass)
+        assert float(result.pressures[0].force[:, 1].sum()) == pytest.approx(mass * 9.81, rel=0.02)
 
 
 def test_pose_angles_are_the_pose_files(client):
@@ -500,3 +548,23 @@ def test_a_bench_for_two_people(client, designer):
     assert len(d["view"]["bodies"]) == 2 and len(d["metrics"]["ours"]) == 2
     xs = [_decode(b["positions"], "<f4").reshape(-1, 3)[:, 0] for b in d["view"]["bodies"]]
     assert xs[0].max() < xs[1].min() or xs[1].max() < xs[0].min()  # side by side, apart
+
+
+def test_designer_options_are_the_templates_declared_step_options(client, designer):
+    """Width, edge, base, softness, armrests, backrest: step options with the step's unit and range, set as a recipe sets them."""
+    chair = next(t for t in client.get("/api/options").json()["templates"] if t["name"] == "chair")
+    shown = [p for p in chair["params"] if not p["advanced"]]
+    assert {p["key"] for p in shown} >= {"steps.outer-columns.margin", "steps.border.width", "steps.armrests.min_load_fraction"}
+    for p in shown:
+        _, step, option = p["key"].split(".")
+        declared = designer.registry.get("template_step", step).options[option]
+        assert (p["unit"], p["minimum"], p["maximum"]) == (declared.unit, declared.minimum, declared.maximum)
+    # the same option the CLI and a recipe take: out of range is the recipe's one-line 422
+    r = client.post(FAST, json={"template_params": {"steps": {"outer-columns": {"margin": 7}}}})
+    assert r.status_code == 422 and "template_params.steps.outer-columns.margin" in r.json()["error"]
+    # and it changes the design: a wider margin, a wider back
+    width = lambda answer: float(np.ptp(designer.get(answer["id"]).result.control_mesh.vertices[:, 0]))  # noqa: E731
+    base = client.post(FAST, json={}).json()
+    wide = client.post(FAST, json={"template_params": {"steps": {"outer-columns": {"margin": 0.12}}}}).json()
+    assert wide["id"] != base["id"]
+    assert width(wide) > width(base) + 0.02  # the ground rectangle widens with the outer faces

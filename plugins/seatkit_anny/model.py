@@ -50,6 +50,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from seatkit.constants import DEFAULT_BODY_MASS
+
 __all__ = ["AnnyBodyModel", "PHENOTYPE_DEFAULTS", "seatkit_cache_dir", "anny_cache_dir"]
 
 #: anny phenotype parameters and seatkit's defaults (an adult, not anny's 0.5 teenager).
@@ -405,6 +407,25 @@ class AnnyBodyModel:
         "Parametric MakeHuman body via anny (gender, age, height, weight, muscle, proportions, stature); "
         f"needs {TORCH_FIRST}, then seatkit[anny]"
     )
+
+    params_schema = {
+        "type": "object",
+        "properties": {
+            "mass": {"type": "number", "title": "mass", "unit": "kg", "default": DEFAULT_BODY_MASS, "minimum": 20, "maximum": 300,
+                     "description": "body mass"},
+            "stature": {"type": "number", "title": "height", "unit": "m", "default": None, "minimum": _STATURE_RANGE[0],
+                        "maximum": _STATURE_RANGE[1], "description": "standing height; default: anny's height parameter"},
+            **{k: {"type": "number", "title": k, "unit": "", "default": v, "minimum": 0.0, "maximum": 1.0,
+                   "description": f"anny's {k} parameter", "advanced": True} for k, v in PHENOTYPE_DEFAULTS.items()},
+        },
+    }
+
+    @staticmethod
+    def available() -> bool:
+        """Whether anny and torch are installed (without importing them)."""
+        import importlib.util
+
+        return all(importlib.util.find_spec(m) is not None for m in ("anny", "torch"))
 
     def make_body(self, *, params: Mapping[str, Any]):
         """Build the rest-pose rigged body (see :mod:`seatkit_anny.model`)."""

@@ -40,6 +40,14 @@ class DefaultBody:
         self.name = name
         self.description = description
 
+    @property
+    def params_schema(self) -> dict:
+        """The parameters (JSON schema), each with this body's own value as its default (None: its own proportions)."""
+        from seatkit.body.parametric import DEFAULT_SIZES
+
+        _, stature, mass = DEFAULT_SIZES[self.name]
+        return _size_schema(mass, stature, proportions=True)
+
     def make_body(self, *, params: Mapping[str, Any]):
         from seatkit.body.parametric import make_default_body
 
@@ -58,6 +66,14 @@ class PresetBody(DefaultBody):
         self.name = name
         self.description = description
 
+    @property
+    def params_schema(self) -> dict:
+        """``mass`` and ``height``, each with the survey's value as its default."""
+        from seatkit.body.presets import preset_table
+
+        survey = preset_table()["presets"][self.name]["survey"]
+        return _size_schema(survey["mass"], survey["stature"], proportions=False)
+
     def make_body(self, *, params: Mapping[str, Any]):
         from seatkit.body.presets import make_preset
         from seatkit.errors import RecipeError
@@ -69,6 +85,23 @@ class PresetBody(DefaultBody):
             raise RecipeError(msg)
         p = {k: _number(self.name, k, v) for k, v in params.items()}
         return make_preset(self.name, mass=p.get("mass"), height=p.get("height"))
+
+
+def _size_schema(mass: float, stature: float, *, proportions: bool) -> dict:
+    """The JSON schema of a parametric body's parameters; defaults are the body's own values."""
+    from seatkit.body.parametric import BMI_RANGE, STATURE_RANGE
+
+    props = {
+        "mass": {"type": "number", "title": "mass", "unit": "kg", "default": mass, "minimum": 20, "maximum": 300,
+                 "description": f"body mass (a BMI of {BMI_RANGE[0]:g}-{BMI_RANGE[1]:g} at the height)"},
+        "height": {"type": "number", "title": "height", "unit": "m", "default": stature, "minimum": STATURE_RANGE[0],
+                   "maximum": STATURE_RANGE[1], "description": "standing height (stature)"},
+    }
+    if proportions:
+        for key, title in (("sitting_height", "sitting height"), ("buttock_knee", "buttock-knee length"), ("hip_breadth", "hip breadth")):
+            props[key] = {"type": "number", "title": title, "unit": "m", "default": None, "minimum": 0.1, "maximum": 1.5,
+                          "description": f"{title}; default: the body's own proportions at its height"}
+    return {"type": "object", "additionalProperties": False, "properties": props}
 
 
 def _number(model: str, key: str, value) -> float:

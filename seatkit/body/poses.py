@@ -293,10 +293,14 @@ def _angles(node: yaml.Node, path: Path, key_path: str) -> np.ndarray:
     return angles
 
 
-def _resolve_base(base: str, path: Path, node: yaml.Node) -> Path:
+def _resolve_base(base: str, path: Path, node: yaml.Node, roots=None) -> Path:
     if base.endswith(POSE_SUFFIXES):
         try:
             candidate = (path.parent / base).resolve()
+            if roots is not None and not any(candidate.is_relative_to(Path(r).resolve()) for r in roots):
+                # refused before the file is opened: nothing of it (not even whether it exists) is told
+                msg = f"{_where(path, node)}: base: {quote(base)} is outside the folders base poses are read from here"
+                raise RecipeError(msg)
             found = candidate.is_file()
         except (OSError, ValueError):  # a name too long for the file system, a NUL byte
             found = False
@@ -315,12 +319,16 @@ def _resolve_base(base: str, path: Path, node: yaml.Node) -> Path:
 MAX_BASE_DEPTH = 16
 
 
-def load_pose_file(path, *, _chain: tuple[Path, ...] = ()) -> PoseSpec:
+def load_pose_file(path, *, base_roots=None, _chain: tuple[Path, ...] = ()) -> PoseSpec:
     """Read and validate a pose YAML file, resolving its ``base`` chain.
 
     Parameters
     ----------
     path : str or Path
+    base_roots : sequence of Path, optional
+        The folders a ``base:`` file may be in (``seatkit serve``: the pose
+        library, the plugins' pose folders, its uploads); a base file
+        elsewhere is refused before it is opened. Default: anywhere.
 
     Returns
     -------
@@ -363,7 +371,7 @@ def load_pose_file(path, *, _chain: tuple[Path, ...] = ()) -> PoseSpec:
         if not isinstance(base_name, str) or not base_name:
             msg = f"{_where(path, bnode)}: base: expected a pose name or a pose file path, got {_kind(bnode)}"
             raise RecipeError(msg)
-        base_path = _resolve_base(base_name, path, bnode)
+        base_path = _resolve_base(base_name, path, bnode, base_roots)
         chain = _chain + (path,)
         if base_path in chain:
             cycle = " -> ".join(p.stem for p in chain[chain.index(base_path):] + (base_path,))
@@ -375,7 +383,7 @@ def load_pose_file(path, *, _chain: tuple[Path, ...] = ()) -> PoseSpec:
                 f"({chain[0].name} -> ... -> {path.name} -> {base_path.name}); seatkit follows at most {MAX_BASE_DEPTH}"
             )
             raise RecipeError(msg)
-        base = load_pose_file(base_path, _chain=chain)
+        base = load_pose_file(base_path, base_roots=base_roots, _chain=chain)
         angles = base.angles.copy()
         translation = base.root_translation.copy()
 

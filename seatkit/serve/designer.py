@@ -60,8 +60,19 @@ MAX_UPLOAD_BYTES = 4 * 1024 * 1024
 #: Suffixes an upload may have.
 UPLOAD_SUFFIXES = (".bvh", ".yaml", ".yml")
 
-#: Designs kept in memory (by recipe), with their results.
-KEEP_DESIGNS = 24
+#: Designs kept in memory (by recipe), with their results: a design holds
+#: its posed bodies, pressures, cages and surface, about 10-15 MB for a chair.
+KEEP_DESIGNS = 12
+
+#: Total size of the upload folder (uploaded poses, poses made with the
+#: sliders); beyond it the least recently used are deleted, bytes.
+MAX_UPLOADS_BYTES = 64 * 1024 * 1024
+
+#: Most refiners a recipe may list (each is a full pass over the cage).
+MAX_REFINERS = 8
+
+#: Most names a recipe's ``pressure.exclude`` may list.
+MAX_EXCLUDE = 64
 
 #: The slider joints: (key, label, segment, axis, sign). The slider shows
 #: ``sign * angle`` in degrees, so that flexion is positive on both sides.
@@ -284,19 +295,23 @@ class Designer:
         self._observing: tuple[int, str] | None = None  # (seq, request id) of the running design
         self._preview: dict = {}
         self.hits = 0  # designs answered from memory
+        self.max_uploads_bytes = MAX_UPLOADS_BYTES
+        self.keep_designs = KEEP_DESIGNS
 
     # ---------------------------------------------------------------- options
     def options(self) -> dict:
         """What the page offers: poses, body models and their parameters, templates and theirs, the sliders."""
         from seatkit.body import list_poses
-        from seatkit.constants import DEFAULT_BODY_MASS
         from seatkit.recipe import DEFAULT_BODY_MODEL, DEFAULT_POSE
 
         bodies = []
         for name, model, plugin in self.registry.items("body_model"):
             if name == "file":
                 continue  # needs a file on the server: not offered on the page
-            bodies.append({"name": name, "description": model.description, "plugin": plugin, "params": _body_params(model, DEFAULT_BODY_MASS)})
+            if not getattr(model, "available", lambda: True)():
+                continue  # an optional model whose libraries are not installed
+            params = _body_params(model) or self._own_mass(name)
+            bodies.append({"name": name, "description": model.description, "plugin": plugin, "params": params})
         templates = []
         for name, template, plugin in self.registry.items("template"):
             people = getattr(getattr(template, "spec", None), "people", None) or (1, 1)
@@ -305,7 +320,7 @@ class Designer:
                     "name": name,
                     "description": template.description,
                     "plugin": plugin,
-                    "params": _template_params(template),
+                    "params": _template_params(template, self.registry),
                     "people": [int(people[0]), int(people[1])],
                 }
             )
@@ -319,6 +334,14 @@ class Designer:
             "sliders": [{"key": k, "label": lab, "segment": seg, "axis": ax, "sign": s} for k, lab, seg, ax, s in SLIDERS],
             "max_upload_bytes": MAX_UPLOAD_BYTES,
         }
+
+    def _own_mass(self, name: str) -> list[dict]:
+        """A body model that declares no parameters: its mass, as its rest body has it."""
+        try:
+            mass = float(self.registry.get("body_model", name).make_body(params={}).mass)
+        except (SeatkitError, AttributeError, TypeError, ValueError):
+            return []
+        return [{"key": "mass", "label": "mass", "unit": "kg", "default": mass, "minimum": 20, "maximum": 300, "description": "body mass"}]
 
     # ------------------------------------------------------------------ poses
     def upload(self, filename: str, data: bytes) -> dict:
@@ -344,17 +367,29 @@ class Designer:
                 with atomic_path(path) as tmp:
                     tmp.write_bytes(data)
                     self._read_pose(tmp)
-            except SeatkitError as e:  # the loader's message, naming the file the user sent
-                raise UploadError(str(e).replace(str(tmp.resolve()), Path(filename).name).replace(str(tmp), Path(filename).name)) from None
+            except SeatkitError as e:  # the loader's message, naming the file the user sent and no folder of the server
+                text = str(e).replace(str(tmp.resolve()), Path(filename).name).replace(str(tmp), Path(filename).name)
+                raise UploadError(text.replace(str(self.uploads) + "/", "")) from None
+        self._used(path)
         return {"pose": name, "original": Path(filename).name}
 
     def _read_pose(self, path: Path) -> None:
-        """Read a pose file the way a build will (an error is the loader's own message)."""
+        """Read a pose file the way a build will (an error is the loader's own message); a ``base:`` only from :meth:`pose_roots`."""
         from seatkit.body import load_pose
+        from seatkit.body.poses import load_pose_file
         from seatkit.recipe import DEFAULT_BODY_MODEL
 
-        rig = self.registry.get("body_model", DEFAULT_BODY_MODEL).make_body(params={})
-        load_pose(str(path), rig=rig)
+        if path.suffix.lower() == ".bvh":
+            rig = self.registry.get("body_model", DEFAULT_BODY_MODEL).make_body(params={})
+            load_pose(str(path), rig=rig)
+        else:
+            load_pose_file(path, base_roots=self.pose_roots())
+
+    def pose_roots(self) -> list[Path]:
+        """The folders a pose file's ``base:`` may name a file in: the pose library, the plugins' pose folders, the uploads."""
+        from seatkit.body.poses import pose_dirs
+
+        return [Path(d) for d, _ in pose_dirs(getattr(self.registry, "pose_dirs", None))] + [self.uploads]
 
     def pose_angles(self, pose: str, *, frame: int = 0, model: str | None = None, params: Mapping | None = None) -> dict:
         """A pose as the sliders start from it: intrinsic XYZ Euler angles per segment (degrees).
@@ -376,7 +411,7 @@ class Designer:
             angles = Rotation.from_rotvec(p.rotations).as_euler(EULER_ORDER, degrees=True)
             translation, supported, description = p.translation, None, f"frame {frame} of {Path(spec).name}"
         else:
-            ps = load_pose_file(spec if looks_like_path(spec) else find_pose(spec))
+            ps = load_pose_file(spec if looks_like_path(spec) else find_pose(spec), base_roots=self.pose_roots())
             angles, translation, supported, description = ps.angles, ps.root_translation, ps.supported, ps.description
         return {
             "pose": pose,
@@ -413,7 +448,43 @@ class Designer:
         path = self.uploads / name
         if not path.exists():  # two requests may make the same pose at once: each writes its own temporary file
             write_text_atomic(path, text)
+        self._used(path)
         return {"pose": name}
+
+    def _used(self, path: Path, *, new: bool = True) -> None:
+        """Mark an upload as just used; after a new one, delete the least recently used beyond :data:`MAX_UPLOADS_BYTES`.
+
+        The poses of the designs in memory are kept (their files and
+        ``recipe.zip`` read them).
+        """
+        import os
+
+        try:
+            os.utime(path)
+        except OSError:
+            return
+        if not new:
+            return
+        with self._state:
+            keep = {Path(b["pose"]).name for d in self._designs.values() for b in d.recipe["bodies"]}
+        keep.add(path.name)
+        files = []
+        for f in self.uploads.iterdir():
+            if f.name.startswith("."):
+                continue  # a file being written
+            try:
+                st = f.stat()
+            except OSError:
+                continue
+            files.append((st.st_mtime, st.st_size, f))
+        total = sum(size for _, size, _ in files)
+        for _, size, f in sorted(files, key=lambda x: x[0]):
+            if total <= self.max_uploads_bytes:
+                break
+            if f.name in keep:
+                continue
+            f.unlink(missing_ok=True)
+            total -= size
 
     def confine_pose(self, spec: str, where: str) -> str:
         """A pose argument from a request: a library name, or a file in the upload folder (resolved)."""
@@ -441,13 +512,19 @@ class Designer:
             a YAML file has).
         """
         from seatkit.pipeline import recipe_id
-        from seatkit.recipe import check_recipe, load_recipe
+        from seatkit.recipe import check_recipe, load_recipe, looks_like_path
 
         if data is None:
             data = {}
         if not isinstance(data, Mapping):
             raise RecipeError(f"<recipe>: a recipe must be a mapping of keys (template, bodies, ...), got {type(data).__name__}")
         recipe, document = load_recipe(data)
+        for key, entries in (("refiners", recipe["refiners"]), ("evaluate.baseline_refiners", recipe["evaluate"]["baseline_refiners"])):
+            if len(entries) > MAX_REFINERS:
+                raise RecipeError(f"{key}: {len(entries)} refiners; the web app runs at most {MAX_REFINERS}")
+        exclude = recipe["pressure"].get("exclude") or []
+        if len(exclude) > MAX_EXCLUDE:
+            raise RecipeError(f"pressure.exclude: {len(exclude)} names; the web app takes at most {MAX_EXCLUDE}")
         for i, body in enumerate(recipe["bodies"]):
             body["pose"] = self.confine_pose(body["pose"], f"bodies[{i}].pose")
             if "path" in body["params"]:
@@ -455,6 +532,16 @@ class Designer:
                 raise RecipeError(msg)
         recipe["output"] = None
         check_recipe(recipe, self.registry, document=document)
+        template = self.registry.get("template", recipe["template"])
+        most = (getattr(getattr(template, "spec", None), "people", None) or (1, 8))[1]
+        if len(recipe["bodies"]) > most:
+            raise RecipeError(f"bodies: {len(recipe['bodies'])} people; template {recipe['template']!r} seats at most {most}")
+        for body in recipe["bodies"]:
+            # a parameter given at the model's own value is the same body: the same recipe, the same design
+            own = {p["key"]: p["default"] for p in _body_params(self.registry.get("body_model", body["model"])) if p.get("default") is not None}
+            body["params"] = {k: v for k, v in body["params"].items() if not (k in own and v == own[k])}
+            if looks_like_path(body["pose"]):
+                self._used(Path(body["pose"]), new=False)
         ident = recipe_id(recipe)
         recipe["output"] = str(self.designs_dir / ident)
         return recipe
@@ -567,10 +654,20 @@ class Designer:
                 with self._state:
                     self._observing = None
                 self._idle(seq)
+        dropped = []
         with self._state:
             self._designs[ident] = design
-            while len(self._designs) > KEEP_DESIGNS:
-                self._designs.popitem(last=False)
+            while len(self._designs) > self.keep_designs:
+                dropped.append(self._designs.popitem(last=False)[0])
+        if dropped:
+            import shutil
+
+            with self._run:  # not while a design's files are being written
+                for old in dropped:  # its files can no longer be served: they leave the disk too
+                    if old in self._designs:
+                        continue
+                    shutil.rmtree(self.designs_dir / old, ignore_errors=True)
+                    shutil.rmtree(self.recipes_dir / old, ignore_errors=True)
         return design
 
     def _evaluate(self, design: Design, seq: int | None) -> None:
@@ -731,6 +828,7 @@ class Designer:
                 "id": design.id,
                 "seq": design.seq,
                 "template": design.recipe["template"],
+                "people": self._people(design),
                 "control_mesh": {"vertices": len(r.control_mesh.vertices), "faces": len(r.control_mesh.faces)},
                 "special_cases": r.control_mesh.meta.get("special_cases", []),
                 "evaluated": design.evaluated,
@@ -741,6 +839,34 @@ class Designer:
                 "files": files,
             }
         )
+
+    def _people(self, design: Design) -> list[dict]:
+        """Who the design is for, person by person in seat order: model, pose, and the mass and height used."""
+        from seatkit.recipe import looks_like_path
+
+        out = []
+        for entry, body in zip(design.recipe["bodies"], design.result.bodies):
+            own = {p["key"]: p["default"] for p in _body_params(self.registry.get("body_model", entry["model"]))}
+            used = {k: v for k, v in {**own, **entry["params"]}.items() if v is not None}
+            pose = entry["pose"]
+            label = pose
+            if looks_like_path(pose):
+                label = Path(pose).name
+                if Path(pose).suffix.lower() != ".bvh":
+                    try:
+                        label = str(yaml.safe_load(Path(pose).read_text()).get("description") or label)
+                    except (OSError, yaml.YAMLError, AttributeError):
+                        pass
+            out.append(
+                {
+                    "model": entry["model"],
+                    "pose": label,
+                    "mass_kg": float(body.mass),
+                    "height_m": used.get("height", used.get("stature")),
+                    "params": used,
+                }
+            )
+        return out
 
     @staticmethod
     def _body_view(body, pressure, kind: str) -> dict:
@@ -770,10 +896,12 @@ class Designer:
             self._body_view(body, f.pressure, "contact") if f is not None else self._body_view(body, imp.pressure, "importance")
             for body, imp, f in zip(r.bodies, r.pressures, contact)
         ]
+        points = np.concatenate([r.surface.vertices] + [b.vertices for b in r.bodies])
         return {
             "id": design.id,
             "seq": design.seq,
             "stage": "done",
+            "bounds": [points.min(axis=0).tolist(), points.max(axis=0).tolist()],
             "bodies": bodies,
             "surface": self._surface_view(r.surface),
             "cage": self._cage_view(r.control_mesh),
@@ -789,45 +917,79 @@ class Designer:
             "rigs": rigs,
             "subdivision_operators": len(catmull_clark._OPS_CACHE),
             "designs_in_memory": len(self._designs),
+            "designs_kept_at_most": self.keep_designs,
+            "uploads_bytes_at_most": self.max_uploads_bytes,
             "design_hits": self.hits,
         }
 
 
-def _body_params(model, default_mass: float) -> list[dict]:
-    """A body model's parameters for the page: its ``params_schema`` (JSON schema) when it declares one, else mass."""
+def _body_params(model) -> list[dict]:
+    """A model's parameters for the page, from its ``params_schema`` (JSON schema), defaults its own values; [] without one."""
     schema = getattr(model, "params_schema", None)
-    if isinstance(schema, Mapping) and isinstance(schema.get("properties"), Mapping):
-        out = []
-        for key, prop in schema["properties"].items():
-            if prop.get("type") in ("number", "integer"):
-                out.append(
-                    {
-                        "key": key,
-                        "label": prop.get("title", key),
-                        "unit": prop.get("unit", ""),
-                        "default": prop.get("default"),
-                        "minimum": prop.get("minimum"),
-                        "maximum": prop.get("maximum"),
-                        "description": prop.get("description", ""),
-                    }
-                )
-            elif "enum" in prop:
-                out.append({"key": key, "label": prop.get("title", key), "enum": list(prop["enum"]), "default": prop.get("default"), "description": prop.get("description", "")})
-        return out
-    return [{"key": "mass", "label": "mass", "unit": "kg", "default": default_mass, "minimum": 20, "maximum": 300, "description": "body mass"}]
+    if not (isinstance(schema, Mapping) and isinstance(schema.get("properties"), Mapping)):
+        return []
+    out = []
+    for key, prop in schema["properties"].items():
+        common = {"key": key, "label": prop.get("title", key), "default": prop.get("default"), "description": prop.get("description", ""), "advanced": bool(prop.get("advanced", False))}
+        if prop.get("type") in ("number", "integer"):
+            out.append({**common, "unit": prop.get("unit", ""), "minimum": prop.get("minimum"), "maximum": prop.get("maximum")})
+        elif "enum" in prop:
+            out.append({**common, "enum": list(prop["enum"])})
+    return out
 
 
-def _template_params(template) -> list[dict]:
-    """A template's parameters for the page, from its own declaration: a YAML template's ``parameters``, or a ``params_schema``."""
+#: The template step options offered as a designer's controls (the rest are behind the page's
+#: "advanced" fold): (step, option, label). Each is a declared option of the step (its unit and
+#: range are the step's), set as a recipe sets it: ``template_params: {steps: {STEP: {OPTION: value}}}``.
+DESIGNER_OPTIONS: tuple[tuple[str, str, str], ...] = (
+    ("outer-columns", "margin", "seat and back: width beyond the body"),
+    ("border", "width", "seat edge: surface beyond the body"),
+    ("border", "margin", "base: margin of the ground rectangle"),
+    ("clearance", "sink", "softness: deepest sink into the surface"),
+    ("armrests", "min_load_fraction", "armrests: share of the load an arm must carry"),
+    ("no-backrest", "min_load_fraction", "backrest: share of the load below which there is none"),
+)
+
+
+def _designer_options(spec, registry) -> list[dict]:
+    """The :data:`DESIGNER_OPTIONS` a YAML template has (a step it runs once), with the template's values as defaults."""
+    out = []
+    names = [entry.get("step") for entry in spec.steps]
+    for step, key, label in DESIGNER_OPTIONS:
+        if names.count(step) != 1:
+            continue
+        try:
+            declared = registry.get("template_step", step).options[key]
+        except (SeatkitError, KeyError, AttributeError):
+            continue
+        entry = spec.steps[names.index(step)]
+        out.append(
+            {
+                "key": f"steps.{entry.get('label', step)}.{key}",
+                "label": label,
+                "unit": declared.unit,
+                "default": entry.get(key, declared.default),
+                "minimum": declared.minimum,
+                "maximum": declared.maximum,
+                "description": f"{declared.description} (template_params: steps: {entry.get('label', step)}: {key})",
+                "advanced": False,
+            }
+        )
+    return out
+
+
+def _template_params(template, registry=None) -> list[dict]:
+    """A template's parameters for the page, from its own declaration: a YAML template's designer options and ``parameters``, or a ``params_schema``."""
     spec = getattr(template, "spec", None)
     if spec is not None and hasattr(spec, "parameters"):
         from seatkit.template.schema import PARAMETERS
 
-        return [
-            {"key": k, "label": k, "unit": unit, "default": spec.parameters.get(k, default), "minimum": 0, "maximum": None, "description": meaning}
+        designer = _designer_options(spec, registry) if registry is not None else []
+        return designer + [
+            {"key": k, "label": k, "unit": unit, "default": spec.parameters.get(k, default), "minimum": 0, "maximum": None, "description": meaning, "advanced": True}
             for k, (default, unit, meaning) in PARAMETERS.items()
         ]
     schema = getattr(template, "params_schema", None)
     if isinstance(schema, Mapping):
-        return _body_params(type("T", (), {"params_schema": schema})(), 0.0)
+        return _body_params(type("T", (), {"params_schema": schema})())
     return []

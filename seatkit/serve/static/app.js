@@ -5,23 +5,30 @@ import { OrbitControls } from "/static/vendor/OrbitControls.js";
 const $ = (id) => document.getElementById(id);
 const state = {
   options: null,
-  pose: null,          // {pose, angles (21x3 deg), translation, supported, description}
-  upload: null,        // name of the uploaded file in the server's upload folder
+  people: [],          // per person in seat order: {model, params, pose, upload, frame, poseData, angles}
+  current: 0,          // the person the Pose, Joints and Body controls edit
+  pose: null,          // the current person's pose: {pose, angles (21x3 deg), translation, supported, description}
+  upload: null,        // the current person's uploaded file in the server's upload folder
   sliders: {},         // key -> slider spec
   clientSeq: 0,        // newest request made by this page
   shownSeq: 0,         // request whose design is on screen
   design: null,        // report of the design on screen
   designsShown: 0,
-  fitted: false,
+  stale: false,        // the design on screen is not the one asked for last (a refusal, an error)
+  frame: null,         // {centre, size} the camera is framed on
 };
 window.seatkit = state; // read by the browser test
 
 // ------------------------------------------------------------------ API
+// Every request asks for errors in the body (?errors=200): a refusal or a superseded request is an
+// expected answer, and a browser logs any non-2xx answer as a console error.
 async function api(path, options = {}) {
-  const response = await fetch(path, options);
+  const url = path + (path.includes("?") ? "&" : "?") + "errors=200";
+  const response = await fetch(url, options);
   let data = null;
   try { data = await response.json(); } catch (e) { data = { error: `HTTP ${response.status}` }; }
-  return { ok: response.ok, status: response.status, data };
+  const status = data && data.status ? data.status : response.status;
+  return { ok: response.ok && !(data && data.status), status, data };
 }
 const postJSON = (path, body) => api(path, { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) });
 
@@ -108,15 +115,24 @@ function showView(v) {
   $("legend-max").textContent = (pmax / 1000).toFixed(1);
   $("legend-title").textContent = v.bodies[0].pressure_kind === "contact"
     ? "relative importance on the designed surface (paper's model), kPa" : "relative importance, supported everywhere (paper's model), kPa";
-  if (!state.fitted && v.surface) {
-    const box = new THREE.Box3().setFromObject(designGroup);
-    const centre = box.getCenter(new THREE.Vector3());
-    const size = box.getSize(new THREE.Vector3()).length();
-    state.frame = { centre, size };
-    lookFrom([1.0, 0.35, 0.55]); // from the body's left, a little in front and above
-    state.fitted = true;
-  }
+  if (v.bounds) reframe(v.bounds);
   render();
+}
+
+// Frame the camera on a finished design's bounds (a bench is wider than a chair): kept from the
+// same direction, moved only when the design leaves the frame or is much smaller than it.
+function reframe(bounds) {
+  const box = new THREE.Box3(new THREE.Vector3(...bounds[0]), new THREE.Vector3(...bounds[1]));
+  const centre = box.getCenter(new THREE.Vector3());
+  const size = box.getSize(new THREE.Vector3()).length();
+  const f = state.frame;
+  if (f) {
+    const room = new THREE.Box3().setFromCenterAndSize(f.centre, new THREE.Vector3(1, 1, 1).multiplyScalar(f.size / Math.sqrt(3) + 0.05));
+    if (room.containsBox(box) && size > 0.7 * f.size) return;
+  }
+  const direction = f ? camera.position.clone().sub(controls.target).normalize().toArray() : [1.0, 0.35, 0.55]; // first: from the body's left, a little in front and above
+  state.frame = { centre, size, bounds };
+  lookFrom(direction);
 }
 
 function lookFrom(direction) {
@@ -210,40 +226,54 @@ function option(select, value, text) {
   select.appendChild(o);
 }
 
-function paramInputs(container, params, prefix) {
+// Parameter fields: each shows the value the design uses (a body's own mass and height come from its
+// model); a blank field means "the model's own" (its proportions, anny's height). Parameters marked
+// advanced (the algorithm's internals) go into the fold below the others.
+function paramInputs(container, params, prefix, values, onChange) {
   container.innerHTML = "";
+  const fold = document.createElement("details");
+  fold.className = "advanced";
+  const summary = document.createElement("summary");
+  summary.textContent = "advanced";
+  fold.appendChild(summary);
   for (const p of params) {
     const row = document.createElement("label");
     row.className = "param";
     const name = document.createElement("span");
-    name.textContent = p.unit ? `${p.label} (${p.unit})` : p.label;
+    name.textContent = p.unit && p.unit !== "1" ? `${p.label} (${p.unit})` : p.label;
     name.title = p.description || "";
     let input;
+    const value = values && p.key in values ? values[p.key] : p.default;
     if (p.enum) {
       input = document.createElement("select");
       for (const e of p.enum) option(input, e, e);
-      if (p.default != null) input.value = p.default;
+      if (value != null) input.value = value;
     } else {
       input = document.createElement("input");
       input.type = "number";
       input.step = "any";
       if (p.minimum != null) input.min = p.minimum;
       if (p.maximum != null) input.max = p.maximum;
-      if (p.default != null) input.value = p.default;
+      input.placeholder = "own";
+      if (value != null) input.value = value;
     }
     input.dataset.key = p.key;
     input.dataset.default = p.default == null ? "" : String(p.default);
     input.id = `${prefix}-${p.key}`;
-    input.addEventListener("change", () => requestDesign());
+    input.title = p.description || "";
+    input.addEventListener("change", onChange);
     row.append(name, input);
-    container.appendChild(row);
+    (p.advanced ? fold : container).appendChild(row);
   }
+  if (fold.children.length > 1) container.appendChild(fold);
 }
 
-function changedParams(container) {
+// Every field with a value: the server drops a value equal to the model's own (the same body, the
+// same design), so what the field shows is what the design uses.
+function fieldValues(container, onlyChanged = false) {
   const out = {};
   for (const input of container.querySelectorAll("input, select")) {
-    if (input.value === "" || input.value === input.dataset.default) continue;
+    if (input.value === "" || (onlyChanged && input.value === input.dataset.default)) continue;
     out[input.dataset.key] = input.type === "number" ? Number(input.value) : input.value;
   }
   return out;
@@ -267,18 +297,20 @@ function buildSliders() {
     const out = document.createElement("output");
     out.id = `out-${spec.key}`;
     input.addEventListener("input", () => onSlider(spec, input));
-    input.addEventListener("change", () => requestDesign());
+    input.addEventListener("change", () => { person().angles = currentAngles(); requestDesign(); });
     row.append(name, input, out);
     box.appendChild(row);
   }
 }
 
-function setSliders() {
+// The sliders show the current person's joints: the pose's, or where this person's sliders were left.
+function setSliders(angles = null) {
   for (const spec of Object.values(state.sliders)) {
     const input = $(`slider-${spec.key}`);
-    const v = sliderValue(spec, state.pose.angles);
+    const start = sliderValue(spec, state.pose.angles);
+    const v = angles ? sliderValue(spec, angles.angles) : start;
     const [lo, hi] = RANGES[spec.key] || RANGES[spec.key.split("-")[0]];
-    input.min = Math.min(lo, Math.floor(v)); input.max = Math.max(hi, Math.ceil(v));
+    input.min = Math.min(lo, Math.floor(Math.min(v, start))); input.max = Math.max(hi, Math.ceil(Math.max(v, start)));
     input.value = v;
     input.dataset.last = String(v);
     $(`out-${spec.key}`).textContent = `${Math.round(v)}°`;
@@ -315,33 +347,111 @@ function currentAngles() {
   return { angles, changed };
 }
 
-function bodyEntry() {
-  return { model: $("body-select").value, params: changedParams($("body-params")) };
+// ------------------------------------------------------------------ people
+function person() { return state.people[state.current]; }
+function modelParams(model) { return state.options.bodies.find((b) => b.name === model).params; }
+function newPerson(from) {
+  return { model: from.model, params: {}, pose: from.pose, upload: from.upload, frame: from.frame, poseData: from.poseData, angles: from.angles, made: null };
+}
+
+function describePerson(p, i) {
+  const shown = state.options.poses.find((x) => x.name === p.pose);
+  const pose = p.upload || (shown ? shown.name : p.pose);
+  return `${i + 1}: ${p.model}, ${pose}${p.angles && p.angles.changed ? " (joints moved)" : ""}`;
+}
+
+function showPeopleList() {
+  const n = state.people.length;
+  $("person-row").hidden = n <= 1;
+  const sel = $("person-select");
+  sel.innerHTML = "";
+  state.people.forEach((p, i) => option(sel, String(i), describePerson(p, i)));
+  sel.value = String(state.current);
+  for (const h of document.querySelectorAll(".who")) h.textContent = n > 1 ? ` of person ${state.current + 1}` : "";
+}
+
+// Show the current person in the Pose, Joints and Body controls.
+function showPerson() {
+  const p = person();
+  $("body-select").value = p.model;
+  paramInputs($("body-params"), modelParams(p.model), "body", p.params, onBodyParams);
+  $("pose-select").value = p.upload ? $("pose-select").value : p.pose;
+  $("frame-row").hidden = !(p.upload && p.upload.endsWith(".bvh"));
+  $("bvh-frame").value = p.frame || 0;
+  state.upload = p.upload;
+  state.pose = p.poseData;
+  if (state.pose) {
+    $("pose-note").textContent = (state.pose.description || "") + (state.pose.supported === false ? " (listed as not supported by the method)" : "");
+    setSliders(p.angles);
+  }
+  showPeopleList();
+}
+
+function onBodyParams() {
+  person().params = fieldValues($("body-params"));
+  requestDesign();
+}
+
+function setPeople(n) {
+  while (state.people.length < n) state.people.push(newPerson(state.people[state.people.length - 1]));
+  state.people.length = n;
+  state.current = Math.min(state.current, n - 1);
+  showPerson();
+}
+
+function bodyEntry(p) {
+  return { model: p.model, params: p.params };
 }
 
 async function loadPose() {
-  const pose = state.upload || $("pose-select").value;
-  const body = bodyEntry();
-  const q = new URLSearchParams({ pose, frame: $("bvh-frame").value || "0", model: body.model, params: JSON.stringify(body.params) });
+  const p = person();
+  const pose = p.upload || p.pose;
+  const q = new URLSearchParams({ pose, frame: String(p.frame || 0), model: p.model, params: JSON.stringify(p.params) });
   const r = await api(`/api/pose?${q}`);
   if (!r.ok) { showError(r.data.error); return false; }
+  p.poseData = r.data;
+  p.angles = null;
+  p.made = null;
   state.pose = r.data;
   $("pose-note").textContent = (r.data.description || "") + (r.data.supported === false ? " (listed as not supported by the method)" : "");
   setSliders();
+  showPeopleList();
   return true;
 }
 
 // ------------------------------------------------------------------ designs
-function clearChair() {
-  // the chair on screen belongs to another pose: do not leave it under this one
-  for (const child of [...designGroup.children]) {
-    if (child.name !== "body") {
-      child.geometry.dispose();
-      child.material.dispose();
-      designGroup.remove(child);
+// A refusal or an error: the design on screen is no longer the one asked for. It is greyed, and the
+// figures and the files are labelled with the design they belong to.
+function markStale(stale) {
+  state.stale = stale;
+  document.body.classList.toggle("stale", stale);
+  for (const child of designGroup.children) {
+    if (child.material) {
+      child.material.transparent = true;
+      child.material.opacity = stale ? 0.25 : (child.name === "chair" ? Number(document.querySelector("input[name=chair]:checked").value) : 1);
+      if (child.name === "body") child.material.vertexColors = !stale;
+      child.material.needsUpdate = true;
     }
   }
+  if (!stale) applyViewOptions();
+  showDesignOf();
   render();
+}
+
+function designLabel(report) {
+  const people = report.people || [];
+  const who = people.map((p) => `${p.model} ${p.mass_kg.toFixed(1)} kg${p.height_m ? ` ${p.height_m.toFixed(2)} m` : ""}, ${p.pose}`).join("; ");
+  return `${report.template}: ${who}`;
+}
+
+function showDesignOf() {
+  const d = state.design;
+  const label = d ? designLabel(d) : "";
+  $("design-of").textContent = !d ? "" : state.stale
+    ? `Not the input asked for: the figures, the view and the files below are of the previous design (${label}).`
+    : `Figures and files of: ${label}`;
+  $("design-of").className = state.stale ? "stale-note" : "note";
+  $("make-files").textContent = state.stale ? "Make files for the previous design" : "Make files for this design";
 }
 
 function showError(message, unsupported = false) {
@@ -349,29 +459,47 @@ function showError(message, unsupported = false) {
   $("refusal").querySelector("h2").textContent = unsupported ? "This pose cannot be supported" : "This input cannot be used";
   $("refusal-text").textContent = message;
   setProgress(unsupported ? "refused: see the reason on the right" : "error: see the message on the right", 1, "error");
+  // the view goes back to the design the figures belong to (a preview of the refused input may be on it)
+  if (state.lastView) showView(state.lastView);
+  if (state.design) markStale(true);
 }
 
 function fmt(x, scale) { return x == null ? "-" : (x * scale).toFixed(2); }
 
+// Table 1, one table per person (a bench seats several, each with their own figures).
 function showReport(report) {
-  const tbody = $("table1").querySelector("tbody");
-  tbody.innerHTML = "";
+  const box = $("tables");
+  box.innerHTML = "";
   const m = report.metrics || {};
-  const ours = (m.ours || [])[0] || {};
-  const base = (m.baseline || [])[0] || null;
-  for (const col of report.table_columns) {
-    const tr = document.createElement("tr");
-    const a = ours[col.key], b = base ? base[col.key] : null;
-    const cells = [`${col.label} (${col.unit})`, fmt(a, col.scale), base ? fmt(b, col.scale) : "…"];
-    cells.forEach((text, k) => {
-      const td = document.createElement("td");
-      td.textContent = text;
-      if (k === 1 && base && a != null && b != null && a < b) td.className = "better";
-      tr.appendChild(td);
-    });
-    tbody.appendChild(tr);
-  }
-  $("baseline-head").textContent = m.baseline_template || "flat patch";
+  const people = report.people || [{}];
+  people.forEach((who, i) => {
+    const ours = (m.ours || [])[i] || {};
+    const base = (m.baseline || [])[i] || null;
+    const table = document.createElement("table");
+    table.className = "table1";
+    table.id = i === 0 ? "table1" : `table1-${i + 1}`;
+    const caption = document.createElement("caption");
+    caption.textContent = people.length > 1 ? `Person ${i + 1}: ${who.model}, ${who.mass_kg != null ? who.mass_kg.toFixed(1) : "?"} kg, ${who.pose}` : "";
+    const head = document.createElement("thead");
+    head.innerHTML = "<tr><th></th><th>ours</th><th></th></tr>";
+    head.querySelectorAll("th")[2].textContent = m.baseline_template || "flat patch";
+    const tbody = document.createElement("tbody");
+    for (const col of report.table_columns) {
+      const tr = document.createElement("tr");
+      const a = ours[col.key], b = base ? base[col.key] : null;
+      const cells = [`${col.label} (${col.unit})`, fmt(a, col.scale), base ? fmt(b, col.scale) : "…"];
+      cells.forEach((text, k) => {
+        const td = document.createElement("td");
+        td.textContent = text;
+        if (k === 1 && base && a != null && b != null && a < b) td.className = "better";
+        tr.appendChild(td);
+      });
+      tbody.appendChild(tr);
+    }
+    table.append(caption, head, tbody);
+    box.appendChild(table);
+  });
+  const base = (m.baseline || [])[0];
   $("baseline-note").textContent = report.evaluated === false
     ? "The design is shown first; our figures follow (evaluating), then the baseline's when the sliders rest."
     : base ? "Lower is better; bold where our design beats the baseline."
@@ -401,6 +529,7 @@ function showReport(report) {
     facts.append(dt, dd);
   }
   showDownloads(report);
+  showDesignOf();
 }
 
 function showDownloads(report) {
@@ -418,6 +547,19 @@ function showDownloads(report) {
   }
 }
 
+// A person's pose as the recipe names it: the library pose or upload, or (joints moved) a pose file
+// made from the sliders, made once per set of angles.
+async function personPose(p, seq) {
+  const pose = p.upload || p.pose;
+  if (!p.angles || !p.angles.changed) return pose;
+  const key = JSON.stringify(p.angles.angles);
+  if (p.made && p.made.key === key) return p.made.name;
+  const r = await postJSON("/api/pose", { angles: p.angles.angles, translation: p.poseData.translation, description: `${pose}, joints moved in seatkit serve` });
+  if (!r.ok) throw new Error(r.data.error);
+  p.made = { key, name: r.data.pose };
+  return r.data.pose;
+}
+
 let baselineTimer = null;
 async function requestDesign() {
   if (!state.pose) return;
@@ -426,21 +568,29 @@ async function requestDesign() {
   const started = performance.now();
   const request = `${Date.now().toString(36)}-${seq}`;
   startPolling("designing", request, seq);
-  let pose = state.upload || $("pose-select").value;
-  const { angles, changed } = currentAngles();
-  const body = bodyEntry();
-  if (changed) {
-    const r = await postJSON("/api/pose", { angles, translation: state.pose.translation, description: `${pose}, joints moved in seatkit serve` });
+  const bodies = [];
+  try {
+    for (const p of state.people) {
+      const pose = await personPose(p, seq);
+      const entry = { ...bodyEntry(p), pose };
+      if (pose.endsWith(".bvh")) entry.frame = Number(p.frame || 0);
+      bodies.push(entry);
+    }
+  } catch (e) {
     if (seq !== state.clientSeq) return;
-    if (!r.ok) { stopPolling(); showError(r.data.error); return; }
-    pose = r.data.pose;
+    stopPolling(); showError(e.message); return;
   }
-  const entry = { model: body.model, pose };
-  if (Object.keys(body.params).length) entry.params = body.params;
-  if (pose.endsWith(".bvh")) entry.frame = Number($("bvh-frame").value || 0);
-  const people = Math.max(1, Number($("people").value) || 1);
-  const recipe = { template: $("template-select").value, bodies: Array.from({ length: people }, () => ({ ...entry })) };
-  const tp = changedParams($("template-params"));
+  if (seq !== state.clientSeq) return;
+  const recipe = { template: $("template-select").value, bodies };
+  // only what differs from the template's own values; a designer option is a step option
+  // ("steps.STEP.OPTION"), set as a recipe sets it: template_params: {steps: {STEP: {OPTION: value}}}
+  const tp = {};
+  for (const [k, v] of Object.entries(fieldValues($("template-params"), true))) {
+    if (!k.startsWith("steps.")) { tp[k] = v; continue; }
+    const cut = k.lastIndexOf(".");
+    const step = k.slice(6, cut);
+    ((tp.steps = tp.steps || {})[step] = tp.steps[step] || {})[k.slice(cut + 1)] = v;
+  }
   if (Object.keys(tp).length) recipe.template_params = tp;
   // the design first (drawn as soon as it exists), then our evaluation (the contact pressure
   // colours, Table 1), then, once the sliders rest, the baseline's figures beside ours
@@ -449,14 +599,18 @@ async function requestDesign() {
   stopPolling();
   if (r.status === 409) return;
   if (!r.ok) {
-    if (r.data.kind === "unsupported") clearChair();
     showError(r.data.error, r.data.kind === "unsupported");
     return;
   }
   $("refusal").hidden = true;
   state.design = r.data;
   state.shownSeq = seq;
+  state.stale = false;
+  document.body.classList.remove("stale");
+  const drawStart = performance.now();
   showView(r.data.view);
+  state.lastDraw = (performance.now() - drawStart) / 1000; // building the meshes and one frame (software WebGL here)
+  state.lastView = r.data.view;
   delete r.data.view;
   showReport(r.data);
   state.designsShown += 1;
@@ -471,6 +625,7 @@ async function requestDesign() {
     if (!e.ok) { if (e.status !== 409) setProgress(`evaluation: ${e.data.error}`, 1, "error"); return; }
     state.design = e.data;
     showView(e.data.view);
+    state.lastView = e.data.view;
     delete e.data.view;
     showReport(e.data);
     evaluated = (performance.now() - started) / 1000;
@@ -508,6 +663,7 @@ async function onUpload(event) {
   if (file.size > state.options.max_upload_bytes) { showError(`upload ${file.name}: ${file.size} bytes; the limit is ${state.options.max_upload_bytes} bytes`); return; }
   const r = await api(`/api/upload?filename=${encodeURIComponent(file.name)}`, { method: "POST", body: file });
   if (!r.ok) { showError(r.data.error); return; }
+  person().upload = r.data.pose;
   state.upload = r.data.pose;
   $("frame-row").hidden = !state.upload.endsWith(".bvh");
   if (await loadPose()) requestDesign();
@@ -518,29 +674,41 @@ async function main() {
   const r = await api("/api/options");
   state.options = r.data;
   for (const p of r.data.poses) option($("pose-select"), p.name, p.supported ? p.name : `${p.name} (not supported)`);
-  $("pose-select").value = r.data.default_pose;
   for (const b of r.data.bodies) option($("body-select"), b.name, b.name);
-  $("body-select").value = r.data.default_body;
   for (const t of r.data.templates) option($("template-select"), t.name, t.name);
   $("template-select").value = r.data.default_template;
-  const bodyParams = () => paramInputs($("body-params"), r.data.bodies.find((b) => b.name === $("body-select").value).params, "body");
+  state.people = [{ model: r.data.default_body, params: {}, pose: r.data.default_pose, upload: null, frame: 0, poseData: null, angles: null, made: null }];
   const templateParams = () => {
     const t = r.data.templates.find((x) => x.name === $("template-select").value);
-    paramInputs($("template-params"), t.params, "template");
+    paramInputs($("template-params"), t.params, "template", null, () => requestDesign());
     const [lo, hi] = t.people || [1, 1];
     $("people-row").hidden = hi <= 1;
     $("people").min = lo; $("people").max = hi;
     $("people").value = Math.min(hi, Math.max(lo, Number($("people").value) || 1));
+    setPeople(Number($("people").value));
   };
-  bodyParams(); templateParams();
   buildSliders();
-  $("pose-select").addEventListener("change", async () => { state.upload = null; $("pose-upload").value = ""; $("frame-row").hidden = true; if (await loadPose()) requestDesign(); });
-  $("body-select").addEventListener("change", async () => { bodyParams(); if (!state.upload || !state.upload.endsWith(".bvh") || await loadPose()) requestDesign(); });
+  templateParams();
+  $("pose-select").addEventListener("change", async () => {
+    const p = person();
+    p.pose = $("pose-select").value; p.upload = null; state.upload = null;
+    $("pose-upload").value = ""; $("frame-row").hidden = true;
+    if (await loadPose()) requestDesign();
+  });
+  $("body-select").addEventListener("change", async () => {
+    const p = person();
+    p.model = $("body-select").value;
+    p.params = {}; // the new model's own values, shown in its fields
+    paramInputs($("body-params"), modelParams(p.model), "body", p.params, onBodyParams);
+    showPeopleList();
+    if (!p.upload || !p.upload.endsWith(".bvh") || await loadPose()) requestDesign();
+  });
+  $("person-select").addEventListener("change", () => { state.current = Number($("person-select").value); showPerson(); });
   $("template-select").addEventListener("change", () => { templateParams(); requestDesign(); });
-  $("people").addEventListener("change", () => requestDesign());
-  $("bvh-frame").addEventListener("change", async () => { if (await loadPose()) requestDesign(); });
+  $("people").addEventListener("change", () => { setPeople(Math.max(1, Number($("people").value) || 1)); requestDesign(); });
+  $("bvh-frame").addEventListener("change", async () => { person().frame = Number($("bvh-frame").value || 0); if (await loadPose()) requestDesign(); });
   $("pose-upload").addEventListener("change", onUpload);
-  $("reset-joints").addEventListener("click", () => { setSliders(); requestDesign(); });
+  $("reset-joints").addEventListener("click", () => { person().angles = null; setSliders(); showPeopleList(); requestDesign(); });
   $("make-files").addEventListener("click", makeFiles);
   if (await loadPose()) requestDesign();
 }
