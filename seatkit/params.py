@@ -1,7 +1,8 @@
 """Parameter handling shared by the refiners and the flat-patch template.
 
-Each refiner declares its defaults as a dict; a template's ``refiners:``
-section or a recipe overrides them by key. Unknown keys are user mistakes
+Each refiner declares its defaults as a dict; the cage's
+``meta["refiners"]`` (which a template written in Python may set) and the
+recipe override them by key. Unknown keys are user mistakes
 and raise :class:`~seatkit.errors.RecipeError` naming the refiner, the key and
 the keys that exist.
 """
@@ -73,9 +74,11 @@ def refiner_params(
 ) -> dict[str, Any]:
     """A refiner's parameters: its defaults, then the template's, then ``params``.
 
-    A template declares its own defaults in its YAML ``refiners:`` section;
-    the template engine stores that section in ``ControlMesh.meta["refiners"]``
-    (a mapping of refiner name to parameters). Recipe ``params`` win.
+    A template written in Python (a plugin's) may give its own defaults in
+    ``ControlMesh.meta["refiners"]``, a mapping of refiner name to
+    parameters; YAML templates have no such section (their schema refuses a
+    ``refiners:`` key), so their cages use the refiners' defaults. Recipe
+    ``params`` win.
 
     Parameters
     ----------

@@ -19,7 +19,7 @@ Two exporters (registered by the ``seatkit_exporters`` plugin):
 
 The pictures are drawn with :mod:`seatkit.picture` (a numpy z-buffer, the
 colour scale and bar, the sheet layout, PIL), not matplotlib, to stay within
-the build's time budget (see docs/performance.md, "Report"). Both exporters draw what the result holds:
+the build's time budget (see docs/performance.md, "The stages alone"). Both exporters draw what the result holds:
 without an evaluation (``metrics`` empty) the contact pressure, the baseline
 and the table are left out, never invented.
 
