@@ -55,7 +55,7 @@ def _param_row(param, ctx) -> str:
         name = ", ".join(f"`{n}`" for n in names)
         kind = "flag" if param.is_flag else (param.metavar or param.display_type(ctx)).strip("<>")
         if param.multiple:
-            kind += ", repeatable"
+            kind = kind.removeprefix("list[").removesuffix("]") + ", repeatable"
     default = param.default
     if callable(default) or default in (None, (), [], False) or getattr(param, "is_flag", False):
         shown = "—"
