@@ -28,8 +28,10 @@ import.
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import math
+import re
 import sys
 from pathlib import Path
 
@@ -46,16 +48,30 @@ def _cell(text) -> str:
 # ----------------------------------------------------------------------------- CLI
 
 
-def _param_row(param, ctx) -> str:
+#: How an annotation of a command's function is shown ("takes"): from the source, not from the
+#: installed Typer/Click, so that the page is the same whatever their versions.
+_KINDS = {"str": "text", "int": "integer", "float": "number", "Path": "path", "bool": "flag"}
+
+
+def _kind(annotation) -> tuple[str, bool]:
+    """``(what the parameter takes, repeatable)`` from its annotation (a string under ``from __future__ import annotations``)."""
+    text = str(annotation).replace("typing.", "")
+    optional = re.fullmatch(r"Optional\[(.*)\]", text)
+    text = optional.group(1) if optional else text
+    many = re.fullmatch(r"(?:List|list)\[(.*)\]", text)
+    text = many.group(1) if many else text
+    return _KINDS.get(text, text), bool(many)
+
+
+def _param_row(param, annotation) -> str:
+    kind, many = _kind(annotation)
     if param.param_type_name == "argument":
         name = f"`{(param.metavar or param.name).upper()}`"
-        kind = "argument" + ("" if param.required else " (optional)")
+        kind = f"{kind}{', repeatable' if many else ''}, argument" + ("" if param.required else " (optional)")
     else:
         names = sorted(param.opts, key=len, reverse=True) + list(param.secondary_opts)
         name = ", ".join(f"`{n}`" for n in names)
-        kind = "flag" if param.is_flag else (param.metavar or param.display_type(ctx)).strip("<>")
-        if param.multiple:
-            kind = kind.removeprefix("list[").removesuffix("]") + ", repeatable"
+        kind = "flag" if param.is_flag else (param.metavar or kind) + (", repeatable" if many else "")
     default = param.default
     if callable(default) or default in (None, (), [], False) or getattr(param, "is_flag", False):
         shown = "—"
@@ -64,19 +80,27 @@ def _param_row(param, ctx) -> str:
     return f"| {name} | {_cell(kind)} | {shown} | {_cell(getattr(param, 'help', '') or '')} |"
 
 
-def _command_section(name: str, command, level: int = 2) -> list[str]:
+def _command_section(name: str, command, callback, level: int = 2) -> list[str]:
+    annotations = {k: v.annotation for k, v in inspect.signature(callback).parameters.items()}
     lines = [f"{'#' * level} `{name}`", ""]
     doc = (command.help or "").strip()
     if doc:
         lines += [doc.split("\n\n")[0].replace("\n", " "), ""]
         rest = [p.replace("\n", " ") for p in doc.split("\n\n")[1:]]
         lines += [p for para in rest for p in (para, "")]
-    ctx = command.context_class(command, info_name=name)  # typer's own click may be bundled: no import of click
-    lines += ["```text", " ".join(command.collect_usage_pieces(ctx)).join(["Usage: " + name + " ", ""]), "```", ""]
+    # the usage line from the parameters (not click's, whose spelling varies between versions)
+    pieces = ["[OPTIONS]"]
+    for p in command.params:
+        if p.param_type_name == "argument":
+            word = (p.metavar or p.name).upper() + ("..." if p.nargs == -1 else "")
+            pieces.append(word if p.required else f"[{word}]")
+    if hasattr(command, "commands"):
+        pieces.append("COMMAND [ARGS]...")
+    lines += ["```text", f"Usage: {name} {' '.join(pieces)}", "```", ""]
     params = [p for p in command.params if p.name != "help"]
     if params:
         lines += ["| argument or option | takes | default | meaning |", "|---|---|---|---|"]
-        lines += [_param_row(p, ctx) for p in params]
+        lines += [_param_row(p, annotations.get(p.name, "")) for p in params]
         lines.append("")
     return lines
 
@@ -87,6 +111,7 @@ def cli_page() -> str:
     from seatkit.cli import app
 
     group = typer.main.get_command(app)
+    callbacks = {c.name or c.callback.__name__.replace("_", "-"): c.callback for c in app.registered_commands}
     lines = [
         "# Command-line reference",
         "",
@@ -96,12 +121,12 @@ def cli_page() -> str:
         "Global options go before the command (`seatkit --debug build ...`).",
         "",
     ]
-    lines += _command_section("seatkit", group)
+    lines += _command_section("seatkit", group, app.registered_callback.callback)
     for name in sorted(group.commands):
         command = group.commands[name]
         if getattr(command, "hidden", False):
             continue
-        lines += _command_section(f"seatkit {name}", command)
+        lines += _command_section(f"seatkit {name}", command, callbacks[name])
     return "\n".join(lines).rstrip() + "\n"
 
 
