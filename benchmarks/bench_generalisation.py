@@ -27,7 +27,7 @@ Prints the success rate on the supportable poses, refusals by reason, the
 Table 1 comparison (wins of ours over the flat patch on average distance,
 average and maximum pressure, and the means), and the time per template fit
 and per build. ``--markdown FILE`` writes the same as a Markdown section
-(docs/evaluation.md holds the last run's).
+(docs/evaluation.md holds today's).
 
 With ``--captures DIR`` it also runs the real-capture set: every frame
 of every BVH file in DIR (benchmarks/captures: seated frames of the CMU
@@ -48,7 +48,7 @@ thread. Run it niced on a shared machine:
 
     nice -n 10 python benchmarks/bench_generalisation.py --poses 200 --unsupported 12 --seeds 0 1 2 --build-every-seed --table1-every 1 --workers 2 --library-seeds 10 --library-builds --library-bodies default-male default-female --results gen.jsonl --markdown gen.md
 
-(docs/evaluation.md, "The final run": about 30 minutes on 2 cores.)
+(docs/evaluation.md, "Poses nobody picked": about 30 minutes on 2 cores.)
 """
 
 from __future__ import annotations

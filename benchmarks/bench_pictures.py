@@ -8,7 +8,7 @@ draws it, and the default chair's cage over it (front, side,
 three-quarter) as ``benchmarks/bench_template.py --images`` draws it.
 Prints the median and the fastest wall time of each over ``--repeat`` runs.
 It uses the public functions only, so the same file times an older
-checkout (docs/performance.md, "Pictures").
+checkout (docs/performance.md, "The stages alone").
 """
 
 from __future__ import annotations

@@ -37,8 +37,8 @@ def main() -> None:
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     from table1 import TABLE_COLUMNS, WIN_KEYS, fmt
 
-    t1 = ["| preset | pose | design | " + " | ".join(label for _, label, _, _ in TABLE_COLUMNS) + " | max. penetration |"]
-    t1.append("|" + "---|" * (len(TABLE_COLUMNS) + 4))
+    t1 = ["| preset | pose | design | " + " | ".join(label for _, label, _, _ in TABLE_COLUMNS) + " |"]
+    t1.append("|" + "---|" * (len(TABLE_COLUMNS) + 3))
     pm = get_plugin_manager()
     lines = [
         "| preset | pose | posed, solved (force balance) | build | seat height | seat depth | seat width | back height | seconds |",
@@ -66,12 +66,12 @@ def main() -> None:
             ours, base = r.metrics["ours"][0], r.metrics["baseline"][0]
             for design, m in (("ours", ours), ("flat patch", base)):
                 if not m.get("supported", True):
-                    t1.append(f"| {preset} | {info.name} | {design} | not supported: {m.get('reason', '')[:100]} |" + " |" * len(TABLE_COLUMNS))
+                    t1.append(f"| {preset} | {info.name} | {design} | not supported: {m.get('reason', '')[:100]} |" + " |" * (len(TABLE_COLUMNS) - 1))
                     continue
                 cells = " | ".join(fmt(k, m[k]) for k, _, _, _ in TABLE_COLUMNS)
-                t1.append(f"| {preset} | {info.name} | {design} | {cells} | {m['max_penetration_m'] * 1000:.1f} mm |")
+                t1.append(f"| {preset} | {info.name} | {design} | {cells} |")
             wins = [k for k in WIN_KEYS if not ours.get(k, float("inf")) < base.get(k, float("inf"))]
-            t1.append(f"| {preset} | {info.name} | ours better on | " + ("all three" if not wins else "not on " + ", ".join(wins)) + " |" + " |" * len(TABLE_COLUMNS))
+            t1.append(f"| {preset} | {info.name} | ours better on | " + ("all three" if not wins else "not on " + ", ".join(wins)) + " |" + " |" * (len(TABLE_COLUMNS) - 1))
             d = r.metrics["dimensions"][0]
             cells = " | ".join("-" if d[k] is None else f"{d[k]:.3f} m" for k in ("seat_height_m", "seat_depth_m", "seat_width_m", "back_height_m"))
             lines.append(f"| {preset} | {info.name} | {solved} | built | {cells} | {time.perf_counter() - t0:.0f} |")

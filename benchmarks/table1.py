@@ -16,11 +16,15 @@ from pathlib import Path
 
 from seatkit.body import list_poses
 from seatkit.errors import SeatkitError
-from seatkit.evaluate import TABLE_COLUMNS
+from seatkit.metrics import TABLE, columns
 from seatkit.pipeline import build
 from seatkit.plugins import get_plugin_manager
 
 WIN_KEYS = ("avg_distance_m", "avg_pressure_pa", "max_pressure_pa")
+
+
+#: The columns of the table: the paper's Table 1 quantities, then our two checks (seatkit.metrics).
+TABLE_COLUMNS = columns(TABLE)
 
 
 def fmt(key, value):
@@ -36,8 +40,8 @@ def main() -> None:
     ap.add_argument("--out", type=Path)
     args = ap.parse_args()
     pm = get_plugin_manager()
-    head = "| pose | design | " + " | ".join(label for _, label, _, _ in TABLE_COLUMNS) + " | max. penetration | max. body depth |"
-    lines = [head, "|" + "---|" * (len(TABLE_COLUMNS) + 4)]
+    head = "| pose | design | " + " | ".join(label for _, label, _, _ in TABLE_COLUMNS) + " |"
+    lines = [head, "|" + "---|" * (len(TABLE_COLUMNS) + 2)]
     verdicts = []
     for info in list_poses():
         if not info.supported:
@@ -45,18 +49,16 @@ def main() -> None:
         try:
             r = build({"template": "chair", "bodies": [{"model": args.body, "pose": info.name}]}, pm=pm, write=False)
         except SeatkitError as e:  # a body the chair cannot fit in this pose: one row, the others go on
-            lines.append(f"| {info.name} | (no build) | {str(e)[:160]} |" + " |" * (len(TABLE_COLUMNS) + 1))
+            lines.append(f"| {info.name} | (no build) | {str(e)[:160]} |" + " |" * (len(TABLE_COLUMNS) - 1))
             verdicts.append((info.name, {"build": False}))
             continue
         ours, base = r.metrics["ours"][0], r.metrics["baseline"][0]
         for name, m in (("ours", ours), ("flat patch", base)):
             if not m.get("supported", True):
-                lines.append(f"| {info.name} | {name} | not supported: {m.get('reason', '')} |" + " |" * (len(TABLE_COLUMNS) + 1))
+                lines.append(f"| {info.name} | {name} | not supported: {m.get('reason', '')} |" + " |" * (len(TABLE_COLUMNS) - 1))
                 continue
             cells = " | ".join(fmt(k, m[k]) for k, _, _, _ in TABLE_COLUMNS)
-            lines.append(
-                f"| {info.name} | {name} | {cells} | {m['max_penetration_m'] * 1000:.1f} mm | {m['max_body_depth_m'] * 1000:.1f} mm |"
-            )
+            lines.append(f"| {info.name} | {name} | {cells} |")
         wins = {k: ours.get(k, float("inf")) < base.get(k, float("inf")) for k in WIN_KEYS}
         verdicts.append((info.name, wins))
     text = "\n".join(lines)

@@ -29,9 +29,11 @@ from typing import Callable, Iterable, Sequence
 
 from seatkit.errors import MissingExtraError, RecipeError, SeatkitError
 from seatkit.io import is_complete, write_text_atomic
+from seatkit.metrics import PAPER_TABLE1
 from seatkit.recipe import apply_overrides, default_recipe, load_recipe, looks_like_path
 
-SUMMARY_METRICS = ("avg_distance_m", "avg_moment_nm", "max_moment_nm", "avg_pressure_pa", "max_pressure_pa")
+#: The paper's Table 1 quantities in summary.csv (seatkit.metrics).
+SUMMARY_METRICS = tuple(m.key for m in PAPER_TABLE1)
 #: Seat dimensions in summary.csv (seatkit.dimensions; the mean over the people of an item).
 SUMMARY_DIMENSIONS = ("seat_height_m", "seat_depth_m", "seat_width_m", "back_height_m")
 

@@ -54,6 +54,7 @@ import numpy as np
 from seatkit.constants import DEFAULT_SUPPORT_DISTANCE
 from seatkit.errors import InfeasibleSupportError
 from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, surface_depth_in_body
+from seatkit.metrics import PAPER_TABLE1, columns
 from seatkit.model import Body, PressureField, Surface
 from seatkit.pressure.contact import supported_vertices
 
@@ -199,12 +200,6 @@ def evaluate_interface(bodies: Sequence[Body], surface: Surface, *, mu: float | 
     return figures, fields
 
 
-#: The Table 1 columns, in the paper's order, with units, and whether lower is better.
-TABLE_COLUMNS = (
-    ("avg_distance_m", "avg. dist.", "cm", 100.0),
-    ("avg_moment_nm", "avg. moment", "N m", 1.0),
-    ("max_moment_nm", "max. moment", "N m", 1.0),
-    ("avg_pressure_pa", "avg. press.", "Pa", 1.0),
-    ("max_pressure_pa", "max. press.", "Pa", 1.0),
-)
+#: The paper's Table 1 columns, in its order: ``(key, label, unit, scale)`` (:mod:`seatkit.metrics`).
+TABLE_COLUMNS = columns(PAPER_TABLE1)
 

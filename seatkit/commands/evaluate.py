@@ -94,6 +94,7 @@ def register(app: typer.Typer) -> None:
         from seatkit.export.report import person_labels, table_rows
         from seatkit.io import write_text_atomic
         from seatkit.io import jsonable
+        from seatkit.metrics import CHECKS_NOTE, TABLE_CAPTION
 
         pm = plugin_manager(ctx)
         base = "keep" if baseline is None else (None if baseline.lower() == "none" else baseline)
@@ -112,7 +113,7 @@ def register(app: typer.Typer) -> None:
         for i, (person, ours_cells, base_cells) in enumerate(rows):
             ours = metrics["ours"][i] if i < len(metrics["ours"]) else {}
             table = Table(title=person, show_edge=False)
-            table.add_column("the paper's Table 1")
+            table.add_column(TABLE_CAPTION)
             table.add_column("ours", justify="right")
             if metrics.get("baseline"):
                 table.add_column(metrics["baseline_template"], justify="right")
@@ -121,4 +122,5 @@ def register(app: typer.Typer) -> None:
             for label, a, b in zip(labels, ours_cells, base_cells):
                 table.add_row(label, a, *([b] if metrics.get("baseline") else []))
             console.print(table)
+        console.print(CHECKS_NOTE)
         console.print(f"wrote {Path(directory) / 'evaluation.json'}")

@@ -21,7 +21,7 @@ Two exporters (registered by the ``seatkit_exporters`` plugin):
 
 The pictures are drawn with :mod:`seatkit.picture` (a numpy z-buffer, the
 colour scale and bar, the sheet layout, PIL), not matplotlib, to stay within
-the build's time budget (see docs/performance.md, "Report"). Both exporters draw what the result holds:
+the build's time budget (see docs/performance.md, "The stages alone"). Both exporters draw what the result holds:
 without an evaluation (``metrics`` empty) the contact pressure, the baseline
 and the table are left out, never invented.
 
@@ -468,23 +468,20 @@ def table_rows(metrics: dict, people=None) -> tuple[list[tuple[str, list[str], l
     Returns
     -------
     rows : list of (person, ours, baseline)
-        ``ours`` and ``baseline`` list the quantities of
-        :data:`seatkit.evaluate.TABLE_COLUMNS` then the deepest penetration
-        and the deepest body vertex inside the furniture;
+        ``ours`` and ``baseline`` list the figures of
+        :data:`seatkit.metrics.TABLE`: the paper's Table 1 quantities, then
+        the deepest penetration and the deepest body vertex inside the
+        furniture (ours, not in the paper);
         a person a design cannot support shows "not supported" (no invented
         figures), a missing value "-".
     labels : list of str
         The quantity names, in the same order.
     """
-    from seatkit.evaluate import TABLE_COLUMNS
+    from seatkit.metrics import TABLE, columns
 
     ours = list(metrics.get("ours") or [])
     base = list(metrics.get("baseline") or [])
-    cols = [
-        *TABLE_COLUMNS,
-        ("max_penetration_m", "max. penetration", "cm", 100.0),
-        ("max_body_depth_m", "max. body depth", "cm", 100.0),
-    ]
+    cols = columns(TABLE)
     rows = []
     for i in range(max(len(ours), len(base))):
         cells = []
@@ -775,12 +772,14 @@ def interface_html(figures: list) -> str:
 
 
 def _metrics_html(result) -> str:
+    from seatkit.metrics import CHECKS_NOTE
+
     metrics = result.metrics or {}
     parts = []
     if metrics.get("ours") or metrics.get("baseline"):
         rows, labels = table_rows(metrics, person_labels(result.bodies))
         base = html.escape(str(metrics.get("baseline_template") or "baseline"))
-        parts.append(f"<p>{html.escape(TABLE1_NOTE)}</p>")
+        parts.append(f"<p>{html.escape(TABLE1_NOTE)} {html.escape(CHECKS_NOTE)}</p>")
         for person, ours, bl in rows:
             parts.append(f"<h3>{html.escape(person)}</h3><table><tr><th>quantity</th><th>ours</th><th>{base}</th></tr>")
             parts += [f"<tr><td>{html.escape(lab)}</td><td>{html.escape(a)}</td><td>{html.escape(b)}</td></tr>" for lab, a, b in zip(labels, ours, bl)]
@@ -890,7 +889,7 @@ td:first-child, th:first-child {{ text-align: left; }}
 <h1>{title}</h1>
 <p>{summary}</p>
 {plot}
-<h2>Evaluation (the paper's Table 1)</h2>
+<h2>Evaluation: the paper's Table 1 quantities and two checks</h2>
 {metrics}
 </body></html>
 """

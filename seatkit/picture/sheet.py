@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+from seatkit.metrics import TABLE_CAPTION
 from seatkit.picture.colour import ColourScale, nice_ticks
 from seatkit.picture.raster import to_uint8
 
@@ -110,7 +111,7 @@ def legend(height: int, entries, *, title: str = "", background=BACKGROUND):
     return img
 
 
-def sheet(title: str, panels, *, colorbar=None, table=None, table_head=("ours", "baseline"), table_caption: str = "the paper's Table 1",
+def sheet(title: str, panels, *, colorbar=None, table=None, table_head=("ours", "baseline"), table_caption: str = TABLE_CAPTION,
           columns: int | None = None, background=BACKGROUND):
     """Lay out captioned panels in a grid with a title, an optional colour bar and table.
 

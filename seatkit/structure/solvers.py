@@ -4,7 +4,7 @@ The condensed stiffness of a held shell is symmetric positive definite.
 CHOLMOD's supernodal Cholesky factorisation (SuiteSparse, through cvxopt,
 whose wheels bundle it with OpenBLAS: the extra ``seatkit[cholmod]``)
 factorises the default chair's in 0.45 s where scipy's SuperLU takes 0.75 s
-(docs/performance.md, "Structural analysis"); without cvxopt, SuperLU with a
+(docs/performance.md, "Will it hold? The structural analysis"); without cvxopt, SuperLU with a
 symmetric minimum-degree ordering and no pivoting, as before; and SuperLU
 too where CHOLMOD finds the matrix not positive definite to working
 precision (a nearly singular stiffness: the equilibrium check of
