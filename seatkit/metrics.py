@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["Metric", "PAPER_TABLE1", "CHECKS", "TABLE", "OTHER", "DIMENSIONS", "TABLE_CAPTION", "CHECKS_NOTE", "columns"]
+__all__ = ["Metric", "PAPER_TABLE1", "CHECKS", "TABLE", "OTHER", "DIMENSIONS", "PERSON_FIT", "INTERFACE", "TABLE_CAPTION", "CHECKS_NOTE", "columns"]
 
 
 @dataclass(frozen=True)
@@ -101,6 +101,31 @@ DIMENSIONS: tuple[Metric, ...] = (
     Metric("seat_depth_m", "seat depth", "m", 1.0, "Front-to-back extent of the loaded hips and thighs."),
     Metric("seat_width_m", "seat width", "m", 1.0, "Side-to-side extent of the loaded hips and thighs."),
     Metric("back_height_m", "back height", "m", 1.0, "Top of the loaded back above the lowest loaded hips or thigh vertex; 0 when the back is not carried."),
+)
+
+#: ``report.json`` -> ``metrics`` -> ``person_fit``: per person, the seat beside the person (ANSI/HFES 100).
+PERSON_FIT: tuple[Metric, ...] = (
+    Metric("popliteal_height_m", "popliteal height", "m", 1.0, "The person's popliteal height, measured on their body (seatkit.body.measure)."),
+    Metric("shoe_allowance_m", "shoe allowance", "m", 1.0, "Added to the popliteal height for a seat height with shoes on (25 mm, ANSI/HFES 100)."),
+    Metric("seat_height_for_shoes_m", "seat height for shoes", "m", 1.0, "Popliteal height plus the shoe allowance: the seat height the standard asks for."),
+    Metric("seat_height_difference_m", "seat height difference", "m", 1.0, "The design's seat height minus the seat height for shoes."),
+    Metric("buttock_popliteal_length_m", "buttock-popliteal length", "m", 1.0, "The person's buttock-popliteal length; the seat depth should stay short of it."),
+    Metric("seat_depth_difference_m", "seat depth difference", "m", 1.0, "The design's seat depth minus the buttock-popliteal length."),
+    Metric("hip_breadth_sitting_m", "hip breadth, sitting", "m", 1.0, "The person's hip breadth; the seat should be at least as wide."),
+    Metric("seat_width_difference_m", "seat width difference", "m", 1.0, "The design's seat width minus the hip breadth."),
+)
+
+#: ``report.json`` -> ``metrics`` -> ``interface``: per person, the soft-tissue model on our design (not the paper's).
+INTERFACE: tuple[Metric, ...] = (
+    Metric("peak_pa", "peak interface pressure", "kPa", 1e-3, "Largest interface pressure on the skin: soft tissue over the skeleton on the rigid design, comparable with a pressure mat."),
+    Metric("seat_peak_pa", "seat peak", "kPa", 1e-3, "Largest interface pressure under the buttocks and thighs."),
+    Metric("mean_loaded_pa", "mean loaded pressure", "kPa", 1e-3, "Mean interface pressure over the loaded skin."),
+    Metric("contact_area_m2", "loaded area", "cm²", 1e4, "Skin area that carries load."),
+    Metric("max_joint_moment_nm", "max. moment", "N m", 1.0, "Largest joint moment with this contact."),
+    Metric("max_compression_m", "max. compression", "mm", 1000.0, "Deepest compression of the soft tissue."),
+    Metric("max_strain", "max. strain", "%", 100.0, "Deepest compression as a share of the tissue's thickness there."),
+    Metric("youngs_modulus_pa", "Young's modulus", "kPa", 1e-3, "Stiffness of the soft tissue the model assumes."),
+    Metric("solve_seconds", "solve time", "s", 1.0, "Time of the solve."),
 )
 
 #: The heading of the tables' quantity column.

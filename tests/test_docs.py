@@ -216,7 +216,7 @@ def test_every_docs_command_works_as_written_in_a_fresh_folder(tmp_path):
 
 def _assert_metrics_documented(metrics: dict) -> None:
     """Every per-person figure and dimension of report.json is named in seatkit.metrics (so in the reference page)."""
-    from seatkit.metrics import DIMENSIONS, OTHER, TABLE
+    from seatkit.metrics import DIMENSIONS, INTERFACE, OTHER, PERSON_FIT, TABLE
 
     named = {m.key for m in TABLE + OTHER} | {"supported", "reason"}
     for person in metrics["ours"] + metrics.get("baseline", []):
@@ -224,3 +224,7 @@ def _assert_metrics_documented(metrics: dict) -> None:
     assert {m.key for m in TABLE} <= set(metrics["ours"][0])
     for dims in metrics["dimensions"]:
         assert set(dims) == {m.key for m in DIMENSIONS}
+    for fit in metrics["person_fit"]:  # the seat's own dimensions, the person's, the standard and the raw measurements
+        assert {m.key for m in PERSON_FIT} <= set(fit) - {"standard", "measurements"} <= {m.key for m in DIMENSIONS + PERSON_FIT}
+    for figures in metrics["interface"]:  # the figures, the model's name and meaning, the load shares and friction
+        assert set(figures) - {"supported", "model", "meaning", "load_share", "friction"} == {m.key for m in INTERFACE}

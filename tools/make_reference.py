@@ -285,7 +285,7 @@ def recipe_page() -> str:
 
 
 def metrics_page() -> str:
-    from seatkit.metrics import CHECKS, DIMENSIONS, OTHER, PAPER_TABLE1
+    from seatkit.metrics import CHECKS, DIMENSIONS, INTERFACE, OTHER, PAPER_TABLE1, PERSON_FIT
 
     def table(metrics) -> list[str]:
         out = ["| key in `report.json` | label | shown in | meaning |", "|---|---|---|---|"]
@@ -323,6 +323,19 @@ def metrics_page() -> str:
         "`metrics.dimensions[i]`: where the final surface carries person i (`null` when it does not carry them on the seat).",
         "",
         *table(DIMENSIONS),
+        "## The seat beside the person",
+        "",
+        "`metrics.person_fit[i]`: the seat's height, depth and width (as above) beside person i's own dimensions, by the",
+        "relations of ANSI/HFES 100 (`standard`), with all the person's `measurements` ([bodies](../bodies.md)).",
+        "",
+        *table(PERSON_FIT),
+        "## Interface pressure (soft-tissue model)",
+        "",
+        "`metrics.interface[i]`: person i on our design by the soft-tissue contact model ([physics](../physics.md)), not the",
+        "paper's: a pressure comparable with a pressure mat on a hard seat. Also `load_share` (`seat`, `back`, `feet`, `arms`:",
+        "fractions of the body weight) and `friction`; `supported: false` and a `reason` when the model cannot hold the person.",
+        "",
+        *table(INTERFACE),
     ]
     return "\n".join(lines).rstrip() + "\n"
 
