@@ -295,34 +295,6 @@ class OffersLastResort(Protocol):
     def last_resort_fits(self, bodies: Sequence[Body], pressures: Sequence[PressureField], *, params: Mapping[str, Any] | None = None, seed: int = 0) -> Iterator[ControlMesh]: ...
 
 
-@runtime_checkable
-class RepairsFaces(Protocol):
-    """A template step that can repair the faces the engine's final check names (the clearance step); True when it changed the grid."""
-
-    def repair(self, state: Any, faces: Sequence[int], *, options: Mapping[str, Any]) -> bool: ...
-
-
-@runtime_checkable
-class WallsInsideHands(Protocol):
-    """A template step that can put walls inside enclosed body parts (``enclosed``: vertex indices per person); True when it changed the grid."""
-
-    def repair_enclosure(self, state: Any, enclosed: Sequence, *, options: Mapping[str, Any], every_row: bool = False) -> bool: ...
-
-
-@runtime_checkable
-class HasFallback(Protocol):
-    """An optional template step that says what doing without it means when the engine drops it (no-backrest)."""
-
-    def fallback(self, state: Any, *, options: Mapping[str, Any]) -> None: ...
-
-
-@runtime_checkable
-class HasLastResort(Protocol):
-    """A template step with a last-resort change: ``has_last_resort(options)`` says whether these options ask for one."""
-
-    def has_last_resort(self, options: Mapping[str, Any]) -> bool: ...
-
-
 #: Component kinds, by the registration hook that returns them.
 COMPONENT_KINDS: dict[str, type] = {
     "body_model": BodyModel,
@@ -332,3 +304,16 @@ COMPONENT_KINDS: dict[str, type] = {
     "refiner": Refiner,
     "exporter": Exporter,
 }
+
+
+#: A template step's optional capabilities (:mod:`seatkit.template.capabilities`), offered here with the
+#: other interfaces; imported on first use so that importing this module stays light.
+_STEP_CAPABILITIES = ("RepairsFaces", "WallsInsideHands", "HasFallback", "HasLastResort")
+
+
+def __getattr__(name: str) -> Any:
+    if name in _STEP_CAPABILITIES:
+        from seatkit.template import capabilities
+
+        return getattr(capabilities, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

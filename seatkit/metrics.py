@@ -125,7 +125,6 @@ INTERFACE: tuple[Metric, ...] = (
     Metric("max_compression_m", "max. compression", "mm", 1000.0, "Deepest compression of the soft tissue."),
     Metric("max_strain", "max. strain", "%", 100.0, "Deepest compression as a share of the tissue's thickness there."),
     Metric("youngs_modulus_pa", "Young's modulus", "kPa", 1e-3, "Stiffness of the soft tissue the model assumes."),
-    Metric("solve_seconds", "solve time", "s", 1.0, "Time of the solve."),
 )
 
 #: The heading of the tables' quantity column.

@@ -251,7 +251,7 @@ def test_report_opens_offline_and_draws_the_3d_view(browser, tmp_path):
     blue = (flat[:, 2] > flat[:, 0] + 30) & (flat[:, 2] > 120)
     assert blue.mean() > 0.005, "the limit surface (blue) is not visible"
     html = path.read_text()
-    assert "Evaluation (the paper's Table 1)" in html
+    assert "Evaluation: the paper's Table 1 quantities and two checks" in html
     assert "cdn.plot.ly/plotly" not in html and "<script src=" not in html
 
 

@@ -474,5 +474,4 @@ def interface_figures(body, field) -> dict:
         "max_compression_m": field.params["max_compression_m"],
         "max_strain": field.params["max_strain"],
         "youngs_modulus_pa": field.params["youngs_modulus_pa"],
-        "solve_seconds": field.solve_seconds,
     }

@@ -26,8 +26,8 @@ from typing import Any, Iterator, Mapping, Sequence
 import numpy as np
 
 from seatkit.errors import InputError, ParamError, RecipeError, UnsupportedPoseError
-from seatkit.interfaces import HasFallback, HasLastResort, RepairsFaces, WallsInsideHands
 from seatkit.model import Body, ControlMesh, PressureField
+from seatkit.template.capabilities import HasFallback, HasLastResort, RepairsFaces, WallsInsideHands
 from seatkit.template.checks import check_cage, enclosed_parts
 from seatkit.template.grid import Block, FaceState, FitState, GridMesh, segment_of_vertex
 from seatkit.template.options import check_step_options, did_you_mean
