@@ -118,6 +118,7 @@ def main() -> None:
     ap.add_argument("--body", default="default-male")
     ap.add_argument("--presets", action="store_true", help="experiment 1 on every preset body")
     ap.add_argument("--poses", action="store_true", help="the soft-tissue figures on the chair built for every library pose")
+    ap.add_argument("--bodies", action="store_true", help="the soft-tissue figures on the chair built for every body, upright and reclined")
     args = ap.parse_args()
     pm = get_plugin_manager()
     if args.poses or args.bodies:

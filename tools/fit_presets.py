@@ -8,8 +8,10 @@ ANSUR II public release, Gordon et al. 2014; millimetres, ``weightkg`` in
 tenths of a kilogram), takes the 5th, 50th and 95th percentile of each
 measurement (numpy's default linear interpolation, unweighted), and finds
 the parametric model's inputs whose *measured* sitting height, hip breadth
-(sitting) and buttock-knee length (``seatkit.body.measure``) equal the
-survey's, by a few fixed-point steps per measurement. Writes
+(sitting), buttock-knee length, popliteal height, knee height sitting and
+buttock-popliteal length (``seatkit.body.measure``) equal the survey's: the
+first four by a few fixed-point steps, the last two through the knee's two
+depth scales (``knee_depth``, ``calf_depth``) by a secant step each. Writes
 ``seatkit/data/bodies/presets.yaml``. With ``--percentiles BODIES`` it
 writes nothing and prints, for each body, its measurements and the share
 of the survey's people of its sex below each (unweighted), the table of
@@ -68,19 +70,56 @@ def survey(folder: Path) -> tuple[dict, dict]:
     return out, files
 
 
-def fit(name: str, fig: dict) -> dict:
+#: The knee's two depth scales and the survey figure each is fitted to.
+KNEE = {"knee_depth": "knee_height_sitting", "calf_depth": "buttock_popliteal_length"}
+#: Seated, about how much of the knee's thickness (knee height sitting less popliteal height) and depth
+#: (buttock-knee less buttock-popliteal length) a unit of ``knee_depth`` and ``calf_depth`` moves:
+#: the first step's slope, measured on the presets; later steps use the secant.
+KNEE_GAIN = {"knee_depth": 0.6, "calf_depth": 0.45}
+
+
+def _knee_sizes(m: dict) -> dict:
+    """The knee's seated thickness and depth, m: what ``knee_depth`` and ``calf_depth`` set."""
+    return {
+        "knee_depth": m["knee_height_sitting"] - m["popliteal_height"],
+        "calf_depth": m["buttock_knee_length"] - m["buttock_popliteal_length"],
+    }
+
+
+def fit(name: str, fig: dict, steps: int = 30) -> dict:
+    """The model's inputs whose measured body matches the survey: sitting height, hip breadth, buttock-knee
+    length and popliteal height to 0.1 %, knee height sitting and buttock-popliteal length to 0.2 %.
+
+    The four lengths by a fixed point on their ratio to the survey; the two knee scales by a secant step
+    each on the knee's thickness and depth (their slopes start from :data:`KNEE_GAIN`).
+    """
     from seatkit.body.measure import measure_rig
     from seatkit.body.parametric import make_parametric_body
 
     sex = name.split("-")[1]
-    inputs = {k: fig[k] for k in MEASURED}
-    for _ in range(10):
+    inputs = {k: fig[k] for k in MEASURED} | {k: 1.0 for k in KNEE}
+    want = {"knee_depth": fig["knee_height_sitting"] - fig["popliteal_height"]}
+    want["calf_depth"] = fig["buttock_knee"] - fig["buttock_popliteal_length"]
+    previous = None
+    for _ in range(steps):
         rig = make_parametric_body(sex, stature=fig["stature"], mass=fig["mass"], **inputs)
         m = measure_rig(rig).as_dict()
         err = {k: m[MEASURED[k]] / fig[k] - 1.0 for k in MEASURED}
-        if max(abs(e) for e in err.values()) < 1e-3:
+        knee_err = {k: m[figure] / fig[figure] - 1.0 for k, figure in KNEE.items()}
+        if max(abs(e) for e in err.values()) < 1e-3 and max(abs(e) for e in knee_err.values()) < 2e-3:
             break
-        inputs = {k: inputs[k] / (1.0 + err[k]) for k in MEASURED}
+        sizes = _knee_sizes(m)
+        update = {k: inputs[k] / (1.0 + err[k]) for k in MEASURED}
+        for k in KNEE:
+            slope = KNEE_GAIN[k] * sizes[k]
+            if previous is not None and abs(inputs[k] - previous[0][k]) > 1e-4:
+                secant = (sizes[k] - previous[1][k]) / (inputs[k] - previous[0][k])
+                slope = secant if secant > 0.1 * slope else slope
+            update[k] = float(min(max(inputs[k] + (want[k] - sizes[k]) / slope, 0.55), 1.45))
+        previous = (dict(inputs), sizes)
+        inputs = update
+    else:
+        raise SystemExit(f"{name}: the fit did not converge in {steps} steps ({err}, {knee_err})")
     return {k: round(float(v), 5) for k, v in inputs.items()}, m
 
 

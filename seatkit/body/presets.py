@@ -4,9 +4,10 @@
 holds, per preset, the survey's 5th, 50th or 95th percentile figures (ANSUR
 II public data, Gordon et al. 2014; unweighted percentiles of the public
 release) and the parametric model's inputs fitted so that the body's
-*measured* sitting height, hip breadth (sitting), buttock-knee length and
-popliteal height (:mod:`seatkit.body.measure`) equal the survey's; stature
-and mass are the survey's directly. See ``docs/bodies.md``.
+*measured* sitting height, hip breadth (sitting), buttock-knee length,
+popliteal height, knee height sitting and buttock-popliteal length
+(:mod:`seatkit.body.measure`) equal the survey's; stature and mass are the
+survey's directly. See ``docs/bodies.md``.
 """
 
 from __future__ import annotations
@@ -57,8 +58,8 @@ TABLE_ROWS = (
     ("hip_breadth_sitting", "hip_breadth", "hip breadth, sitting"),
     ("buttock_knee_length", "buttock_knee", "buttock-knee length"),
     ("popliteal_height", "popliteal_height", "popliteal height"),
-    ("knee_height_sitting", "knee_height_sitting", "knee height, sitting (not fitted)"),
-    ("buttock_popliteal_length", "buttock_popliteal_length", "buttock-popliteal length (not fitted)"),
+    ("knee_height_sitting", "knee_height_sitting", "knee height, sitting"),
+    ("buttock_popliteal_length", "buttock_popliteal_length", "buttock-popliteal length"),
     ("thigh_clearance", "thigh_clearance", "thigh clearance (not fitted)"),
     ("elbow_rest_height", "elbow_rest_height", "elbow rest height (not fitted)"),
     ("waist_circumference", "waist_circumference", "waist circumference (not fitted)"),
