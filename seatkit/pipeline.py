@@ -167,6 +167,9 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
     with timer.stage("pressure"):
         pressures = solve_importance(recipe, bodies, registry)
+    if recipe.get("sitters"):  # one seat for several sitters: each pelvis on one seat pan (seatkit.sitters)
+        with timer.stage("pressure"):
+            bodies, pressures = _seat_sitters(recipe, bodies, pressures, registry)
 
     template = registry.get("template", recipe["template"])
     if recipe.get("sitters"):  # one seat for several sitters (seatkit.sitters)
@@ -223,6 +226,20 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
             run_structure(result)
     return result
+
+
+def _seat_sitters(recipe, bodies, pressures, registry) -> tuple[list, list]:
+    """The sitters on one seat pan, with the importance of those lifted off the floor solved again (:mod:`seatkit.sitters`)."""
+    from seatkit.sitters import align_sitters, lifted_importance
+
+    p = recipe["pressure"]
+    solver = registry.get("pressure_solver", p["solver"])
+    seated, moves = align_sitters(bodies, pressures)
+
+    def solve(body, contact):
+        return solver.solve(body, contact=contact, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
+
+    return seated, lifted_importance(seated, moves, pressures, solve, floor_distance=recipe["evaluate"]["support_distance"])
 
 
 def design_only(recipe: Recipe, registry) -> BuildResult:

@@ -554,16 +554,20 @@ def check_recipe(recipe: Mapping, registry, *, document: Document | None = None)
 def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
     """:func:`check_recipe`'s checks."""
 
-    def from_document(path) -> bool:
-        """Whether the value at ``path`` is the one the file gave (not a flag's)."""
+    def from_document(path, doc_path=None) -> bool:
+        """Whether the value at ``path`` is the one the file gave at ``doc_path`` (default ``path``; not a flag's)."""
         if document is None:
             return False
         node_doc, node_rec = document.data, recipe
         try:
             for part in path:
-                node_doc, node_rec = node_doc[part], node_rec[part]
+                node_rec = node_rec[part]
+            for part in path if doc_path is None else doc_path:
+                node_doc = node_doc[part]
         except (KeyError, IndexError, TypeError):
             return False
+        if doc_path is not None and len(doc_path) < len(path):  # a population's own key: a manikin's value comes from it
+            return True
         if isinstance(node_rec, dict) and "name" in node_rec:  # a refiner: written as a name or {name, params}
             node_doc = node_doc.get("name") if isinstance(node_doc, dict) else node_doc
             node_rec = node_rec["name"]
@@ -572,10 +576,10 @@ def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
         return node_doc == node_rec or (isinstance(node_doc, str) and looks_like_path(node_doc))
 
     def fail(path, message):
-        path = _sitters_path(recipe, document, tuple(path))
-        if from_document(path):
-            raise document.error(path, message)
-        raise RecipeError(f"{format_path(path)}: {message}")
+        where = _sitters_path(recipe, document, tuple(path))
+        if from_document(tuple(path), where):
+            raise document.error(where, message)
+        raise RecipeError(f"{format_path(where)}: {message}")
 
     def need(kind, name, path):
         try:

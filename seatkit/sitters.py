@@ -7,15 +7,24 @@ side by side (that is a bench); each is brought into the template's frame
 (:mod:`seatkit.body.frame`) and then placed where a person sits on a seat:
 
 - **placement** (:func:`align_sitters`): every sitter is moved rigidly so
-  that the underside of the pelvis (the lowest vertex of the ``Hips``
-  segment: the seat contact) is at one height and its back (the rearmost
-  ``Hips`` vertex: where the backrest meets the pelvis) at one depth. The
-  common height is the highest sitter's, so nobody is moved below the
-  floor; the common depth is their mean. The canonical frame alone keeps
-  each body on the floor with its hip joints above the origin, which puts a
-  5th-percentile woman's buttocks 15 cm below a 95th-percentile man's: no
-  seat could hold both. Seated people share a seat pan and a backrest, not
-  a floor position (the seat reference point of seating standards).
+  that their pelvis meets the seat at one point: the underside of the
+  pelvis (the lowest vertex of the ``Hips`` segment) at one height, and the
+  centre of the pelvis's load (the importance-weighted mean depth of its
+  loaded vertices: the ischial tuberosities upright, towards the sacrum
+  reclined) at one depth. The common height is the highest sitter's, so
+  nobody is moved below the floor; the common depth is their mean. The
+  canonical frame alone keeps each body on the floor with its hip joints
+  above the origin, which puts a 5th-percentile woman's buttocks 15 cm
+  below a 95th-percentile man's: no seat could hold both. Seated people
+  share a seat pan, not a floor position (the seat reference point of
+  seating standards). The depth was chosen over the rearmost pelvis vertex
+  (the pelvis against one backrest line) by the rate over drawn triples of
+  presets and poses (docs/sitters.md).
+- **lifted off the floor** (:func:`lifted_importance`): a sitter raised
+  to the common seat height has feet that no longer reach the floor; their
+  importance is solved again without the parts that rested on it, so the
+  seat and back carry what the feet carried (and the evaluation does not
+  ask the seat to reach feet that hang in the air).
 - **importance** (:func:`shared_sitter`): each sitter's importance map is
   normalised to its own peak (so a 50 kg sitter counts as much as a 110 kg
   one) and the template is fitted to one *virtual sitter* whose skin is the
@@ -56,7 +65,7 @@ preset bodies ``p5-female`` ... ``p95-male`` (:func:`expand_population`).
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 import numpy as np
 
@@ -70,6 +79,7 @@ __all__ = [
     "SharedTemplate",
     "align_sitters",
     "expand_population",
+    "lifted_importance",
     "seat_reference",
     "shared_importance",
     "shared_sitter",
@@ -88,6 +98,9 @@ SEXES = {"f": "female", "female": "female", "m": "male", "male": "male"}
 SHARING_FIGURES = ("avg_distance_m", "max_penetration_m", "max_body_depth_m", "avg_pressure_pa", "max_pressure_pa", "avg_moment_nm", "supported")
 
 _HIPS = SEGMENT_INDEX["Hips"]
+
+#: Importance above which a pelvis vertex counts as loaded by the seat (:func:`seat_reference`): the surface fit's threshold.
+LOADED = 0.02
 
 
 def expand_population(spec: Mapping[str, Any], default_pose: str = "upright-sitting") -> list[dict]:
@@ -129,23 +142,68 @@ def expand_population(spec: Mapping[str, Any], default_pose: str = "upright-sitt
     return out
 
 
-def seat_reference(body: Body) -> np.ndarray:
-    """(2,) float64: the height of the pelvis's underside and the depth of its back (lowest and rearmost ``Hips`` vertex), m."""
-    hips = body.vertices[np.argmax(body.weights, axis=1) == _HIPS]
-    if len(hips) == 0:
-        hips = body.vertices
-    return np.array([hips[:, 1].min(), hips[:, 2].min()])
+def seat_reference(body: Body, pressure: PressureField) -> np.ndarray:
+    """(2,) float64: where a sitter's pelvis meets the seat: its underside's height and its load's depth, m.
+
+    The height is the lowest vertex of the ``Hips`` segment (the seat
+    contact); the depth is the importance-weighted mean depth (z) of the
+    ``Hips`` vertices the pressure loads (importance above
+    :data:`LOADED`): where the seat carries the pelvis (the ischial
+    tuberosities sitting upright, further back towards the sacrum
+    reclined). A pelvis that carries nothing keeps its hip joints' depth.
+    """
+    on = np.argmax(body.weights, axis=1) == _HIPS
+    if not on.any():
+        on = np.ones(len(body.vertices), bool)
+    height = float(body.vertices[on, 1].min())
+    importance = np.asarray(pressure.importance, dtype=np.float64)
+    loaded = on & (importance > LOADED)
+    depth = float(np.average(body.vertices[loaded, 2], weights=importance[loaded])) if loaded.any() else float(body.joints[_HIPS, 2])
+    return np.array([height, depth])
 
 
-def align_sitters(bodies: Sequence[Body]) -> tuple[list[Body], list[np.ndarray]]:
-    """The sitters moved to sit on one seat pan against one backrest (see the module doc), and each move (3,), m."""
+def align_sitters(bodies: Sequence[Body], pressures: Sequence[PressureField]) -> tuple[list[Body], list[np.ndarray]]:
+    """The sitters moved to sit on one seat pan (see the module doc), and each move (3,), m.
+
+    Every sitter's :func:`seat_reference` is moved to one point: the
+    highest sitter's seat height (nobody goes below the floor) and the
+    sitters' mean load depth. The pressure fields stay valid: the
+    importance does not depend on where the body is.
+    """
     bodies = list(bodies)
     if len(bodies) <= 1:
         return bodies, [np.zeros(3) for _ in bodies]
-    refs = np.array([seat_reference(b) for b in bodies])
+    refs = np.array([seat_reference(b, p) for b, p in zip(bodies, pressures)])
     height, depth = refs[:, 0].max(), refs[:, 1].mean()
     moves = [np.array([0.0, height - y, depth - z]) for y, z in refs]
     return [b.translated(m) for b, m in zip(bodies, moves)], moves
+
+
+def lifted_importance(bodies: Sequence[Body], moves: Sequence[np.ndarray], pressures: Sequence[PressureField], solve: Callable, *, floor_distance: float) -> list[PressureField]:
+    """Each sitter's importance once seated: a sitter lifted off the floor cannot push on it.
+
+    A sitter whose seat contact is lower than the highest sitter's is lifted
+    by :func:`align_sitters` (a small woman on a tall man's seat height): the
+    parts that rested on the floor (within ``floor_distance`` of it before
+    the lift: the feet) hang in the air. That sitter's importance is solved
+    again (``solve(body, contact)``) with those parts out of the contact set,
+    so the weight they carried goes to the seat and the back, as it does
+    when feet dangle. A sitter lifted less than ``floor_distance``, or whom
+    the rest of the body cannot hold (standing), keeps the first solve.
+    """
+    from seatkit.errors import InfeasibleSupportError
+
+    out = []
+    for body, move, pressure in zip(bodies, moves, pressures):
+        on_floor = body.vertices[:, 1] - move[1] <= floor_distance
+        if move[1] <= floor_distance or not on_floor.any():
+            out.append(pressure)
+            continue
+        try:
+            out.append(solve(body, ~on_floor))
+        except InfeasibleSupportError:
+            out.append(pressure)
+    return out
 
 
 def shared_importance(pressures: Sequence[PressureField]) -> np.ndarray:
