@@ -70,6 +70,7 @@ from typing import Any, Callable, Iterator, Mapping, Sequence
 import numpy as np
 
 from seatkit.errors import RecipeError
+from seatkit.metrics import TABLE
 from seatkit.model import Body, ControlMesh, PressureField
 from seatkit.skeleton import SEGMENT_INDEX
 
@@ -94,8 +95,8 @@ POPULATIONS: dict[str, dict] = {
 #: How a recipe may name a sex: the short and the long form.
 SEXES = {"f": "female", "female": "female", "m": "male", "male": "male"}
 
-#: The figures of each sitter that ``metrics.sharing`` puts side by side.
-SHARING_FIGURES = ("avg_distance_m", "max_penetration_m", "max_body_depth_m", "avg_pressure_pa", "max_pressure_pa", "avg_moment_nm", "supported")
+#: The figures of each sitter that ``metrics.sharing`` puts side by side: the report's Table 1 and checks, and whether the design holds the sitter.
+SHARING_FIGURES = tuple(m.key for m in TABLE) + ("supported",)
 
 _HIPS = SEGMENT_INDEX["Hips"]
 
