@@ -188,3 +188,22 @@ def test_any_sitters_value_is_a_recipe_or_one_clear_error(value):
         assert "\n" not in str(e).strip()
         return
     assert recipe["sitters"]["shared"] is True and len(recipe["bodies"]) >= 1
+
+
+def test_a_sitter_lifted_off_the_floor_hangs_the_feet_and_the_seat_carries_the_weight(registry):
+    from seatkit.constants import GRAVITY
+    from seatkit.pipeline import _seat_sitters
+
+    recipe = check_recipe(load_recipe({"template": "chair", "sitters": THREE[:2]})[0], registry)
+    bodies, _ = place_bodies(recipe, registry)
+    first = solve_importance(recipe, bodies, registry)
+    seated, pressures = _seat_sitters(recipe, bodies, first, registry)
+    woman, man = 0, 1
+    lift = seated[woman].vertices[:, 1] - bodies[woman].vertices[:, 1]
+    assert lift.min() > 0.1  # the small woman sits on the large man's seat height
+    on_floor = bodies[woman].vertices[:, 1] <= recipe["evaluate"]["support_distance"]
+    assert on_floor.sum() > 100 and first[woman].normal_force[on_floor].sum() > 0.05 * bodies[woman].mass * GRAVITY  # her feet carried weight
+    assert np.abs(pressures[woman].force[on_floor]).max() == 0.0  # nothing under the hanging feet
+    # the rest of her body still holds all her weight
+    assert pressures[woman].force[:, 1].sum() == pytest.approx(bodies[woman].mass * GRAVITY, rel=1e-3)
+    assert pressures[man] is first[man]  # the highest seat contact is not lifted: his first solve stands
