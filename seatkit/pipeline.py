@@ -169,7 +169,7 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         pressures = solve_importance(recipe, bodies, registry)
     if recipe.get("sitters"):  # one seat for several sitters: each pelvis on one seat pan (seatkit.sitters)
         with timer.stage("pressure"):
-            bodies, pressures = _seat_sitters(recipe, bodies, pressures, registry)
+            bodies, pressures, moves = _seat_sitters(recipe, bodies, pressures, registry)
 
     template = registry.get("template", recipe["template"])
     if recipe.get("sitters"):  # one seat for several sitters (seatkit.sitters)
@@ -219,7 +219,7 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
                 from seatkit.sitters import sharing_metrics
 
                 own = own_designs(recipe, registry)
-                result.metrics["sharing"] = sharing_metrics(result.metrics["ours"], own, [b.name for b in bodies])
+                result.metrics["sharing"] = sharing_metrics(result.metrics["ours"], own, [b.name for b in bodies], moves)
     if recipe.get("structure", {}).get("enabled"):
         with timer.stage("structure"):
             from seatkit.structure.build import run_structure
@@ -228,8 +228,8 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     return result
 
 
-def _seat_sitters(recipe, bodies, pressures, registry) -> tuple[list, list]:
-    """The sitters on one seat pan, with the importance of those lifted off the floor solved again (:mod:`seatkit.sitters`)."""
+def _seat_sitters(recipe, bodies, pressures, registry) -> tuple[list, list, list]:
+    """The sitters on one seat pan, with the importance of those lifted off the floor solved again, and each sitter's move (:mod:`seatkit.sitters`)."""
     from seatkit.sitters import align_sitters, lifted_importance
 
     p = recipe["pressure"]
@@ -239,7 +239,7 @@ def _seat_sitters(recipe, bodies, pressures, registry) -> tuple[list, list]:
     def solve(body, contact):
         return solver.solve(body, contact=contact, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
 
-    return seated, lifted_importance(seated, moves, pressures, solve, floor_distance=recipe["evaluate"]["support_distance"])
+    return seated, lifted_importance(seated, moves, pressures, solve, floor_distance=recipe["evaluate"]["support_distance"]), moves
 
 
 def design_only(recipe: Recipe, registry) -> BuildResult:

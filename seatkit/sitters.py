@@ -307,11 +307,11 @@ class SharedTemplate:
             yield _shared_cage(cage, len(bodies))
 
 
-def sharing_metrics(shared: Sequence[Mapping], own: Sequence[Mapping], names: Sequence[str]) -> list[dict]:
-    """``metrics.sharing``: per sitter, the figures on the shared design, on their own design, and the cost (shared minus own)."""
+def sharing_metrics(shared: Sequence[Mapping], own: Sequence[Mapping], names: Sequence[str], moves: Sequence[np.ndarray]) -> list[dict]:
+    """``metrics.sharing``: per sitter, the move onto the shared seat (m, after the canonical frame), the figures on the shared design, on their own design, and the cost (shared minus own)."""
     rows = []
-    for name, ours, alone in zip(names, shared, own):
-        row: dict[str, Any] = {"sitter": name, "shared": {k: ours.get(k) for k in SHARING_FIGURES if k in ours}}
+    for name, ours, alone, move in zip(names, shared, own, moves):
+        row: dict[str, Any] = {"sitter": name, "seat_move_m": [float(x) for x in move], "shared": {k: ours.get(k) for k in SHARING_FIGURES if k in ours}}
         if "ours" in alone:
             row["own"] = {k: alone["ours"].get(k) for k in SHARING_FIGURES if k in alone["ours"]}
             a, b = ours.get("avg_distance_m"), alone["ours"].get("avg_distance_m")

@@ -103,6 +103,7 @@ def test_a_chair_for_a_small_woman_a_large_man_and_a_reclined_man_holds_all_thre
     assert set(np.unique(result.control_mesh.face_person)) == {-1}
     report = json.loads((out / "report.json").read_text())
     assert [r["sitter"] for r in report["metrics"]["sharing"]] == [f"{s['model']}:{s['pose']}" for s in THREE]
+    assert min(r["seat_move_m"][1] for r in report["metrics"]["sharing"]) == 0.0  # the highest seat contact stays on the floor
     page = (out / "report.html").read_text()
     assert "own design" in page
     for s in THREE:
@@ -197,7 +198,8 @@ def test_a_sitter_lifted_off_the_floor_hangs_the_feet_and_the_seat_carries_the_w
     recipe = check_recipe(load_recipe({"template": "chair", "sitters": THREE[:2]})[0], registry)
     bodies, _ = place_bodies(recipe, registry)
     first = solve_importance(recipe, bodies, registry)
-    seated, pressures = _seat_sitters(recipe, bodies, first, registry)
+    seated, pressures, moves = _seat_sitters(recipe, bodies, first, registry)
+    assert moves[1][1] == 0.0 and moves[0][1] > 0.1
     woman, man = 0, 1
     lift = seated[woman].vertices[:, 1] - bodies[woman].vertices[:, 1]
     assert lift.min() > 0.1  # the small woman sits on the large man's seat height
