@@ -53,6 +53,7 @@ __all__ = [
     "make_bodies",
     "output_target",
     "own_designs",
+    "seated_importance",
     "recipe_id",
     "solve_importance",
     "total_seconds",
@@ -230,16 +231,25 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
 def _seat_sitters(recipe, bodies, pressures, registry) -> tuple[list, list, list]:
     """The sitters on one seat pan, with the importance of those lifted off the floor solved again, and each sitter's move (:mod:`seatkit.sitters`)."""
-    from seatkit.sitters import align_sitters, lifted_importance
+    from seatkit.sitters import align_sitters
+
+    seated, moves = align_sitters(bodies, pressures)
+    return seated, seated_importance(recipe, seated, pressures, registry), moves
+
+
+def seated_importance(recipe, bodies, pressures, registry) -> list:
+    """``pressures`` of a shared design's seated sitters with those lifted off the floor solved again (:func:`seatkit.sitters.lifted_importance`); as they are for other recipes."""
+    if not recipe.get("sitters"):
+        return list(pressures)
+    from seatkit.sitters import lifted_importance
 
     p = recipe["pressure"]
     solver = registry.get("pressure_solver", p["solver"])
-    seated, moves = align_sitters(bodies, pressures)
 
     def solve(body, contact):
         return solver.solve(body, contact=contact, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
 
-    return seated, lifted_importance(seated, moves, pressures, solve, floor_distance=recipe["evaluate"]["support_distance"]), moves
+    return lifted_importance(bodies, pressures, solve, floor_distance=recipe["evaluate"]["support_distance"])
 
 
 def design_only(recipe: Recipe, registry) -> BuildResult:

@@ -23,7 +23,9 @@ Instead of ``bodies``, ``sitters`` lists people who share one seat (one
 design for all of them at the same place, :mod:`seatkit.sitters`): body
 entries without ``offset``, or ``{population: ansur-ii, percentiles: [5,
 50, 95], sexes: [f, m], pose: upright-sitting}`` for the survey's
-boundary manikins.
+boundary manikins. ``sitters: {shared: true}`` beside ``bodies`` says that
+those bodies share one seat (how a written recipe, report.json and
+design.npz record sitters).
 
 :func:`load_recipe` validates the shape against :data:`RECIPE_SCHEMA`, fills
 defaults, applies command-line overrides, then :func:`check_recipe` checks
@@ -147,8 +149,8 @@ RECIPE_SCHEMA: dict = {
                 "properties": {"model": _NAME, "params": _PARAMS, "pose": _PATH, "frame": _ranged("frame", "integer"), "name": _NAME},
             },
             "additionalProperties": False,
-            "required": ["population"],
             "properties": {
+                "shared": {"const": True},  # beside bodies: these bodies share one seat (how a written recipe records sitters)
                 "population": {"enum": ["ansur-ii"]},
                 "percentiles": {"type": "array", "minItems": 1, "items": {"enum": [5, 50, 95]}},
                 "sexes": {"type": "array", "minItems": 1, "items": {"enum": ["f", "m", "female", "male"]}},
@@ -233,7 +235,7 @@ class Recipe(Mapping):
     exporter_params: dict | None = None
     #: ``capture`` to write the geometry files in the capture's own frame; None (the default) for the canonical frame
     export_frame: str | None = None
-    #: ``{"shared": True, ...}`` when ``bodies`` are sitters of one seat (:mod:`seatkit.sitters`), None for people side by side
+    #: ``{"shared": True}`` (and a population's keys) when ``bodies`` are sitters of one seat (:mod:`seatkit.sitters`), None for people side by side
     sitters: dict | None = None
 
     @classmethod
@@ -299,13 +301,17 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
     recipe["evaluate"]["baseline_refiners"] = [_refiner_entry(r) for r in recipe["evaluate"]["baseline_refiners"]]
     people = data.get("bodies")
     if "sitters" in data:
-        people = data["sitters"]
+        sitters = data["sitters"]
         recipe["sitters"] = {"shared": True}
-        if isinstance(people, Mapping):  # a population's boundary manikins (seatkit.sitters)
+        if not isinstance(sitters, Mapping):
+            people = sitters
+        elif "population" in sitters:  # a population's boundary manikins (seatkit.sitters)
             from seatkit.sitters import expand_population
 
-            recipe["sitters"]["population"] = copy.deepcopy(dict(people))
-            people = expand_population(people, DEFAULT_POSE)
+            spec = {k: v for k, v in sitters.items() if k != "shared"}
+            recipe["sitters"].update(copy.deepcopy(spec))
+            if people is None:  # beside bodies (a written recipe), the bodies are the manikins already
+                people = expand_population(spec, DEFAULT_POSE)
     if people is not None:
         recipe["bodies"] = []
         for body in people:
@@ -404,8 +410,12 @@ def load_recipe(source: str | Path | Mapping | None = None) -> tuple[dict, Docum
     if not isinstance(doc.data, dict):
         raise doc.error((), f"a recipe must be a mapping of keys (template, bodies, ...), got {type(doc.data).__name__}")
     validate(doc, RECIPE_SCHEMA)
-    if "sitters" in doc.data and "bodies" in doc.data:
-        raise doc.error(("sitters",), "give bodies (people side by side) or sitters (people who share one seat), not both")
+    sitters = doc.data.get("sitters")
+    marker = isinstance(sitters, dict) and sitters.get("shared") is True
+    if sitters is not None and "bodies" in doc.data and not marker:
+        raise doc.error(("sitters",), "give bodies (people side by side) or sitters (people who share one seat), not both; or sitters: {shared: true} beside bodies")
+    if isinstance(sitters, dict) and "population" not in sitters and not (marker and "bodies" in doc.data):
+        raise doc.error(("sitters",), "expected a list of sitters (body entries), {population: ansur-ii, ...}, or {shared: true} beside bodies")
     if isinstance(doc.data.get("structure"), dict):
         from seatkit.structure.build import OPTIONS as STRUCTURE_OPTIONS
 

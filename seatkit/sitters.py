@@ -180,28 +180,30 @@ def align_sitters(bodies: Sequence[Body], pressures: Sequence[PressureField]) ->
     return [b.translated(m) for b, m in zip(bodies, moves)], moves
 
 
-def lifted_importance(bodies: Sequence[Body], moves: Sequence[np.ndarray], pressures: Sequence[PressureField], solve: Callable, *, floor_distance: float) -> list[PressureField]:
-    """Each sitter's importance once seated: a sitter lifted off the floor cannot push on it.
+def lifted_importance(bodies: Sequence[Body], pressures: Sequence[PressureField], solve: Callable, *, floor_distance: float) -> list[PressureField]:
+    """Each seated sitter's importance: a sitter lifted off the floor cannot push on it.
 
     A sitter whose seat contact is lower than the highest sitter's is lifted
-    by :func:`align_sitters` (a small woman on a tall man's seat height): the
-    parts that rested on the floor (within ``floor_distance`` of it before
-    the lift: the feet) hang in the air. That sitter's importance is solved
-    again (``solve(body, contact)``) with those parts out of the contact set,
-    so the weight they carried goes to the seat and the back, as it does
-    when feet dangle. A sitter lifted less than ``floor_distance``, or whom
-    the rest of the body cannot hold (standing), keeps the first solve.
+    by :func:`align_sitters` (a small woman on a tall man's seat height):
+    their lowest point is then above the floor, and the parts that rested on
+    it (within ``floor_distance`` of that lowest point: the feet) hang in the
+    air. That sitter's importance is solved again (``solve(body, contact)``)
+    with those parts out of the contact set, so the weight they carried goes
+    to the seat and the back, as it does when feet dangle. A sitter lifted
+    less than ``floor_distance``, or whom the rest of the body cannot hold
+    (standing), keeps ``pressures``' solve. Reads only the seated bodies, so
+    a design file's bodies give the same importance (``seatkit evaluate``).
     """
     from seatkit.errors import InfeasibleSupportError
 
     out = []
-    for body, move, pressure in zip(bodies, moves, pressures):
-        on_floor = body.vertices[:, 1] - move[1] <= floor_distance
-        if move[1] <= floor_distance or not on_floor.any():
+    for body, pressure in zip(bodies, pressures):
+        lift = float(body.vertices[:, 1].min())
+        if lift <= floor_distance:
             out.append(pressure)
             continue
         try:
-            out.append(solve(body, ~on_floor))
+            out.append(solve(body, body.vertices[:, 1] - lift > floor_distance))
         except InfeasibleSupportError:
             out.append(pressure)
     return out

@@ -117,9 +117,12 @@ def test_a_population_expands_to_its_boundary_manikins(registry):
     recipe, _ = load_recipe({"sitters": {"population": "ansur-ii"}})
     assert [b["model"] for b in recipe["bodies"]] == [f"p{q}-{s}" for s in ("female", "male") for q in (5, 50, 95)]
     assert {b["pose"] for b in recipe["bodies"]} == {"upright-sitting"}
-    assert recipe["sitters"]["population"] == {"population": "ansur-ii"}
+    assert recipe["sitters"] == {"shared": True, "population": "ansur-ii"}
     checked = check_recipe(recipe, registry)  # every manikin is a registered body
     assert len(checked["bodies"]) == 6
+    # a written recipe (report.json, design.npz) reads back as the same recipe
+    again, _ = load_recipe(json.loads(json.dumps(checked.to_dict())))
+    assert again == checked.to_dict()
 
 
 def _error(tmp_path, text: str) -> str:
@@ -134,11 +137,28 @@ def _error(tmp_path, text: str) -> str:
     return message
 
 
+def test_a_shared_design_is_evaluated_again_from_its_design_file(tmp_path):
+    from typer.testing import CliRunner
+
+    from seatkit.cli import app
+
+    out = tmp_path / "two"
+    recipe = {"template": "chair", "sitters": THREE[:2], "refiners": [], "exporters": ["design"], "output": str(out), "evaluate": {"baseline": None}}
+    built = build(recipe, processes=False)
+    res = CliRunner().invoke(app, ["evaluate", str(out), "--json"])
+    assert res.exit_code == 0, res.output
+    again = json.loads(res.output[res.output.index("{"):])
+    for a, b in zip(again["ours"], built.metrics["ours"]):
+        assert a["avg_distance_m"] == pytest.approx(b["avg_distance_m"], rel=1e-6)
+
+
 def test_recipe_mistakes_in_sitters_are_one_line_naming_file_and_field(tmp_path):
     assert "sitters" in _error(tmp_path, "sitters: [{model: p5-female}]\nbodies: [{model: p5-female}]\n")
     assert "sitters.percentiles" in _error(tmp_path, "sitters: {population: ansur-ii, percentiles: [5, 40]}\n")
     assert "sitters.sexes" in _error(tmp_path, "sitters: {population: ansur-ii, sexes: [x]}\n")
     assert "sitters.population" in _error(tmp_path, "sitters: {population: nhanes}\n")
+    assert "sitters" in _error(tmp_path, "sitters: {shared: true}\n")  # the marker needs bodies beside it
+    assert "sitters" in _error(tmp_path, "sitters: {percentiles: [5]}\n")
     assert "offset" in _error(tmp_path, "sitters: [{model: p5-female, offset: [0, 0, 0]}]\n")
     message = _error(tmp_path, "sitters:\n  - {model: p5-female}\n  - {model: p95-male, pose: no-such-pose}\n")
     assert "sitters[1].pose" in message and "no-such-pose" in message
