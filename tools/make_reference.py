@@ -206,6 +206,7 @@ RECIPE_MEANING = {
     "sitters[].pose": "library pose name, pose YAML or BVH path",
     "sitters[].frame": "BVH frame",
     "sitters[].name": "a label for the sitter",
+    "sitters.shared": "`true` beside `bodies`: those bodies share one seat (how report.json and design.npz write sitters)",
     "sitters.population": "the survey whose percentile manikins sit (`p5-female` ... `p95-male`)",
     "sitters.percentiles": "which percentiles (default 5, 50, 95)",
     "sitters.sexes": "`f`/`m` (or `female`/`male`; default both)",
