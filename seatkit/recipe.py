@@ -630,6 +630,9 @@ def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
             need("refiner", ref["name"], ("evaluate", "baseline_refiners", i))
             options_of("refiner", ref["name"], ("evaluate", "baseline_refiners", i), ref["params"], ("evaluate", "baseline_refiners", i, "params"))
     template = _get(registry, "template", recipe["template"])
+    people = getattr(getattr(template, "spec", None), "people", None)
+    if recipe.get("sitters") and people is not None and not people[0] <= 1 <= people[1]:
+        fail(("template",), f"sitters share one seat, so the template is fitted to one person; {recipe['template']!r} fits {people[0]} to {people[1]} (people side by side go under bodies)")
     if template is not None:
         try:
             template.check_params(recipe["template_params"])

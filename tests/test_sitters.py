@@ -159,6 +159,7 @@ def test_recipe_mistakes_in_sitters_are_one_line_naming_file_and_field(tmp_path)
     assert "sitters.population" in _error(tmp_path, "sitters: {population: nhanes}\n")
     assert "sitters" in _error(tmp_path, "sitters: {shared: true}\n")  # the marker needs bodies beside it
     assert "sitters" in _error(tmp_path, "sitters: {percentiles: [5]}\n")
+    assert "template" in _error(tmp_path, "template: bench\nsitters: [{model: p5-female}, {model: p95-male}]\n")
     assert "offset" in _error(tmp_path, "sitters: [{model: p5-female, offset: [0, 0, 0]}]\n")
     message = _error(tmp_path, "sitters:\n  - {model: p5-female}\n  - {model: p95-male, pose: no-such-pose}\n")
     assert "sitters[1].pose" in message and "no-such-pose" in message
