@@ -106,6 +106,9 @@ def build(
     mass: Optional[float] = typer.Option(None, "--mass", help="Body mass in kg (default the body's: 75 default-male, 55 default-female, a preset's)."),
     height: Optional[float] = typer.Option(None, "--height", help="Stature in m (parametric bodies: default-*, p5-female ... p95-male)."),
     frame: Optional[int] = typer.Option(None, "--frame", help="Frame of a BVH pose."),
+    sitter: List[str] = typer.Option(
+        [], "--sitter", help="BODY:POSE of a person who shares the one seat with the other --sitter people (repeatable; instead of --pose and --body)."
+    ),
     refiner: List[str] = typer.Option([], "--refiner", help="Refiner to run, in order (repeatable; replaces the recipe's)."),
     no_refiners: bool = typer.Option(False, "--no-refiners", help="Skip every refiner: export the template's cage."),
     exporter: List[str] = typer.Option([], "--exporter", help="Exporter to run (repeatable; replaces the default set)."),
@@ -162,8 +165,9 @@ def build(
         seed=seed,
         surface_level=level,
         export_frame=export_frame,
+        sitters=sitter or None,
     )
-    if merged["output"] is None and recipe is not None and not (template or pose or body or mass is not None or frame is not None):
+    if merged["output"] is None and recipe is not None and not (template or pose or body or sitter or mass is not None or frame is not None):
         merged["output"] = str(Path("seatkit-out") / recipe.stem)  # the recipe's design, named after it
 
     if structure or size_thickness or any(v is not None for v in (material, thickness, safety_factor, max_deflection)):

@@ -52,6 +52,8 @@ __all__ = [
     "fit_baseline",
     "make_bodies",
     "output_target",
+    "own_designs",
+    "seated_importance",
     "recipe_id",
     "solve_importance",
     "total_seconds",
@@ -166,8 +168,15 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
     with timer.stage("pressure"):
         pressures = solve_importance(recipe, bodies, registry)
+    if recipe.get("sitters"):  # one seat for several sitters: each pelvis on one seat pan (seatkit.sitters)
+        with timer.stage("pressure"):
+            bodies, pressures, moves = _seat_sitters(recipe, bodies, pressures, registry)
 
     template = registry.get("template", recipe["template"])
+    if recipe.get("sitters"):  # one seat for several sitters (seatkit.sitters)
+        from seatkit.sitters import SharedTemplate
+
+        template = SharedTemplate(template)
     with timer.stage("template"):
         cages = template_cages(template, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"])
         try:
@@ -206,12 +215,72 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
     if recipe["evaluate"]["enabled"]:
         evaluate_result(result, registry, timer, baseline=baseline)
+        if recipe.get("sitters"):
+            with timer.stage("own designs"):  # the cost of sharing: each sitter's design alone (seatkit.sitters)
+                from seatkit.sitters import sharing_metrics
+
+                own = own_designs(recipe, registry)
+                result.metrics["sharing"] = sharing_metrics(result.metrics["ours"], own, [b.name for b in bodies], moves)
     if recipe.get("structure", {}).get("enabled"):
         with timer.stage("structure"):
             from seatkit.structure.build import run_structure
 
             run_structure(result)
     return result
+
+
+def _seat_sitters(recipe, bodies, pressures, registry) -> tuple[list, list, list]:
+    """The sitters on one seat pan, with the importance of those lifted off the floor solved again, and each sitter's move (:mod:`seatkit.sitters`)."""
+    from seatkit.sitters import align_sitters
+
+    seated, moves = align_sitters(bodies, pressures)
+    return seated, seated_importance(recipe, seated, pressures, registry), moves
+
+
+def seated_importance(recipe, bodies, pressures, registry) -> list:
+    """``pressures`` of a shared design's seated sitters with those lifted off the floor solved again (:func:`seatkit.sitters.lifted_importance`); as they are for other recipes."""
+    if not recipe.get("sitters"):
+        return list(pressures)
+    from seatkit.sitters import lifted_importance
+
+    p = recipe["pressure"]
+    solver = registry.get("pressure_solver", p["solver"])
+
+    def solve(body, contact):
+        return solver.solve(body, contact=contact, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
+
+    return lifted_importance(bodies, pressures, solve, floor_distance=recipe["evaluate"]["support_distance"])
+
+
+def design_only(recipe: Recipe, registry) -> BuildResult:
+    """The design and evaluation of a checked recipe, in this process, nothing written (no baseline helper)."""
+    return _design(recipe, registry, StageTimer(), write=False, baseline_helper=None)
+
+
+def own_designs(recipe: Recipe, registry) -> list[dict]:
+    """Each sitter's figures on a design made for that sitter alone (same template, refiners, seed), or the reason there is none.
+
+    Returns one dict per sitter: ``ours`` (the Table 1 figures of
+    :func:`seatkit.evaluate.evaluate_person`) or ``refused`` (why the
+    template or the search refused the sitter alone).
+    """
+    from seatkit.errors import SeatkitError
+    from seatkit.recipe import check_recipe
+
+    out = []
+    for entry in recipe["bodies"]:
+        alone = recipe.to_dict() if hasattr(recipe, "to_dict") else dict(recipe)
+        alone.pop("sitters", None)
+        alone["bodies"] = [dict(entry)]
+        alone["evaluate"] = {**alone["evaluate"], "baseline": None, "interface_pressure": False}
+        alone.pop("structure", None)
+        try:
+            result = design_only(check_recipe(alone, registry), registry)
+        except SeatkitError as e:
+            out.append({"refused": str(e).splitlines()[0]})
+            continue
+        out.append({"ours": result.metrics["ours"][0]})
+    return out
 
 
 def _run_exporters(exporters: list, result: BuildResult, directory: Path, capture: BuildResult | None = None) -> list[dict]:

@@ -19,6 +19,14 @@ parameters::
     seed: 0
     export_frame: canonical         # or capture: geometry files in the capture's own frame
 
+Instead of ``bodies``, ``sitters`` lists people who share one seat (one
+design for all of them at the same place, :mod:`seatkit.sitters`): body
+entries without ``offset``, or ``{population: ansur-ii, percentiles: [5,
+50, 95], sexes: [f, m], pose: upright-sitting}`` for the survey's
+boundary manikins. ``sitters: {shared: true}`` beside ``bodies`` says that
+those bodies share one seat (how a written recipe, report.json and
+design.npz record sitters).
+
 :func:`load_recipe` validates the shape against :data:`RECIPE_SCHEMA`, fills
 defaults, applies command-line overrides, then :func:`check_recipe` checks
 that every named component, pose and file exists, before any geometry work.
@@ -97,6 +105,9 @@ _REFINER = {
     ]
 }
 
+#: The most sitters one shared design takes (each is designed alone too, for the cost of sharing).
+MAX_SITTERS = 12
+
 #: Frames the geometry files can be written in: the design's (each person
 #: facing +Z, centred; seatkit.body.frame) or the capture's own (one person).
 EXPORT_FRAMES = ("canonical", "capture")
@@ -124,6 +135,27 @@ RECIPE_SCHEMA: dict = {
                     "offset": {"type": "array", "items": _ranged("offset"), "minItems": 3, "maxItems": 3},
                     "name": _NAME,
                 },
+            },
+        },
+        # people who share one seat (seatkit.sitters): a list of body entries (no offset: they sit at one place),
+        # or a population's boundary manikins
+        "sitters": {
+            "type": ["array", "object"],
+            "minItems": 1,
+            "maxItems": MAX_SITTERS,
+            "items": {
+                "type": "object",
+                "additionalProperties": False,
+                "properties": {"model": _NAME, "params": _PARAMS, "pose": _PATH, "frame": _ranged("frame", "integer"), "name": _NAME},
+            },
+            "additionalProperties": False,
+            "properties": {
+                "shared": {"const": True},  # beside bodies: these bodies share one seat (how a written recipe records sitters)
+                "population": {"enum": ["ansur-ii"]},
+                "percentiles": {"type": "array", "minItems": 1, "items": {"enum": [5, 50, 95]}},
+                "sexes": {"type": "array", "minItems": 1, "items": {"enum": ["f", "m", "female", "male"]}},
+                "pose": _PATH,
+                "frame": _ranged("frame", "integer"),
             },
         },
         "placement": {
@@ -167,7 +199,7 @@ RECIPE_SCHEMA: dict = {
 
 
 #: Keys of a recipe that are present only when it has them.
-_OPTIONAL_KEYS = ("structure", "exporter_params", "export_frame")
+_OPTIONAL_KEYS = ("structure", "exporter_params", "export_frame", "sitters")
 
 
 @dataclass(frozen=True, eq=False)
@@ -203,6 +235,8 @@ class Recipe(Mapping):
     exporter_params: dict | None = None
     #: ``capture`` to write the geometry files in the capture's own frame; None (the default) for the canonical frame
     export_frame: str | None = None
+    #: ``{"shared": True}`` (and a population's keys) when ``bodies`` are sitters of one seat (:mod:`seatkit.sitters`), None for people side by side
+    sitters: dict | None = None
 
     @classmethod
     def from_normalised(cls, data: Mapping) -> "Recipe":
@@ -265,9 +299,22 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
     recipe["placement"] = dict(data.get("placement", {}))
     recipe["evaluate"].update(copy.deepcopy(data.get("evaluate", {})))
     recipe["evaluate"]["baseline_refiners"] = [_refiner_entry(r) for r in recipe["evaluate"]["baseline_refiners"]]
-    if "bodies" in data:
+    people = data.get("bodies")
+    if "sitters" in data:
+        sitters = data["sitters"]
+        recipe["sitters"] = {"shared": True}
+        if not isinstance(sitters, Mapping):
+            people = sitters
+        elif "population" in sitters:  # a population's boundary manikins (seatkit.sitters)
+            from seatkit.sitters import expand_population
+
+            spec = {k: v for k, v in sitters.items() if k != "shared"}
+            recipe["sitters"].update(copy.deepcopy(spec))
+            if people is None:  # beside bodies (a written recipe), the bodies are the manikins already
+                people = expand_population(spec, DEFAULT_POSE)
+    if people is not None:
         recipe["bodies"] = []
-        for body in data["bodies"]:
+        for body in people:
             entry = {"model": DEFAULT_BODY_MODEL, "params": {}, "pose": DEFAULT_POSE, "frame": 0}
             entry.update(copy.deepcopy(body))
             recipe["bodies"].append(entry)
@@ -363,6 +410,12 @@ def load_recipe(source: str | Path | Mapping | None = None) -> tuple[dict, Docum
     if not isinstance(doc.data, dict):
         raise doc.error((), f"a recipe must be a mapping of keys (template, bodies, ...), got {type(doc.data).__name__}")
     validate(doc, RECIPE_SCHEMA)
+    sitters = doc.data.get("sitters")
+    marker = isinstance(sitters, dict) and sitters.get("shared") is True
+    if sitters is not None and "bodies" in doc.data and not marker:
+        raise doc.error(("sitters",), "give bodies (people side by side) or sitters (people who share one seat), not both; or sitters: {shared: true} beside bodies")
+    if isinstance(sitters, dict) and "population" not in sitters and not (marker and "bodies" in doc.data):
+        raise doc.error(("sitters",), "expected a list of sitters (body entries), {population: ansur-ii, ...}, or {shared: true} beside bodies")
     if isinstance(doc.data.get("structure"), dict):
         from seatkit.structure.build import OPTIONS as STRUCTURE_OPTIONS
 
@@ -394,6 +447,16 @@ def parse_body_spec(spec: str) -> dict:
     return {"model": name, "params": params}
 
 
+def parse_sitter_spec(spec: str) -> dict:
+    """Turn a ``--sitter BODY:POSE`` argument into a recipe body entry (BODY as ``--body`` takes it; POSE after the last colon)."""
+    body, colon, pose = spec.rpartition(":")
+    if not colon or not body or not pose:
+        msg = f"--sitter {spec!r}: expected BODY:POSE, e.g. p5-female:upright-sitting"
+        raise RecipeError(msg)
+    entry = parse_body_spec(body)
+    return {**entry, "pose": pose, "frame": 0}
+
+
 def apply_overrides(
     recipe: dict,
     *,
@@ -414,6 +477,7 @@ def apply_overrides(
     evaluate: bool | None = None,
     baseline: str | None = None,
     export_frame: str | None = None,
+    sitters: list[str] | None = None,
 ) -> dict:
     """Return a copy of ``recipe`` (a normalised dict or a :class:`Recipe`) with command-line flags applied (flags win).
 
@@ -442,6 +506,11 @@ def apply_overrides(
                 base.pop("name", None)
             entries.append(base)
         r["bodies"] = entries
+    if sitters:
+        if poses or bodies:
+            raise RecipeError("--sitter designs one seat for several people: give it instead of --pose and --body, not with them")
+        r["bodies"] = [parse_sitter_spec(spec) for spec in sitters]
+        r["sitters"] = {"shared": True}
     for body in r["bodies"]:
         if mass is not None:
             body["params"]["mass"] = float(mass)
@@ -495,16 +564,20 @@ def check_recipe(recipe: Mapping, registry, *, document: Document | None = None)
 def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
     """:func:`check_recipe`'s checks."""
 
-    def from_document(path) -> bool:
-        """Whether the value at ``path`` is the one the file gave (not a flag's)."""
+    def from_document(path, doc_path=None) -> bool:
+        """Whether the value at ``path`` is the one the file gave at ``doc_path`` (default ``path``; not a flag's)."""
         if document is None:
             return False
         node_doc, node_rec = document.data, recipe
         try:
             for part in path:
-                node_doc, node_rec = node_doc[part], node_rec[part]
+                node_rec = node_rec[part]
+            for part in path if doc_path is None else doc_path:
+                node_doc = node_doc[part]
         except (KeyError, IndexError, TypeError):
             return False
+        if doc_path is not None and len(doc_path) < len(path):  # a population's own key: a manikin's value comes from it
+            return True
         if isinstance(node_rec, dict) and "name" in node_rec:  # a refiner: written as a name or {name, params}
             node_doc = node_doc.get("name") if isinstance(node_doc, dict) else node_doc
             node_rec = node_rec["name"]
@@ -513,9 +586,10 @@ def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
         return node_doc == node_rec or (isinstance(node_doc, str) and looks_like_path(node_doc))
 
     def fail(path, message):
-        if from_document(path):
-            raise document.error(path, message)
-        raise RecipeError(f"{format_path(path)}: {message}")
+        where = _sitters_path(recipe, document, tuple(path))
+        if from_document(tuple(path), where):
+            raise document.error(where, message)
+        raise RecipeError(f"{format_path(where)}: {message}")
 
     def need(kind, name, path):
         try:
@@ -556,6 +630,9 @@ def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
             need("refiner", ref["name"], ("evaluate", "baseline_refiners", i))
             options_of("refiner", ref["name"], ("evaluate", "baseline_refiners", i), ref["params"], ("evaluate", "baseline_refiners", i, "params"))
     template = _get(registry, "template", recipe["template"])
+    people = getattr(getattr(template, "spec", None), "people", None)
+    if recipe.get("sitters") and people is not None and not people[0] <= 1 <= people[1]:
+        fail(("template",), f"sitters share one seat, so the template is fitted to one person; {recipe['template']!r} fits {people[0]} to {people[1]} (people side by side go under bodies)")
     if template is not None:
         try:
             template.check_params(recipe["template_params"])
@@ -607,6 +684,15 @@ def _check_names(recipe: Mapping, registry, document: Document | None) -> None:
         if path is not None and not (isinstance(path, str) and _is_file(path)):
             fail(("bodies", i, "params", "path"), f"file not found: {quote(path)}")
         _check_pose(body["pose"], ("bodies", i, "pose"), fail, registry)
+
+
+def _sitters_path(recipe: Mapping, document: Document | None, path: tuple) -> tuple:
+    """Where a body entry's value came from when the bodies are ``sitters``: ``sitters[i]...``, or the population's own key."""
+    if not recipe.get("sitters") or not path or path[0] != "bodies" or document is None or "sitters" not in document.data:
+        return path
+    if isinstance(document.data["sitters"], Mapping):  # a population: its pose and frame are the mapping's
+        return ("sitters", path[2]) if len(path) > 2 and path[2] in ("pose", "frame") else ("sitters",)
+    return ("sitters", *path[1:])
 
 
 def _in_document(data, path) -> bool:

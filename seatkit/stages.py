@@ -104,7 +104,9 @@ def place_bodies(recipe: Mapping, registry) -> tuple[list[Body], list]:
 
 
 def _placed(recipe: Mapping, bodies: list[Body]) -> list[Body]:
-    """``bodies`` at their ``offset`` entries, or side by side (see :func:`place_bodies`)."""
+    """``bodies`` at their ``offset`` entries, or side by side (see :func:`place_bodies`); sitters of one seat as they are (the pipeline seats them once their pressure is known: :func:`seatkit.sitters.align_sitters`)."""
+    if recipe.get("sitters"):
+        return bodies
     offsets = [e.get("offset") for e in recipe["bodies"]]
     if all(o is not None for o in offsets):
         placed = [b.translated(o) for b, o in zip(bodies, offsets)]

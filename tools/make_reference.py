@@ -145,6 +145,8 @@ def _schema_type(schema: dict) -> str:
     if "enum" in schema:
         return "/".join(f"`{v}`" for v in schema["enum"])
     kind = schema.get("type", "any")
+    if isinstance(kind, list):  # one of several shapes (sitters: a list or a mapping)
+        return " or ".join(_schema_type({**schema, "type": k}) for k in kind)
     if kind == "array":
         item = _schema_type(schema.get("items", {}))
         size = schema.get("minItems")
@@ -198,6 +200,18 @@ RECIPE_MEANING = {
     "bodies[].name": "a label for this person in the report",
     "placement": "automatic spacing of several people",
     "placement.gap": "gap between neighbours, m",
+    "sitters": "instead of `bodies`: people who share one seat, one design for all of them at the same place ([sitters](../sitters.md)): body entries, or a population's boundary manikins",
+    "sitters[].model": "a registered body model",
+    "sitters[].params": "model parameters",
+    "sitters[].pose": "library pose name, pose YAML or BVH path",
+    "sitters[].frame": "BVH frame",
+    "sitters[].name": "a label for the sitter",
+    "sitters.shared": "`true` beside `bodies`: those bodies share one seat (how report.json and design.npz write sitters)",
+    "sitters.population": "the survey whose percentile manikins sit (`p5-female` ... `p95-male`)",
+    "sitters.percentiles": "which percentiles (default 5, 50, 95)",
+    "sitters.sexes": "`f`/`m` (or `female`/`male`; default both)",
+    "sitters.pose": "the pose of every manikin (default `upright-sitting`)",
+    "sitters.frame": "BVH frame of that pose",
     "pressure": "the pressure model (Section 4 of the paper; [physics](../physics.md))",
     "pressure.solver": "the registered pressure solver",
     "pressure.lambda": "weight of the joint moments against the reaction forces (`inf`: a rigid body)",
@@ -236,9 +250,10 @@ def _schema_rows(schema: dict, defaults, prefix: str = "", path=()) -> list[str]
             f"| `{dotted}` | {_cell(_schema_type(sub))} | {default} | "
             f"{_cell(RECIPE_MEANING.get(dotted, ''))} |"
         )
-        if sub.get("type") == "object" and "properties" in sub:
+        kinds = sub.get("type") if isinstance(sub.get("type"), list) else [sub.get("type")]
+        if "object" in kinds and "properties" in sub:
             rows += _schema_rows(sub, defaults, f"{dotted}.", (*path, key))
-        if sub.get("type") == "array" and "properties" in sub.get("items", {}):
+        if "array" in kinds and "properties" in sub.get("items", {}):
             rows += _schema_rows(sub["items"], defaults, f"{dotted}[].", (*path, key))
     return rows
 

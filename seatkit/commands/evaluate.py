@@ -50,7 +50,7 @@ def evaluate_folder(directory: Path, *, pm, baseline: str | None = "keep", suppo
     """
     from seatkit.constants import DEFAULT_SUPPORT_DISTANCE
     from seatkit.model import BuildResult
-    from seatkit.pipeline import evaluate_result, solve_importance
+    from seatkit.pipeline import evaluate_result, seated_importance, solve_importance
     from seatkit.subdivision import limit_surface
 
     recipe, bodies, mesh, initial = load_checked_design(Path(directory) / "design.npz")
@@ -60,7 +60,7 @@ def evaluate_folder(directory: Path, *, pm, baseline: str | None = "keep", suppo
     if support_distance is not None:
         ev["support_distance"] = support_distance
     registry = pm.registry
-    pressures = solve_importance(recipe, bodies, registry)
+    pressures = seated_importance(recipe, bodies, solve_importance(recipe, bodies, registry), registry)  # sitters lifted off the floor (seatkit.sitters)
     result = BuildResult(
         recipe=recipe,
         bodies=bodies,

@@ -84,6 +84,12 @@ BACKGROUND = pic.BACKGROUND
 #: What the pictures call the paper's model on the body alone, and on the design (both relative importance, Pa).
 IMPORTANCE_TITLE = "Relative importance (the paper's model, supported everywhere; not an interface pressure)"
 CONTACT_LABEL = "relative importance on the design (paper's model)"
+#: What the report says of a shared design's "own design" column (seatkit.sitters).
+SHARING_NOTE = (
+    "One seat for all the sitters: each sitter's figures on it (ours), on the flat patch fitted to all of them, "
+    "and on the design made for that sitter alone with the same template and seed (own design): the cost of sharing."
+)
+
 #: What the report says of the Table 1 figures.
 TABLE1_NOTE = (
     "The paper's Table 1 quantities: its model re-solved on the body's contact with each design; "
@@ -458,8 +464,12 @@ def _fmt(value, scale: float, unit: str) -> str:
     return f"{value * scale:.2f} {unit}"
 
 
-def table_rows(metrics: dict, people=None) -> tuple[list[tuple[str, list[str], list[str]]], list[str]]:
+def table_rows(metrics: dict, people=None, *, own: bool = False) -> tuple[list[tuple], list[str]]:
     """The Table 1 figures per person, formatted with units.
+
+    With ``own``, a shared design's rows (``metrics["sharing"]``, one seat
+    for several sitters: :mod:`seatkit.sitters`) have a third column: the
+    sitter's figures on the design made for that sitter alone.
 
     ``people`` labels the persons (:func:`person_labels`); default
     ``person N``. The pictures, the HTML report and ``seatkit evaluate``
@@ -491,8 +501,17 @@ def table_rows(metrics: dict, people=None) -> tuple[list[tuple[str, list[str], l
                 cells.append(["not supported" if k not in geometric else _fmt(person.get(k), s, u) for k, _, u, s in cols])
             else:
                 cells.append([_fmt(person.get(k), s, u) for k, _, u, s in cols])
+        if own and metrics.get("sharing"):
+            alone = metrics["sharing"][i] if i < len(metrics["sharing"]) else {}
+            figures = alone.get("own") or {}
+            cells.append([_fmt(figures.get(k), s, u) if figures else "refused" for k, _, u, s in cols])
         rows.append((people[i] if people and i < len(people) else f"person {i + 1}", *cells))
     return rows, [label for _, label, _, _ in cols]
+
+
+def _table_head(metrics: dict, baseline: str) -> tuple:
+    """Titles of :func:`table_rows`' value columns with ``own``: ours, the baseline, and a shared design's "own design"."""
+    return ("ours", baseline, "own design") if metrics.get("sharing") else ("ours", baseline)
 
 
 def _comparison_png(scene: _Scene, path: Path, save=_write_png) -> Path:
@@ -514,7 +533,7 @@ def _comparison_png(scene: _Scene, path: Path, save=_write_png) -> Path:
         panels.append((_pil(below), f"{label}: importance, peak {contact.max() / 1000:.1f} kPa"))
     bar = _colorbar(PANEL_HEIGHT, vmax, "kPa") if vmax > 0 else None
     title = f"Ours vs {scene.baseline_name}: importance on one scale (paper's model), up to {vmax / 1000:.1f} kPa"
-    return save(_sheet(title, panels, colorbar=bar, table=table_rows(scene.metrics, scene.people), table_head=("ours", scene.baseline_name), columns=2), path)
+    return save(_sheet(title, panels, colorbar=bar, table=table_rows(scene.metrics, scene.people, own=True), table_head=_table_head(scene.metrics, scene.baseline_name), columns=2), path)
 
 
 def _interface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
@@ -777,12 +796,14 @@ def _metrics_html(result) -> str:
     metrics = result.metrics or {}
     parts = []
     if metrics.get("ours") or metrics.get("baseline"):
-        rows, labels = table_rows(metrics, person_labels(result.bodies))
-        base = html.escape(str(metrics.get("baseline_template") or "baseline"))
+        rows, labels = table_rows(metrics, person_labels(result.bodies), own=True)
+        heads = "".join(f"<th>{html.escape(str(h))}</th>" for h in _table_head(metrics, str(metrics.get("baseline_template") or "baseline")))
         parts.append(f"<p>{html.escape(TABLE1_NOTE)} {html.escape(CHECKS_NOTE)}</p>")
-        for person, ours, bl in rows:
-            parts.append(f"<h3>{html.escape(person)}</h3><table><tr><th>quantity</th><th>ours</th><th>{base}</th></tr>")
-            parts += [f"<tr><td>{html.escape(lab)}</td><td>{html.escape(a)}</td><td>{html.escape(b)}</td></tr>" for lab, a, b in zip(labels, ours, bl)]
+        if metrics.get("sharing"):
+            parts.append(f"<p>{html.escape(SHARING_NOTE)}</p>")
+        for person, *columns in rows:
+            parts.append(f"<h3>{html.escape(person)}</h3><table><tr><th>quantity</th>{heads}</tr>")
+            parts += ["<tr><td>" + html.escape(lab) + "</td>" + "".join(f"<td>{html.escape(c[k])}</td>" for c in columns) + "</tr>" for k, lab in enumerate(labels)]
             parts.append("</table>")
     else:
         parts.append("<p>No evaluation in this build (built with evaluation switched off): no metrics.</p>")

@@ -127,8 +127,9 @@ def sheet(title: str, panels, *, colorbar=None, table=None, table_head=("ours", 
         Blocks of ``(heading, values of column 1, values of column 2)`` with
         the row ``labels``, drawn under the grid, one block per heading
         (the report's Table 1 per person).
-    table_head : (str, str)
-        Titles of the two value columns.
+    table_head : tuple of str
+        Titles of the value columns (two, or three with a design's own
+        column: a shared design's sitters beside their own designs).
     table_caption : str
         Written left of the column titles in each block.
     columns : int, optional
@@ -165,21 +166,21 @@ def sheet(title: str, panels, *, colorbar=None, table=None, table_head=("ours", 
         out.paste(img, (x, y + caption_h))
     if colorbar is not None:
         out.paste(colorbar, (grid_w, title_h + caption_h))
-    # the table: a label column and two right-aligned value columns
+    # the table: a label column and right-aligned value columns
     y = title_h + grid_h + 8
     bold = font(14)
-    col_right = (400, 560)
-    for heading, first, second in rows:
+    col_right = (400, 560, 720)
+    for heading, *values in rows:
         draw.text((12, y), heading, fill=TEXT, font=bold)
         y += line_h
         draw.text((28, y), table_caption, fill=TEXT, font=text)
         for x, head in zip(col_right, table_head):
             draw.text((x, y), head, fill=TEXT, font=bold, anchor="ra")
         y += line_h
-        for lab, a, b in zip(labels, first, second):
+        for k, lab in enumerate(labels):
             draw.text((28, y), lab, fill=TEXT, font=text)
-            draw.text((col_right[0], y), a, fill=TEXT, font=text, anchor="ra")
-            draw.text((col_right[1], y), b, fill=TEXT, font=text, anchor="ra")
+            for x, column in zip(col_right, values):
+                draw.text((x, y), column[k], fill=TEXT, font=text, anchor="ra")
             y += line_h
     return out
 

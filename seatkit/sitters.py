@@ -1,0 +1,325 @@
+"""Shared designs: one support for several sitters at the same place.
+
+A recipe's ``sitters:`` (instead of ``bodies:``) lists people who will all
+use the same seat, one at a time: a small woman and a large man, or one
+person who sits upright to work and reclines to rest. They are not placed
+side by side (that is a bench); each is brought into the template's frame
+(:mod:`seatkit.body.frame`) and then placed where a person sits on a seat:
+
+- **placement** (:func:`align_sitters`): every sitter is moved rigidly so
+  that their pelvis meets the seat at one point: the underside of the
+  pelvis (the lowest vertex of the ``Hips`` segment) at one height, and the
+  centre of the pelvis's load (the importance-weighted mean depth of its
+  loaded vertices: the ischial tuberosities upright, towards the sacrum
+  reclined) at one depth. The common height is the highest sitter's, so
+  nobody is moved below the floor; the common depth is their mean. The
+  canonical frame alone keeps each body on the floor with its hip joints
+  above the origin, which puts a 5th-percentile woman's buttocks 15 cm
+  below a 95th-percentile man's: no seat could hold both. Seated people
+  share a seat pan, not a floor position (the seat reference point of
+  seating standards). The depth was chosen over the rearmost pelvis vertex
+  (the pelvis against one backrest line) by the rate over drawn triples of
+  presets and poses (docs/sitters.md).
+- **lifted off the floor** (:func:`lifted_importance`): a sitter raised
+  to the common seat height has feet that no longer reach the floor; their
+  importance is solved again without the parts that rested on it, so the
+  seat and back carry what the feet carried (and the evaluation does not
+  ask the seat to reach feet that hang in the air).
+- **importance** (:func:`shared_sitter`): each sitter's importance map is
+  normalised to its own peak (so a 50 kg sitter counts as much as a 110 kg
+  one) and the template is fitted to one *virtual sitter* whose skin is the
+  union of the sitters' skins, each vertex keeping its own sitter's
+  importance. A template fits each face's plane by an importance-weighted
+  vote of the vertices of its segments (RANSAC score and face weight: sums
+  of importance), so a plane's score is the **sum over sitters** of the
+  importance it supports: a region important for any sitter weighs in the
+  combination as much as in that sitter's own map (no averaging dilutes
+  it), and a plane that supports several sitters beats one that supports
+  one. Reaction forces (the no-backrest and armrest rules read load
+  shares) are scaled so that every sitter carries the same total: a share
+  is the mean of the sitters' shares. The virtual sitter's skeleton
+  (joints, bone ends, segment masses and centres) is the sitters' mean.
+- **no sitter cut, every sitter carried** (:class:`SharedTemplate`): the
+  template's cages are fitted to the virtual sitter, so its final check
+  and clearance see every sitter's skin; their faces then belong to every
+  sitter (``face_person = -1``), so the surface fit
+  (:mod:`seatkit.refine.ccfit`) pulls the surface to each sitter's
+  supported skin (weighted by its normalised importance) and probes it
+  against every sitter's skin, and the design search's acceptance check
+  (:func:`seatkit.search.judge`) and the evaluation measure each real
+  sitter on its own.
+
+One sitter is exactly the single-person design: the virtual sitter is that
+body and its importance, and its placement moves nothing.
+
+The cost of sharing: a build with sitters also designs each sitter alone
+(same template, refiners and seed; :func:`seatkit.pipeline.own_designs`) and report.json's
+``metrics.sharing`` gives every sitter's figures on the shared design beside
+those on their own.
+
+``sitters: {population: ansur-ii, percentiles: [5, 50, 95], sexes: [f, m],
+pose: upright-sitting}`` expands to the survey's boundary manikins, the
+preset bodies ``p5-female`` ... ``p95-male`` (:func:`expand_population`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any, Callable, Iterator, Mapping, Sequence
+
+import numpy as np
+
+from seatkit.errors import RecipeError
+from seatkit.metrics import TABLE
+from seatkit.model import Body, ControlMesh, PressureField
+from seatkit.skeleton import SEGMENT_INDEX
+
+__all__ = [
+    "POPULATIONS",
+    "SEXES",
+    "SharedTemplate",
+    "align_sitters",
+    "expand_population",
+    "lifted_importance",
+    "seat_reference",
+    "shared_importance",
+    "shared_sitter",
+    "sharing_metrics",
+]
+
+#: Populations whose boundary manikins are preset bodies: name -> (preset name pattern, percentiles, sexes).
+POPULATIONS: dict[str, dict] = {
+    "ansur-ii": {"pattern": "p{percentile}-{sex}", "percentiles": (5, 50, 95), "sexes": ("female", "male")},
+}
+
+#: How a recipe may name a sex: the short and the long form.
+SEXES = {"f": "female", "female": "female", "m": "male", "male": "male"}
+
+#: The figures of each sitter that ``metrics.sharing`` puts side by side: the report's Table 1 and checks, and whether the design holds the sitter.
+SHARING_FIGURES = tuple(m.key for m in TABLE) + ("supported",)
+
+_HIPS = SEGMENT_INDEX["Hips"]
+
+#: Importance above which a pelvis vertex counts as loaded by the seat (:func:`seat_reference`): the surface fit's threshold.
+LOADED = 0.02
+
+
+def expand_population(spec: Mapping[str, Any], default_pose: str = "upright-sitting") -> list[dict]:
+    """The recipe body entries of a ``sitters: {population: ...}`` mapping, in sex then percentile order.
+
+    Parameters
+    ----------
+    spec : mapping
+        ``population`` (a key of :data:`POPULATIONS`), ``percentiles``
+        (a subset of the population's), ``sexes`` (``f``/``m`` or
+        ``female``/``male``), ``pose`` (default ``default_pose``) and
+        ``frame``.
+
+    Raises
+    ------
+    RecipeError
+        ``sitters.KEY: ...`` naming what was expected.
+    """
+    name = spec.get("population")
+    if name not in POPULATIONS:
+        raise RecipeError(f"sitters.population: expected one of {', '.join(POPULATIONS)}, got {name!r}")
+    pop = POPULATIONS[name]
+    percentiles = list(spec.get("percentiles", pop["percentiles"]))
+    for k, q in enumerate(percentiles):
+        if isinstance(q, bool) or q not in pop["percentiles"]:
+            raise RecipeError(f"sitters.percentiles[{k}]: {name} has the percentiles {', '.join(map(str, pop['percentiles']))}, got {q!r}")
+    sexes = []
+    for k, s in enumerate(spec.get("sexes", pop["sexes"])):
+        if s not in SEXES:
+            raise RecipeError(f"sitters.sexes[{k}]: expected one of f, m, female, male, got {s!r}")
+        sexes.append(SEXES[s])
+    if not percentiles or not sexes:
+        raise RecipeError("sitters: a population needs at least one percentile and one sex")
+    pose = spec.get("pose", default_pose)
+    out = []
+    for sex in dict.fromkeys(sexes):
+        for q in dict.fromkeys(percentiles):
+            out.append({"model": pop["pattern"].format(percentile=q, sex=sex), "params": {}, "pose": pose, "frame": int(spec.get("frame", 0))})
+    return out
+
+
+def seat_reference(body: Body, pressure: PressureField) -> np.ndarray:
+    """(2,) float64: where a sitter's pelvis meets the seat: its underside's height and its load's depth, m.
+
+    The height is the lowest vertex of the ``Hips`` segment (the seat
+    contact); the depth is the importance-weighted mean depth (z) of the
+    ``Hips`` vertices the pressure loads (importance above
+    :data:`LOADED`): where the seat carries the pelvis (the ischial
+    tuberosities sitting upright, further back towards the sacrum
+    reclined). A pelvis that carries nothing keeps its hip joints' depth.
+    """
+    on = np.argmax(body.weights, axis=1) == _HIPS
+    if not on.any():
+        on = np.ones(len(body.vertices), bool)
+    height = float(body.vertices[on, 1].min())
+    importance = np.asarray(pressure.importance, dtype=np.float64)
+    loaded = on & (importance > LOADED)
+    depth = float(np.average(body.vertices[loaded, 2], weights=importance[loaded])) if loaded.any() else float(body.joints[_HIPS, 2])
+    return np.array([height, depth])
+
+
+def align_sitters(bodies: Sequence[Body], pressures: Sequence[PressureField]) -> tuple[list[Body], list[np.ndarray]]:
+    """The sitters moved to sit on one seat pan (see the module doc), and each move (3,), m.
+
+    Every sitter's :func:`seat_reference` is moved to one point: the
+    highest sitter's seat height (nobody goes below the floor) and the
+    sitters' mean load depth. The pressure fields stay valid: the
+    importance does not depend on where the body is.
+    """
+    bodies = list(bodies)
+    if len(bodies) <= 1:
+        return bodies, [np.zeros(3) for _ in bodies]
+    refs = np.array([seat_reference(b, p) for b, p in zip(bodies, pressures)])
+    height, depth = refs[:, 0].max(), refs[:, 1].mean()
+    moves = [np.array([0.0, height - y, depth - z]) for y, z in refs]
+    return [b.translated(m) for b, m in zip(bodies, moves)], moves
+
+
+def lifted_importance(bodies: Sequence[Body], pressures: Sequence[PressureField], solve: Callable, *, floor_distance: float) -> list[PressureField]:
+    """Each seated sitter's importance: a sitter lifted off the floor cannot push on it.
+
+    A sitter whose seat contact is lower than the highest sitter's is lifted
+    by :func:`align_sitters` (a small woman on a tall man's seat height):
+    their lowest point is then above the floor, and the parts that rested on
+    it (within ``floor_distance`` of that lowest point: the feet) hang in the
+    air. That sitter's importance is solved again (``solve(body, contact)``)
+    with those parts out of the contact set, so the weight they carried goes
+    to the seat and the back, as it does when feet dangle. A sitter lifted
+    less than ``floor_distance``, or whom the rest of the body cannot hold
+    (standing), keeps ``pressures``' solve. Reads only the seated bodies, so
+    a design file's bodies give the same importance (``seatkit evaluate``).
+    """
+    from seatkit.errors import InfeasibleSupportError
+
+    out = []
+    for body, pressure in zip(bodies, pressures):
+        lift = float(body.vertices[:, 1].min())
+        if lift <= floor_distance:
+            out.append(pressure)
+            continue
+        try:
+            out.append(solve(body, body.vertices[:, 1] - lift > floor_distance))
+        except InfeasibleSupportError:
+            out.append(pressure)
+    return out
+
+
+def shared_importance(pressures: Sequence[PressureField]) -> np.ndarray:
+    """The virtual sitter's importance: each sitter's importance (pressure over its own peak), concatenated in sitter order."""
+    return np.concatenate([np.asarray(p.importance, dtype=np.float64) for p in pressures])
+
+
+def shared_sitter(bodies: Sequence[Body], pressures: Sequence[PressureField]) -> tuple[Body, PressureField]:
+    """The one virtual sitter a template is fitted to (see the module doc); one sitter is returned as it is."""
+    bodies, pressures = list(bodies), list(pressures)
+    if len(bodies) == 1:
+        return bodies[0], pressures[0]
+    offsets = np.cumsum([0] + [len(b.vertices) for b in bodies])
+    labels: dict = {}
+    for b, o in zip(bodies, offsets):
+        for key, idx in b.region_labels.items():
+            labels.setdefault(key, []).append(np.asarray(idx, dtype=np.int64) + o)
+    body = Body(
+        vertices=np.concatenate([b.vertices for b in bodies]),
+        faces=np.concatenate([np.asarray(b.faces) + o for b, o in zip(bodies, offsets)]),
+        weights=np.concatenate([b.weights for b in bodies]),
+        joints=np.mean([b.joints for b in bodies], axis=0),
+        tips=np.mean([b.tips for b in bodies], axis=0),
+        segment_mass=np.mean([b.segment_mass for b in bodies], axis=0),
+        segment_com=np.mean([b.segment_com for b in bodies], axis=0),
+        name=" + ".join(b.name for b in bodies),
+        region_labels={k: np.concatenate(v) for k, v in labels.items()},
+    )
+    totals = np.array([max(float(p.normal_force.sum()), 1e-12) for p in pressures])
+    scale = totals.mean() / totals  # every sitter carries the mean total: a load share is the mean of the sitters'
+    pressure = PressureField(
+        force=np.concatenate([p.force * s for p, s in zip(pressures, scale)]),
+        normal_force=np.concatenate([p.normal_force * s for p, s in zip(pressures, scale)]),
+        pressure=shared_importance(pressures),
+        shear=np.concatenate([p.shear for p in pressures]),
+        area=np.concatenate([p.area for p in pressures]),
+        contact=np.concatenate([p.contact for p in pressures]),
+        joint_force=np.mean([p.joint_force for p in pressures], axis=0),
+        joint_moment=np.mean([p.joint_moment for p in pressures], axis=0),
+        status="optimal" if all(p.status == "optimal" for p in pressures) else "+".join(p.status for p in pressures),
+        params={**pressures[0].params, "shared": len(pressures)},
+    )
+    return body, pressure
+
+
+def _shared_cage(mesh: ControlMesh | None, n: int) -> ControlMesh | None:
+    """A cage fitted to the virtual sitter, its faces every sitter's (``face_person = -1``)."""
+    if mesh is None or n <= 1:
+        return mesh
+    meta = dict(mesh.meta)
+    meta["sitters"] = n
+    return replace(mesh, face_person=np.full(len(mesh.faces), -1, np.int64), meta=meta)
+
+
+class SharedTemplate:
+    """A template fitted to several sitters at one place: the wrapped template fitted to their virtual sitter (:func:`shared_sitter`).
+
+    Its cages' faces belong to every sitter (``face_person = -1``); the
+    bodies and pressures it is given are the real sitters', as the
+    refiners, the search and the evaluation see them.
+    """
+
+    def __init__(self, template):
+        self.template = template
+        self.name = template.name
+        self.description = template.description
+        for attr in ("parameters", "options"):
+            if hasattr(template, attr):
+                setattr(self, attr, getattr(template, attr))
+
+    def check_params(self, params) -> None:
+        """The wrapped template's check."""
+        self.template.check_params(params)
+
+    def fit(self, bodies, pressures, *, params=None, seed: int = 0) -> ControlMesh:
+        """The first cage (:meth:`fits`)."""
+        return next(self.fits(bodies, pressures, params=params, seed=seed))
+
+    def fits(self, bodies, pressures, *, params=None, seed: int = 0) -> Iterator[ControlMesh]:
+        """The wrapped template's cages for the virtual sitter, in its order."""
+        body, pressure = shared_sitter(bodies, pressures)
+        inner = self.template
+        cages = inner.fits([body], [pressure], params=params, seed=seed) if hasattr(inner, "fits") else iter([inner.fit([body], [pressure], params=params, seed=seed)])
+        for cage in cages:
+            yield _shared_cage(cage, len(bodies))
+
+    def walls_against(self, bodies, pressures, cage, refused, *, params=None, seed: int = 0) -> ControlMesh | None:
+        """The wrapped template's, for the virtual sitter; None when it has none."""
+        if not hasattr(self.template, "walls_against"):
+            return None
+        body, pressure = shared_sitter(bodies, pressures)
+        return _shared_cage(self.template.walls_against([body], [pressure], cage, refused, params=params, seed=seed), len(bodies))
+
+    def last_resort_fits(self, bodies, pressures, *, params=None, seed: int = 0) -> Iterator[ControlMesh]:
+        """The wrapped template's last-resort cages for the virtual sitter; none when it has none."""
+        if not hasattr(self.template, "last_resort_fits"):
+            return
+        body, pressure = shared_sitter(bodies, pressures)
+        for cage in self.template.last_resort_fits([body], [pressure], params=params, seed=seed):
+            yield _shared_cage(cage, len(bodies))
+
+
+def sharing_metrics(shared: Sequence[Mapping], own: Sequence[Mapping], names: Sequence[str], moves: Sequence[np.ndarray]) -> list[dict]:
+    """``metrics.sharing``: per sitter, the move onto the shared seat (m, after the canonical frame), the figures on the shared design, on their own design, and the cost (shared minus own)."""
+    rows = []
+    for name, ours, alone, move in zip(names, shared, own, moves):
+        row: dict[str, Any] = {"sitter": name, "seat_move_m": [float(x) for x in move], "shared": {k: ours.get(k) for k in SHARING_FIGURES if k in ours}}
+        if "ours" in alone:
+            row["own"] = {k: alone["ours"].get(k) for k in SHARING_FIGURES if k in alone["ours"]}
+            a, b = ours.get("avg_distance_m"), alone["ours"].get("avg_distance_m")
+            if isinstance(a, float) and isinstance(b, float):
+                row["avg_distance_cost_m"] = a - b
+        else:
+            row["own_refused"] = alone.get("refused")
+        rows.append(row)
+    return rows
