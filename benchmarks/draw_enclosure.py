@@ -4,7 +4,7 @@ Poses a draw of ``seatkit.body.generator`` (draw seed 2026, as the
 generalisation benchmark), fits the chair and asks ``YamlTemplate.fits``
 for its first two cages: the first, and, when it encloses a hand, the same
 start's cage with its side walls inside the hands (docs/templates.md,
-"Hands inside the furniture"). Draws both cut by the plane ``z = --z``:
+"Walls inside the hands"). Draws both cut by the plane ``z = --z``:
 the cage, its limit surface (level 3), the body within 3 cm of the plane,
 the hands outside the furniture and those more than 7 mm inside it
 (``seatkit.template.checks.enclosed_parts``).

@@ -342,9 +342,9 @@ seed: 7
             try:
                 resolve_parameters(spec, recipe["template_params"])
             except RecipeError as e:
-                # the CLI reports these as "template_params.key: ..." without the
-                # recipe's file:line (issue 20 item 8, the template engine's
-                # part); the file is added here to keep fuzzing the values
+                # the template engine reports these as "template_params.key: ..."
+                # without the recipe's file:line; the file is added here to keep
+                # fuzzing the values
                 raise RecipeError(f"{path}: {e}") from None
         return recipe
 

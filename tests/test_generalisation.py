@@ -440,9 +440,10 @@ def test_walls_against_a_refused_surface_stand_beside_the_backrest(rigs, chair):
 
     Every cage the surface fit was given and their local repairs were
     refused, the left hand 10-17 mm inside the side wall beside the
-    backrest's lowest rows, where the walls of "Hands inside the furniture"
-    are never put (they stand beside seat-like rows only). The build's last
-    fallback asks the template for the refused cage's start again with
+    backrest's lowest rows, where the walls of docs/templates.md, "Walls
+    inside the hands", are never put (they stand beside seat-like rows
+    only). The design search's walls-against source asks the template for
+    the refused cage's start again with
     walls inside the hands that the refused surface encloses, beside every
     row (``YamlTemplate.walls_against``); here the template's own first
     cage stands in for the refused surface (it encloses the left hand

@@ -258,8 +258,8 @@ def _walls_inside(V: np.ndarray, col: int, out: np.ndarray, across: np.ndarray, 
     ``skip`` maps edge vertices to 1 (the wall only drops, straight down
     from the edge) or 2 (no wall). With ``every_row``, the row lines of the
     backrest get walls too (a hand hanging beside the hips behind the
-    seat): the refusal fallback's walls (docs/templates.md, "Walls against
-    the refused surface").
+    seat): the walls against a rejected surface (docs/templates.md, "Walls
+    against a rejected surface").
 
     Returns
     -------
@@ -413,8 +413,8 @@ def add_border(
     every_row : bool
         With ``hanging``: walls on the row lines of every row, the
         backrest's too, not only beside the seat-like rows
-        (:func:`_walls_inside`; the build's fallback after the surface fit
-        refused every cage).
+        (:func:`_walls_inside`; the walls against a surface the design
+        search rejected).
 
     Returns
     -------

@@ -749,13 +749,11 @@ def _parts(mesh: ControlMesh, faces) -> list:
 #: under a supported part (hanging beside or behind the calf, tucked under
 #: the thigh) is not something the chair holds (:data:`NOT_HELD`); whether
 #: the cage meets it is the final check's (and its repair's) question, and
-#: refusing here refused chairs that pass it (fit3: every such case of the
-#: generalisation benchmark built without it). An upper arm hanging beside
-#: the torso is beside the backrest, not behind it: the back row's casts
-#: from the flank reached it (seated-144, male: "lower_back.middle 28% by
-#: RightArm", from flank skin turned sideways into the arm, 0.3 % of the
-#: body's importance); an arm between the back and the backrest would be
-#: crossed by the backrest's faces, which the final check refuses by name.
+#: refusing here would refuse chairs that pass it. An upper arm hanging
+#: beside the torso is beside the backrest, not behind it, though the back
+#: row's casts from the flank can reach it (flank skin turned sideways into
+#: the arm); an arm between the back and the backrest would be crossed by
+#: the backrest's faces, which the final check refuses by name.
 _NOT_OCCLUDING = set(NOT_HELD) | {SEGMENT_INDEX[a] for a in ("RightArm", "LeftArm")}
 
 

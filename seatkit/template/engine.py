@@ -162,7 +162,7 @@ class YamlTemplate:
         cage is :meth:`fit`'s; the design search asks for the next only when
         the one before is rejected (:mod:`seatkit.search`). When the first cage encloses a hand, the next is the same
         cage with walls inside the hand, if that one is valid and encloses
-        less (docs/templates.md, "Hands inside the furniture"). Raises the
+        less (docs/templates.md, "Walls inside the hands"). Raises the
         first start's refusal when no start gives a valid cage, and a
         refusal of the pose rule at once.
 
@@ -173,7 +173,7 @@ class YamlTemplate:
         stream with every step, then without the optional steps dropped in
         turn, before the next stream; a cage the same as one offered before
         is skipped (:meth:`last_resort_fits`; docs/templates.md,
-        "Last-resort cages: feet on the leg rest").
+        "Last-resort cages").
         """
         bodies, pressures = list(bodies), list(pressures)
         lo, hi = self.spec.people
@@ -189,11 +189,11 @@ class YamlTemplate:
         bound = self._bound_plan()
         if last_resort and not any(isinstance(step, HasLastResort) and step.has_last_resort({**o, **per_step.get(i, {})}) for i, (step, o) in enumerate(bound)):
             return
-        # Several starts (docs/templates.md, "Seed-independent success"): the
-        # seed's own RANSAC stream first; when its cage is refused, the same
-        # fixed fallback streams whatever the seed, first with every step,
-        # then without the last optional step (armrests), then without the
-        # last two (and the crossed-legs merge), and so on. The first valid
+        # Several starts (docs/templates.md, "The starts"): the seed's own
+        # RANSAC stream first; when its cage is refused, the same fixed
+        # fallback streams whatever the seed, first with every step, then
+        # without the last optional step (the chair's armrests), then without
+        # the last two (and the backrest below optional_below), and so on. The first valid
         # cage wins, so success does not depend on the seed; the seed only
         # picks among valid designs.
         plan = _starts(p, bound, seed, last_resort)
@@ -220,7 +220,7 @@ class YamlTemplate:
             yield mesh
             if not found:
                 # the refiners refused the first cage: the same with walls inside the hands it encloses, if any
-                # (docs/templates.md, "Hands inside the furniture"), before the next start's
+                # (docs/templates.md, "Walls inside the hands"), before the next start's
                 mesh = _hands_outside(*start)
                 if mesh is not None:
                     mesh.meta["fit_attempts"] = {**mesh.meta["fit_attempts"], "walls_inside": True}
@@ -391,7 +391,7 @@ def _plan(spec: TemplateSpec, steps: Mapping[str, Any], *, missing_hint: str = "
 
 
 def _starts(p: dict, bound: list, seed: int, last_resort: bool = False) -> list:
-    """[(stream number, random stream, indices of the steps dropped)] of every start, in order (docs/templates.md, "Seed-independent success").
+    """[(stream number, random stream, indices of the steps dropped)] of every start, in order (docs/templates.md, "The starts").
 
     The seed's own stream (number 0) first; then the fixed fallback streams,
     the same whatever the seed; all of them first with every step, then
@@ -418,7 +418,7 @@ def _checked_cage(state: FitState, bodies, p: dict, repairs: list) -> ControlMes
     """The fit's cage once it passes :func:`check_cage`; the faces the check names repaired first, up to ``_REPAIR_ROUNDS`` times.
 
     Raises the check's last refusal when no repair helps (docs/templates.md,
-    "Seed-independent success").
+    "Repairing the faces the check names").
     """
     for round_ in range(_REPAIR_ROUNDS + 1):
         mesh = grid_to_mesh(state.grid, meta=state.meta)

@@ -27,7 +27,8 @@ __all__ = ["FaceState", "Block", "GridMesh", "FitState", "segment_of_vertex"]
 
 #: Parts the chair never holds (hands and forearms): they do not occlude a
 #: supported part (``supportability``), and the border's repair keeps the
-#: furniture from closing over them (docs/templates.md).
+#: furniture from closing over them (docs/templates.md, "The border lowered
+#: beside hanging hands").
 NOT_HELD = frozenset(SEGMENTS.index(h) for h in ("RightHand", "LeftHand", "RightForeArm", "LeftForeArm"))
 
 
@@ -389,13 +390,14 @@ class FitState:
     rebuild_border : callable or None
         Set by the ``border`` step: builds the border again from the grid it
         started from, with the side rings lowered beside hanging hands (the
-        clearance step's repair; docs/templates.md, "Seed-independent success").
+        clearance step's repair; docs/templates.md, "The border lowered beside
+        hanging hands").
     rebuild_walls : callable or None
         Set by the ``border`` step: builds the border again from the grid it
         started from, with its side ring inside the hands hanging beside or
         under the seat that were found inside the furniture (the clearance
-        step's ``repair_enclosure``; docs/templates.md, "Hands inside the
-        furniture").
+        step's ``repair_enclosure``; docs/templates.md, "Walls inside the
+        hands").
     last_resort : bool
         This fit is one of the template's last-resort cages
         (:meth:`seatkit.template.YamlTemplate.last_resort_fits`, asked for

@@ -61,8 +61,7 @@ PARAMETER_MAXIMA: dict[str, float] = {"count": 20_000, "m": 1.0, "deg": 180.0, "
 #: template stage's worst case (a refused pose runs every start, (1 +
 #: optional steps) x fit_attempts of them, about 0.3-0.6 s each on the
 #: chair): 20 bounds a refusal of the chair at 80 starts, well under a
-#: minute, where 20,000 would be hours (docs/templates.md, "Seed-independent
-#: success").
+#: minute, where 20,000 would be hours (docs/templates.md, "The starts").
 PARAMETER_LIMITS: dict[str, float] = {"fit_attempts": 20}
 
 

@@ -98,8 +98,8 @@ class FitPlanesStep:
     foot dropped to the floor beside a raised leg) the rounding reaches 3 cm
     into the heel, beyond what the surface fit can pull out. With the leg
     rest running on past the heel there is no corner: the foot rests on it,
-    or stands on the floor in front of it (docs/templates.md, "Last resort:
-    feet on the leg rest").
+    or stands on the floor in front of it (docs/templates.md, "Last-resort
+    cages").
     """
 
     name = "fit-planes"
@@ -226,7 +226,8 @@ class CrossedLegsStep:
     name = "crossed-legs"
     #: when every start's cage with the merged rows is refused (the raised
     #: leg's calf hangs through the shared plane), the engine tries the legs
-    #: on their own faces, after dropping the armrests (docs/templates.md)
+    #: on their own faces, after dropping the armrests and the backrest's
+    #: fallback (docs/templates.md, "The starts")
     optional = True
     description = "merge the two leg faces of a row into one plane when they are closer than min_distance"
     stage = "blocks"
@@ -398,7 +399,7 @@ class ArmrestsStep:
 
     name = "armrests"
     #: the armrests are a refinement: when a cage with them is refused, the
-    #: engine tries again without them (docs/templates.md)
+    #: engine tries again without them (docs/templates.md, "The starts")
     optional = True
     description = "add an armrest column and a connector column on each side when the arms can rest on one"
     stage = "grid"
@@ -619,7 +620,7 @@ def _wall_faces(shape: tuple[int, int], walls: dict) -> dict:
 
 
 def _repair_enclosure(state: FitState, enclosed, options: Mapping[str, Any], *, every_row: bool = False) -> bool:
-    """The clearance step's ``repair_enclosure`` (docs/templates.md, "Hands inside the furniture").
+    """The clearance step's ``repair_enclosure`` (docs/templates.md, "Walls inside the hands").
 
     The border is built again from the grid it started from with walls
     inside the free parts hanging beside or under the seat's sides where
