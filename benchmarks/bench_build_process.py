@@ -1,6 +1,7 @@
 """The default build as a whole process, old and new code alternating, against the numpy+scipy import floor.
 
     python benchmarks/bench_build_process.py [--old OLD_SEATKIT] [--pairs 8] [--template chair] [-- extra build flags]
+    python benchmarks/bench_build_process.py --old seatkit --old-env SEATKIT_HELPERS=on --new-env SEATKIT_HELPERS=off
 
 Each round runs, each in a fresh process as a user runs it:
 
@@ -12,6 +13,10 @@ Each round runs, each in a fresh process as a user runs it:
   command of another install, e.g. a ``git worktree`` of the previous
   revision with its own venv), the order of the two swapped every round so
   that a load that comes and goes falls on both alike.
+
+``--old-env``/``--new-env KEY=VALUE`` (repeatable) set environment
+variables for one side only: the same install with and without helper
+processes (``SEATKIT_HELPERS``, :func:`seatkit.workers.helpers_pay`).
 
 Wall time is from the start of the command to its end (what a user waits
 for). CPU time is user + system of the command *and every process it
@@ -84,18 +89,31 @@ def _python_of(seatkit: str) -> str:
     return str(exe) if exe.exists() else sys.executable
 
 
+def _pairs(items: list[str]) -> dict[str, str]:
+    out = {}
+    for item in items:
+        key, eq, value = item.partition("=")
+        if not eq or not key:
+            sys.exit(f"expected KEY=VALUE, got {item!r}")
+        out[key] = value
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--old", help="the seatkit command of the previous code (omit: new and floor only)")
     ap.add_argument("--new", default=shutil.which("seatkit"), help="the seatkit command of the code measured (default: seatkit on PATH)")
     ap.add_argument("--pairs", type=int, default=8, help="rounds (default 8)")
     ap.add_argument("--template", default="chair")
+    ap.add_argument("--old-env", action="append", default=[], metavar="KEY=VALUE", help="an environment variable for the old side only")
+    ap.add_argument("--new-env", action="append", default=[], metavar="KEY=VALUE", help="an environment variable for the new side only")
     ap.add_argument("extra", nargs="*", help="more flags for seatkit build")
     args = ap.parse_args()
     if not args.new:
         sys.exit("seatkit is not installed (pip install .)")
     counted = _become_subreaper()
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+    envs = {"floor": env, "new": {**env, **_pairs(args.new_env)}, "old": {**env, **_pairs(args.old_env)}}
     sides = {"new": args.new, **({"old": args.old} if args.old else {})}
     results: dict[str, list[tuple[float, float]]] = {k: [] for k in ("floor", *sides)}
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
@@ -108,7 +126,7 @@ def main() -> None:
 
         floor = [_python_of(args.new), "-c", FLOOR]
         for side in sides:  # bytecode written, disk caches warm
-            run(build(side, -1), env)
+            run(build(side, -1), envs[side])
         run(floor, env)
         for i in range(args.pairs):
             order = [s for s in ("old", "new") if s in sides]
@@ -116,7 +134,7 @@ def main() -> None:
                 order.reverse()
             results["floor"].append(run(floor, env))
             for side in order:
-                results[side].append(run(build(side, i), env))
+                results[side].append(run(build(side, i), envs[side]))
             cells = "  ".join(f"{k} {w:.2f} s wall {c:.2f} s CPU" for k, v in results.items() for w, c in v[-1:])
             print(f"round {i + 1}: {cells}", flush=True)
     print(f"load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
