@@ -108,6 +108,11 @@ PRELOAD = (
 SPARE_CORE = 0.5
 
 
+def _cores() -> int:
+    """The cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
 def cpu_snapshot() -> tuple[float, float] | None:
     """(idle, total) CPU time of the whole machine so far, in clock ticks (Linux ``/proc/stat``); None elsewhere."""
     try:
@@ -130,7 +135,7 @@ def spare_cores(since: tuple[float, float] | None) -> float | None:
     now = cpu_snapshot()
     if since is None or now is None or now[1] - since[1] < 10:
         return None
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    cores = _cores()
     return cores * (now[0] - since[0]) / (now[1] - since[1])
 
 
@@ -144,14 +149,18 @@ def helpers_pay(since: tuple[float, float] | None) -> bool:
     Where the idle time cannot be measured (no ``/proc/stat``) the load
     average decides: at least :data:`SPARE_CORE` below the core count
     beside this process. The environment variable ``SEATKIT_HELPERS``
-    (``on``/``off``) decides instead when set.
+    (``on``/``off``) decides instead when set (``auto`` or empty: as
+    above; anything else is a :class:`~seatkit.errors.SeatkitError`).
     """
     forced = os.environ.get("SEATKIT_HELPERS", "").strip().lower()
-    if forced in ("on", "1", "yes"):
+    if forced == "on":
         return True
-    if forced in ("off", "0", "no"):
+    if forced == "off":
         return False
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+    if forced not in ("", "auto"):
+        msg = f"the environment variable SEATKIT_HELPERS: expected on, off or auto, got {forced[:40]!r}"
+        raise SeatkitError(msg)
+    cores = _cores()
     if cores < 2:
         return False
     spare = spare_cores(since)

@@ -435,6 +435,9 @@ def test_seatkit_helpers_decides_when_set(monkeypatch):
     workers = _machine(monkeypatch, cores=2, idle_ticks=100, total_ticks=100)
     monkeypatch.setenv("SEATKIT_HELPERS", "off")
     assert workers.helpers_pay(workers.cpu_snapshot()) is False
+    monkeypatch.setenv("SEATKIT_HELPERS", "sometimes")
+    with pytest.raises(SeatkitError, match="SEATKIT_HELPERS: expected on, off or auto, got 'sometimes'"):
+        workers.helpers_pay(None)
 
 
 def test_without_a_measurement_the_load_average_decides(monkeypatch):
