@@ -180,13 +180,20 @@ def build(
 
         enable(merged, material=material, thickness=thickness, size_thickness=size_thickness or None, safety_factor=safety_factor, max_deflection=max_deflection)
     merged = check_recipe(merged, pm.registry, document=document)  # a Recipe: build() takes it as checked
-
-    if quiet or as_json:
-        result = run_build(merged, pm=pm, overwrite=overwrite, processes=processes)  # the entry point is guarded (seatkit.workers)
-    else:
-        console = stderr_console()
-        with console.status("building") as status:
-            result = run_build(merged, pm=pm, overwrite=overwrite, processes=processes, progress=lambda s: status.update(f"[bold]{s}[/]"))
+    # what is imported and registered by now outlives the build: its
+    # garbage collections need not walk it again (two full collections
+    # walked it, 0.06 s of a build's CPU); given back to the collector after
+    # the build, for a program that runs more than one command
+    gc.freeze()
+    try:
+        if quiet or as_json:
+            result = run_build(merged, pm=pm, overwrite=overwrite, processes=processes)  # the entry point is guarded (seatkit.workers)
+        else:
+            console = stderr_console()
+            with console.status("building") as status:
+                result = run_build(merged, pm=pm, overwrite=overwrite, processes=processes, progress=lambda s: status.update(f"[bold]{s}[/]"))
+    finally:
+        gc.unfreeze()
     summary = {
         "output": result.output,
         "files": result.files,
