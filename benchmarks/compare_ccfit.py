@@ -5,6 +5,7 @@ tree, each in its own venv) fit exactly the same cages to exactly the same
 bodies:
 
     python benchmarks/compare_ccfit.py record fits.pkl     # every supported library pose x both default bodies
+    python benchmarks/compare_ccfit.py record drawn.pkl --library 0 --drawn 8   # 8 drawn poses (seatkit.body.generator)
     python benchmarks/compare_ccfit.py run fits.pkl new.npz [--repeat 3]
     python benchmarks/compare_ccfit.py compare old.npz new.npz
 
@@ -23,14 +24,16 @@ from __future__ import annotations
 import argparse
 import pickle
 import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
 BODIES = ("default-female", "default-male")
 
 
-def record(path: str) -> None:
+def record(path: str, *, library: bool = True, drawn: int = 0, draw_seed: int = 0) -> None:
     from seatkit import pipeline
     from seatkit.errors import SeatkitError
     import seatkit.refine.ccfit as ccfit
@@ -44,7 +47,14 @@ def record(path: str) -> None:
 
     ccfit.fit_cage = keep
     fits = []
-    for pose in _poses():
+    from seatkit.body.generator import draw_poses, pose_yaml
+
+    folder = Path(tempfile.mkdtemp(prefix="compare-ccfit-"))
+    poses = _poses() if library else []
+    for d in draw_poses(drawn, seed=draw_seed):  # the families in turn; their YAML read back bit for bit
+        poses.append(str(folder / f"{d.name}.yaml"))
+        Path(poses[-1]).write_text(pose_yaml(d))
+    for pose in poses:
         for model in BODIES:
             calls.clear()
             recipe = {"template": "chair", "bodies": [{"model": model, "pose": pose}]}
@@ -53,8 +63,8 @@ def record(path: str) -> None:
             except SeatkitError as e:
                 print(f"{model} {pose}: {str(e).splitlines()[0][:100]}", file=sys.stderr)
             for call in calls:  # ours and the baseline's (on a thread: in either order)
-                fits.append({"name": f"{model}/{pose}/{call['mesh'].meta.get('template', '?')}", **call})
-            print(f"{model} {pose}: {len(calls)} fit(s)", file=sys.stderr)
+                fits.append({"name": f"{model}/{Path(pose).stem}/{call['mesh'].meta.get('template', '?')}", **call})
+            print(f"{model} {Path(pose).stem}: {len(calls)} fit(s)", file=sys.stderr)
     with open(path, "wb") as f:
         pickle.dump(fits, f)
 
@@ -139,6 +149,9 @@ def main() -> None:
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("record")
     r.add_argument("fits")
+    r.add_argument("--library", type=int, default=1, help="1: every supported library pose (default), 0: none")
+    r.add_argument("--drawn", type=int, default=0, help="also this many drawn poses (seatkit.body.generator.draw_poses)")
+    r.add_argument("--draw-seed", type=int, default=0)
     u = sub.add_parser("run")
     u.add_argument("fits")
     u.add_argument("out")
@@ -150,7 +163,7 @@ def main() -> None:
     c.add_argument("--limit", type=float, default=0.005, help="m, the surface_limit every fit must hold")
     args = ap.parse_args()
     if args.cmd == "record":
-        record(args.fits)
+        record(args.fits, library=bool(args.library), drawn=args.drawn, draw_seed=args.draw_seed)
     elif args.cmd == "run":
         run(args.fits, args.out, args.repeat)
     else:

@@ -57,7 +57,19 @@ from typing import Any, Callable, Sequence
 from seatkit.constants import BACKGROUND_NICE
 from seatkit.errors import SeatkitError
 
-__all__ = ["BACKGROUND_NICE", "PRELOAD", "Helper", "WorkerLost", "main_is_import_safe", "pool_context", "start_fork_server"]
+__all__ = [
+    "BACKGROUND_NICE",
+    "PRELOAD",
+    "SPARE_CORE",
+    "Helper",
+    "WorkerLost",
+    "cpu_snapshot",
+    "helpers_pay",
+    "main_is_import_safe",
+    "pool_context",
+    "spare_cores",
+    "start_fork_server",
+]
 
 
 #: Modules the fork server imports before it forks any worker: what the
@@ -83,6 +95,81 @@ PRELOAD = (
     "seatkit.recipe",
     "threadpoolctl",
 )
+
+
+#: The idle capacity, in cores, beside the build's own, from which helper
+#: processes pay for themselves (:func:`helpers_pay`). A build with helpers
+#: spends about 1.9 s more CPU than one in a single process (the fork
+#: server imports numpy, scipy and the stages again; the export worker's
+#: imports and the pickled result) to take about 1 s of work off the main
+#: process's path: on an idle second core that is a gain, on a core other
+#: jobs keep busy the niced helpers wait and the build takes longer
+#: (docs/performance.md, "Helper processes").
+SPARE_CORE = 0.5
+
+
+def _cores() -> int:
+    """The cores this process may run on."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def cpu_snapshot() -> tuple[float, float] | None:
+    """(idle, total) CPU time of the whole machine so far, in clock ticks (Linux ``/proc/stat``); None elsewhere."""
+    try:
+        with open("/proc/stat", "rb") as fh:
+            fields = fh.readline().split()
+    except OSError:
+        return None
+    if not fields or fields[0] != b"cpu":
+        return None
+    ticks = [float(x) for x in fields[1:9]]  # user nice system idle iowait irq softirq steal
+    return ticks[3] + ticks[4], sum(ticks)
+
+
+def spare_cores(since: tuple[float, float] | None) -> float | None:
+    """Idle cores on average since the :func:`cpu_snapshot` ``since``, None when that cannot be measured.
+
+    ``None`` too when too little time has passed to tell (fewer than 10
+    ticks of the whole machine).
+    """
+    now = cpu_snapshot()
+    if since is None or now is None or now[1] - since[1] < 10:
+        return None
+    cores = _cores()
+    return cores * (now[0] - since[0]) / (now[1] - since[1])
+
+
+def helpers_pay(since: tuple[float, float] | None) -> bool:
+    """Whether the build's helper processes pay for themselves on this machine now.
+
+    They do when a core is idle beside the build: the machine's idle time
+    since ``since`` (a :func:`cpu_snapshot` taken when the program started,
+    so that the window is its own start-up, when it keeps one core busy)
+    is at least :data:`SPARE_CORE` of a core. On one core they never do.
+    Where the idle time cannot be measured (no ``/proc/stat``) the load
+    average decides: at least :data:`SPARE_CORE` below the core count
+    beside this process. The environment variable ``SEATKIT_HELPERS``
+    (``on``/``off``) decides instead when set (``auto`` or empty: as
+    above; anything else is a :class:`~seatkit.errors.SeatkitError`).
+    """
+    forced = os.environ.get("SEATKIT_HELPERS", "").strip().lower()
+    if forced == "on":
+        return True
+    if forced == "off":
+        return False
+    if forced not in ("", "auto"):
+        msg = f"the environment variable SEATKIT_HELPERS: expected on, off or auto, got {forced[:40]!r}"
+        raise SeatkitError(msg)
+    cores = _cores()
+    if cores < 2:
+        return False
+    spare = spare_cores(since)
+    if spare is None:
+        try:
+            spare = cores - 1 - os.getloadavg()[0]
+        except (AttributeError, OSError):  # no load average (Windows): as before, helpers
+            return True
+    return spare >= SPARE_CORE
 
 
 class WorkerLost(SeatkitError):

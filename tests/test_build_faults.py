@@ -32,11 +32,15 @@ pytestmark = pytest.mark.slow
 ARGS = ["build", "--template", "chair", "--no-refiners", "-q"]
 
 
-def _run_cli(script: str, out: Path, *extra: str) -> subprocess.CompletedProcess:
-    """Run ``seatkit build ... --out out`` in a fresh interpreter after ``script`` (the fault)."""
+def _run_cli(script: str, out: Path, *extra: str, helpers: str = "") -> subprocess.CompletedProcess:
+    """Run ``seatkit build ... --out out`` in a fresh interpreter after ``script`` (the fault).
+
+    ``helpers``: ``SEATKIT_HELPERS`` (``on``: the helper processes whatever
+    the machine's load, for the faults that concern them).
+    """
     argv = ["seatkit", *ARGS, "--out", str(out), *extra]
     code = textwrap.dedent(script) + f"\nimport sys\nfrom seatkit.cli import main\nsys.argv = {argv!r}\nmain()\n"
-    env = {**os.environ, "SEATKIT_DISABLE_PLUGIN_AUTOLOAD": "1"}
+    env = {**os.environ, "SEATKIT_DISABLE_PLUGIN_AUTOLOAD": "1", "SEATKIT_HELPERS": helpers}
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
 
 
@@ -90,6 +94,7 @@ def test_kill_9_during_the_export_children_end_and_the_next_build_cleans_up(tmp_
         pl._write = write
         """,
         out,
+        helpers="on",
     )
     assert killed.returncode == -signal.SIGKILL
     children = [int(p) for p in killed.stdout.split()]

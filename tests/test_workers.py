@@ -179,10 +179,19 @@ RECIPE = {
 
 
 @needs_proc
+def _untimed(value):
+    """``value`` without the wall times it holds (keys ending in ``_seconds``): they differ from run to run."""
+    if isinstance(value, dict):
+        return {k: _untimed(v) for k, v in value.items() if not str(k).endswith("_seconds")}
+    if isinstance(value, list):
+        return [_untimed(v) for v in value]
+    return value
+
+
 def test_build_gives_the_same_results_with_the_baseline_in_a_process_or_in_sequence():
     a = seatkit.build(dict(RECIPE), write=False, processes=True)
     b = seatkit.build(dict(RECIPE), write=False, processes=False)
-    assert a.metrics == b.metrics
+    assert _untimed(a.metrics) == _untimed(b.metrics)
     assert a.metrics["baseline"][0]["supported"] is True
     for key in ("control_mesh", "surface"):
         np.testing.assert_array_equal(getattr(a.baseline, key).vertices, getattr(b.baseline, key).vertices)
@@ -392,3 +401,52 @@ def test_the_fork_server_preloads_every_module_the_baseline_job_imports():
     job = pickle.dumps((recipe, bodies, pressures, baseline_components(recipe, registry), design_segments(cage)))
     done = subprocess.run([sys.executable, "-c", _PRELOAD_CHECK], input=job, capture_output=True, check=True)
     assert done.stdout.decode().split() == []
+
+
+def _machine(monkeypatch, *, cores: int, idle_ticks: float, total_ticks: float):
+    """A machine of ``cores`` whose CPU ticks grow by ``total_ticks`` (``idle_ticks`` of them idle) after the first snapshot."""
+    import seatkit.workers as workers
+
+    ticks = iter([(1000.0, 5000.0), (1000.0 + idle_ticks, 5000.0 + total_ticks)])
+    monkeypatch.setattr(workers, "cpu_snapshot", lambda: next(ticks))
+    monkeypatch.setattr(workers.os, "sched_getaffinity", lambda pid: set(range(cores)), raising=False)
+    monkeypatch.delenv("SEATKIT_HELPERS", raising=False)
+    return workers
+
+
+def test_helpers_are_used_with_an_idle_core_and_not_on_a_busy_machine(monkeypatch):
+    # two cores, the build busy on one: one core idle over its start-up -> helpers
+    workers = _machine(monkeypatch, cores=2, idle_ticks=50, total_ticks=100)
+    assert workers.spare_cores(workers.cpu_snapshot()) == pytest.approx(1.0)
+    workers = _machine(monkeypatch, cores=2, idle_ticks=50, total_ticks=100)
+    assert workers.helpers_pay(workers.cpu_snapshot()) is True
+    # other jobs keep the second core busy: nothing idle -> one process
+    workers = _machine(monkeypatch, cores=2, idle_ticks=5, total_ticks=100)
+    assert workers.helpers_pay(workers.cpu_snapshot()) is False
+    # one core: never
+    workers = _machine(monkeypatch, cores=1, idle_ticks=100, total_ticks=100)
+    assert workers.helpers_pay(workers.cpu_snapshot()) is False
+
+
+def test_seatkit_helpers_decides_when_set(monkeypatch):
+    workers = _machine(monkeypatch, cores=2, idle_ticks=0, total_ticks=100)
+    monkeypatch.setenv("SEATKIT_HELPERS", "on")
+    assert workers.helpers_pay(workers.cpu_snapshot()) is True
+    workers = _machine(monkeypatch, cores=2, idle_ticks=100, total_ticks=100)
+    monkeypatch.setenv("SEATKIT_HELPERS", "off")
+    assert workers.helpers_pay(workers.cpu_snapshot()) is False
+    monkeypatch.setenv("SEATKIT_HELPERS", "sometimes")
+    with pytest.raises(SeatkitError, match="SEATKIT_HELPERS: expected on, off or auto, got 'sometimes'"):
+        workers.helpers_pay(None)
+
+
+def test_without_a_measurement_the_load_average_decides(monkeypatch):
+    import seatkit.workers as workers
+
+    monkeypatch.setattr(workers, "cpu_snapshot", lambda: None)
+    monkeypatch.setattr(workers.os, "sched_getaffinity", lambda pid: {0, 1}, raising=False)
+    monkeypatch.delenv("SEATKIT_HELPERS", raising=False)
+    monkeypatch.setattr(workers.os, "getloadavg", lambda: (0.2, 0.2, 0.2))
+    assert workers.helpers_pay(None) is True
+    monkeypatch.setattr(workers.os, "getloadavg", lambda: (1.8, 1.5, 1.0))
+    assert workers.helpers_pay(None) is False
