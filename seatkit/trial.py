@@ -89,6 +89,9 @@ GUARANTEE_SLACK = 0.002
 NEAR = 0.05
 #: A point counts as in front of or behind the surface when its offset along the normal is this share of its distance.
 ALONG_NORMAL = 0.9
+#: A surface point is judged against its nearest skin vertex's tangent plane when its offset along
+#: that vertex's normal is at least this share of its distance (the plane holds near the vertex).
+PROBE_ALONG = 0.5
 #: A supported vertex is pulled to the surface only where its skin faces it.
 MIN_FACING = 0.2
 #: Objective weights (see the module docstring); residuals in metres or radians.
@@ -287,6 +290,12 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, importance=None, solve
     sole = np.array([np.sort(y0[f])[:SOLE].mean() - y0[f].min() for f in poser.feet])
 
     every = np.arange(len(body0.vertices))
+    surface_points = np.asarray(design.surface.vertices, dtype=np.float64)
+
+    def body_tree(v):
+        from scipy.spatial import cKDTree
+
+        return cKDTree(v, balanced_tree=False, compact_nodes=False)
 
     def correspondences(theta, within=NEAR):
         from seatkit.geometry.surface import inside_furniture
@@ -305,20 +314,30 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, importance=None, solve
         facing = along[support] & (np.einsum("ki,ki->k", normals, np.nan_to_num(sn[support])) < -MIN_FACING)
         keep = _thinned(np.flatnonzero(facing), MAX_PULL)
         w = weight[keep]
+        # the surface's own points near the skin (a border or a wing cuts into the body where no
+        # body vertex is behind the surface): each against the tangent plane of its nearest skin vertex
+        gap, owner = body_tree(v).query(surface_points, distance_upper_bound=NEAR)
+        close = np.flatnonzero(np.isfinite(gap))
+        skin_n = vertex_normals(v, body0.faces)
+        offset = np.einsum("ki,ki->k", surface_points[close] - v[owner[close]], skin_n[owner[close]])
+        probe = _thinned(close[np.abs(offset) >= PROBE_ALONG * gap[close]], MAX_NEAR)
         return {
             "pull": support[keep], "w": w / max(w.sum(), 1e-12), "near": near,
             "points": v - side[:, None] * np.nan_to_num(sn), "normals": np.nan_to_num(sn),
+            "probe": probe, "probe_body": owner[probe], "probe_normals": skin_n[owner[probe]],
         }
 
     def split(theta, c):
-        idx = np.concatenate([c["pull"], c["near"], feet])
+        idx = np.concatenate([c["pull"], c["near"], c["probe_body"], feet])
         v = poser.points(theta, idx)
-        a, b = len(c["pull"]), len(c["near"])
+        a, b, e = len(c["pull"]), len(c["near"]), len(c["probe_body"])
         side = lambda ids, pts: np.einsum("ki,ki->k", pts - c["points"][ids], c["normals"][ids])  # noqa: E731
-        y = v[a + b :, 1]
+        inside = -np.einsum("ki,ki->k", surface_points[c["probe"]] - v[a + b : a + b + e], c["probe_normals"])
+        y = v[a + b + e :, 1]
         r = {
             "support": np.sqrt(c["w"]) * REACH * np.tanh((side(c["pull"], v[:a]) - CLEARANCE) / REACH),
             "penetration": np.sqrt(k["penetration"]) * np.maximum(0.0, -side(c["near"], v[a : a + b]) - GUARANTEE_SLACK),
+            "cut": np.sqrt(k["penetration"]) * np.maximum(0.0, inside - GUARANTEE_SLACK),
             "floor": np.sqrt(k["floor"]) * np.minimum(0.0, y),  # the feet are what reaches the floor
         }
         r["feet"] = np.sqrt(k["feet"]) * (np.array([np.sort(y[:n_feet])[:SOLE].mean(), np.sort(y[n_feet:])[:SOLE].mean()]) - sole)
@@ -461,7 +480,7 @@ def write_trial(design: TrialDesign, trial: TrialResult, out) -> dict[str, Path]
         recipe=design.recipe, bodies=[trial.body], pressures=[trial.importance], control_mesh=design.mesh,
         surface=design.surface, contact_pressures=[trial.field],
     )
-    title = f"Trial of {trial.body.name} on {design.directory.name}"
+    title = f"Trial: {trial.body.name}"
     write_surface_png(result, files["trial_png"], title=title)
     write_text_atomic(files["trial_json"], json.dumps(trial_report(design, trial), indent=1) + "\n")
     return files
