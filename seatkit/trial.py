@@ -98,7 +98,7 @@ MIN_FACING = 0.2
 WEIGHTS = {"penetration": 30.0, "floor": 30.0, "feet": 0.5, "joint": 0.02, "seat": 3.0}
 #: Most correspondence rounds, the optimiser's evaluations per round, and the step
 #: (m, rad) under which a round counts as converged.
-ROUNDS = 6
+ROUNDS = 4
 MAX_EVALUATIONS = 30
 CONVERGED = np.array([2e-4, 2e-4, 2e-4, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3])
 #: Largest change of each unknown in one round (m, rad): the plane of a closest point holds only near it.
@@ -111,6 +111,7 @@ MAX_NEAR = 1200
 #: The start's vertical lift is searched over +-LIFT_RANGE in LIFT_STEP steps, m.
 LIFT_RANGE = 0.15
 LIFT_STEP = 0.01
+LIFT_STRIDE = 4
 #: Bounds of the unknowns: translation (m), heading and joint changes (rad).
 BOUNDS = (
     np.array([-0.3, -0.3, -0.3, -0.35, -0.6, -0.6, -0.6, -0.35]),
@@ -226,13 +227,21 @@ class _Poser:
             points = points @ rotation_about_y(theta[3]).T
         return points + theta[:3]
 
-    def points(self, theta: np.ndarray, idx: np.ndarray) -> np.ndarray:
-        """(k, 3) positions of the vertices ``idx`` at ``theta``."""
+    def subset(self, idx: np.ndarray) -> tuple:
+        """What :meth:`points` needs for the vertices ``idx`` (kept, so that skinning reuses its sparse weights)."""
+        idx = np.asarray(idx, dtype=np.int64)
+        if len(idx) == len(self.rig.vertices) and np.array_equal(idx, np.arange(len(idx))):
+            return idx, self.rig.vertices, self.rig.weights
+        return idx, self.rig.vertices[idx], np.ascontiguousarray(self.rig.weights[idx])
+
+    def points(self, theta: np.ndarray, subset: tuple) -> np.ndarray:
+        """(k, 3) positions at ``theta`` of the vertices of ``subset`` (:meth:`subset`)."""
         from seatkit.body.skinning import segment_transforms, skin_vertices
 
+        idx, rest, weights = subset
         if np.any(theta[4:]):
             linear, offset = segment_transforms(self.rig.joints, self.pose(theta))
-            v = skin_vertices(self.rig.vertices[idx], self.rig.weights[idx], linear, offset) + self.offset
+            v = skin_vertices(rest, weights, linear, offset) + self.offset
         else:
             v = self.body0.vertices[idx]
         return self._moved(v, theta)
@@ -289,7 +298,9 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, importance=None, solve
     y0 = body0.vertices[:, 1]
     sole = np.array([np.sort(y0[f])[:SOLE].mean() - y0[f].min() for f in poser.feet])
 
-    every = np.arange(len(body0.vertices))
+    every = poser.subset(np.arange(len(body0.vertices)))
+    # the start's lift is searched with every LIFT_STRIDE-th vertex (and every supported one)
+    coarse = np.union1d(np.arange(0, len(body0.vertices), LIFT_STRIDE), support)
     surface_points = np.asarray(design.surface.vertices, dtype=np.float64)
 
     def body_tree(v):
@@ -297,11 +308,15 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, importance=None, solve
 
         return cKDTree(v, balanced_tree=False, compact_nodes=False)
 
-    def correspondences(theta, within=NEAR):
+    def correspondences(theta, thin=False):
         from seatkit.geometry.surface import inside_furniture
 
         v = poser.points(theta, every)
-        d, side, sn = q.closest_normals(v, within=within)
+        if thin:  # the others are taken as far from the surface
+            d, side, sn = np.full(len(v), np.inf), np.full(len(v), np.nan), np.full((len(v), 3), np.nan)
+            d[coarse], side[coarse], sn[coarse] = q.closest_normals(v[coarse], within=NEAR)
+        else:
+            d, side, sn = q.closest_normals(v, within=NEAR)
         side = np.nan_to_num(side)
         # beyond a border of the surface the offset along the normal says nothing of a side: only
         # points whose closest surface point is straight along the normal (the interior) count, and
@@ -321,22 +336,23 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, importance=None, solve
         skin_n = vertex_normals(v, body0.faces)
         offset = np.einsum("ki,ki->k", surface_points[close] - v[owner[close]], skin_n[owner[close]])
         probe = _thinned(close[np.abs(offset) >= PROBE_ALONG * gap[close]], MAX_NEAR)
+        pull = support[keep]
         return {
-            "pull": support[keep], "w": w / max(w.sum(), 1e-12), "near": near,
+            "pull": pull, "w": w / max(w.sum(), 1e-12), "near": near, "near_weight": np.sqrt(LIFT_STRIDE if thin else 1.0),
             "points": v - side[:, None] * np.nan_to_num(sn), "normals": np.nan_to_num(sn),
             "probe": probe, "probe_body": owner[probe], "probe_normals": skin_n[owner[probe]],
+            "subset": poser.subset(np.concatenate([pull, near, owner[probe], feet])),
         }
 
     def split(theta, c):
-        idx = np.concatenate([c["pull"], c["near"], c["probe_body"], feet])
-        v = poser.points(theta, idx)
+        v = poser.points(theta, c["subset"])
         a, b, e = len(c["pull"]), len(c["near"]), len(c["probe_body"])
         side = lambda ids, pts: np.einsum("ki,ki->k", pts - c["points"][ids], c["normals"][ids])  # noqa: E731
         inside = -np.einsum("ki,ki->k", surface_points[c["probe"]] - v[a + b : a + b + e], c["probe_normals"])
         y = v[a + b + e :, 1]
         r = {
             "support": np.sqrt(c["w"]) * REACH * np.tanh((side(c["pull"], v[:a]) - CLEARANCE) / REACH),
-            "penetration": np.sqrt(k["penetration"]) * np.maximum(0.0, -side(c["near"], v[a : a + b]) - GUARANTEE_SLACK),
+            "penetration": c["near_weight"] * np.sqrt(k["penetration"]) * np.maximum(0.0, -side(c["near"], v[a : a + b]) - GUARANTEE_SLACK),
             "cut": np.sqrt(k["penetration"]) * np.maximum(0.0, inside - GUARANTEE_SLACK),
             "floor": np.sqrt(k["floor"]) * np.minimum(0.0, y),  # the feet are what reaches the floor
         }
@@ -345,24 +361,23 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, importance=None, solve
         r["seat"] = np.sqrt(k["seat"]) * theta[[0, 2]]
         return r
 
-    def exact(theta):
+    def exact(theta, thin=False):
         """The objective at ``theta`` with correspondences taken there (no linearisation)."""
-        c = correspondences(theta)
+        c = correspondences(theta, thin)
         parts = split(theta, c)
         return float(sum(np.sum(r**2) for r in parts.values())), parts
 
     # a start clear of the seat: the vertical lift with the least exact objective, coarse then fine
     lifted = lambda h: np.r_[0.0, h, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # noqa: E731
-    tried = {0.0: exact(lifted(0.0))[0]}
+    tried = {0.0: exact(lifted(0.0), thin=True)[0]}
     for h in np.arange(-LIFT_RANGE, LIFT_RANGE + 1e-9, 3 * LIFT_STEP):
-        tried.setdefault(round(float(h), 6), exact(lifted(h))[0])
+        tried.setdefault(round(float(h), 6), exact(lifted(h), thin=True)[0])
     centre = min(tried, key=tried.get)
     for h in (centre - 2 * LIFT_STEP, centre - LIFT_STEP, centre + LIFT_STEP, centre + 2 * LIFT_STEP):
-        tried.setdefault(round(float(h), 6), exact(lifted(h))[0])
-    base_cost = tried[0.0]
-    start_lift = min(tried, key=tried.get)
-    theta = lifted(start_lift)
-    best, best_cost = theta, tried[start_lift]
+        tried.setdefault(round(float(h), 6), exact(lifted(h), thin=True)[0])
+    base_cost = exact(lifted(0.0))[0]
+    theta = lifted(min(tried, key=tried.get))
+    best, best_cost = theta, exact(theta)[0]
     evaluations = len(tried)
     scale = np.array([0.01, 0.01, 0.01, 0.05, 0.05, 0.05, 0.05, 0.05])
     for _ in range(ROUNDS):
