@@ -12,8 +12,10 @@ sex the mean and covariance of the natural logarithms of stature, mass,
 sitting height, hip breadth (sitting), buttock-knee length, popliteal height
 and buttock-popliteal length. A person is drawn from that multivariate
 **log-normal** (``exp`` of a multivariate normal: every figure positive, mass
-skewed to the right as the survey's is), by a seeded
-:func:`numpy.random.default_rng`; the sex is drawn first with
+skewed to the right as the survey's is), by
+:func:`numpy.random.default_rng` seeded with the seed and the person's number
+(so the first people of a larger study are those of a smaller one); the sex
+is drawn first with
 ``female_share`` (default one half: a public seat serves women and men
 alike, where the survey's own sample is two thirds men). A draw the
 parametric body cannot be made to (:mod:`seatkit.body.parametric`: stature,
@@ -149,10 +151,10 @@ def sample_people(n: int, *, population: str = "ansur-ii", seed: int = 0, female
         raise InputError(f"--female-share: expected a share from 0 to 1, got {female_share!r}")
     stats = load_population(population)
     cols = stats["columns"]
-    rng = np.random.default_rng(seed)
-    sexes = np.where(rng.random(n) < female_share, "female", "male")
     people, redrawn = [], 0
-    for i, sex in enumerate(sexes):
+    for i in range(n):
+        rng = np.random.default_rng([seed, i])  # a person depends on the seed and their number only
+        sex = "female" if rng.random() < female_share else "male"
         s = stats["sexes"][sex]
         mean, cov = np.asarray(s["mean_log"]), np.asarray(s["cov_log"])
         for _ in range(MAX_REDRAWS):

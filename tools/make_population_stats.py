@@ -24,19 +24,14 @@ import sys
 from pathlib import Path
 
 import numpy as np
+from fit_presets import COLUMNS as SURVEY_COLUMNS  # tools/ is this script's folder
 
 REPO = Path(__file__).resolve().parent.parent
 OUT = REPO / "seatkit" / "data" / "population" / "ansur-ii.json"
-#: Our name -> ANSUR II column; all millimetres but weightkg (tenths of a kg).
-COLUMNS = {
-    "stature": "stature",
-    "mass": "weightkg",
-    "sitting_height": "sittingheight",
-    "hip_breadth": "hipbreadthsitting",
-    "buttock_knee": "buttockkneelength",
-    "popliteal_height": "poplitealheight",
-    "buttock_popliteal_length": "buttockpopliteallength",
-}
+#: Our name -> ANSUR II column (tools/fit_presets.py's names); all millimetres but weightkg (tenths of a kg).
+COLUMNS = {key: SURVEY_COLUMNS[key] for key in (
+    "stature", "mass", "sitting_height", "hip_breadth", "buttock_knee", "popliteal_height", "buttock_popliteal_length",
+)}
 
 
 def statistics(folder: Path) -> dict:
