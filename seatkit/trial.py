@@ -19,30 +19,47 @@ rise), ``knee`` flexion (the feet go back), the ``ankle`` (the toes rise)
 and the ``back``'s recline at the lumbar joint (``Spine``). ``theta = 0`` is
 the body exactly as the build would pose it.
 
-With ``v_i(theta)`` the posed and moved skin, ``n_i`` its normals, and for a
-point the signed offset ``s`` along the surface normal at its closest
-surface point (positive on the body side), the placement minimises
+With ``v_i(theta)`` the posed and moved skin and, for a point, ``s`` its
+signed offset along the surface normal at its closest surface point
+(positive on the body side), the placement minimises
 (``scipy.optimize.least_squares``)::
 
-    sum_{i in S} w_i (s_i - c)^2 / sum_S w_i            supported skin on the surface
-  + k_pen  sum_{i in C} max(0, -s_i - g)^2               nothing deeper than g behind it
-  + k_floor sum_i max(0, -y_i)^2                          nothing below the floor
-  + k_feet  sum_{feet} (y_lowest of the foot)^2           feet on the floor (where they reach)
-  + k_joint |(psi, hip, knee, ankle, back)|^2             joints change only where forced
+    sum_{i in S} w_i [r tanh((s_i - c) / r)]^2           supported skin on the surface
+  + k_pen  sum_{i in C} max(0, -s_i - g)^2               no body vertex deeper than g behind it
+  + k_pen  sum_{j in P} max(0, d_j - g)^2                no surface point deeper than g in the skin
+  + k_floor sum_{feet} max(0, -y_i)^2                    nothing below the floor
+  + k_feet  sum_{feet} (height of the sole)^2            feet on the floor (where they reach)
+  + k_joint |(psi, hip, knee, ankle, back)|^2            joints change only where forced
+  + k_seat  |(t_x, t_z)|^2                               sit where the design's sitters sit
 
 ``S`` are the person's supported vertices (importance, "supported
 everywhere", at least :data:`~seatkit.pressure.contact.SUPPORTED_FRACTION`
 of its peak, on the segments the design supports) whose skin faces the
 surface (``n_i . n_surface < -``:data:`MIN_FACING`), ``w_i`` their
-importance; ``c`` = :data:`CLEARANCE` the gap the Catmull-Clark fit keeps
-between skin and surface (so the design's own sitter is at the optimum
-where the build put them). ``C`` are the vertices within
-:data:`NEAR` of the surface; ``g`` = :data:`GUARANTEE_SLACK`, inside the
-5 mm guarantee. The weights are :data:`WEIGHTS`. Correspondences (``S``'s
-facing test, ``C``) are taken again after each round (:data:`ROUNDS`), as
-in ICP. The result is measured, not trusted: the trial reports the
-evaluation's ``max_penetration_m`` and ``max_body_depth_m`` of the placed
-body, and the accommodation criteria (:mod:`seatkit.population`) judge them.
+importance (normalised); ``c`` = :data:`CLEARANCE` the gap the
+Catmull-Clark fit keeps between skin and surface, and ``r`` =
+:data:`REACH`: skin much farther than ``r`` from the surface no longer
+pulls (it is not in contact). ``C`` are the vertices within :data:`NEAR`
+of the surface whose closest point is straight along its normal (not past
+a border) and, when behind it, inside the furniture (the evaluation's
+test); ``P`` the surface's tessellation points within :data:`NEAR` of the
+skin, ``d_j`` their depth below the tangent plane of the nearest skin vertex
+(a rim cutting into a thigh, where no body vertex is behind the surface);
+``g`` = :data:`GUARANTEE_SLACK`, inside the 5 mm guarantee. The sole's
+height is the mean of its :data:`SOLE` lowest vertices less that mean's
+offset in the pose as given. The weights are :data:`WEIGHTS`.
+
+The start is the vertical lift (over +-:data:`LIFT_RANGE`) with the least
+objective; then each round takes correspondences on the whole posed body and
+measures offsets from the planes of the closest points (point-to-plane, as
+in ICP), each unknown moving at most :data:`TRUST` per round, for at most
+:data:`ROUNDS` rounds; the round with the least objective (correspondences
+taken again there) is kept. The optimiser skins only the vertices it needs
+(linear blend skinning, as every built-in body model poses); the kept
+placement is posed by the body model. The result is measured, not trusted:
+the trial reports the evaluation's ``max_penetration_m`` and
+``max_body_depth_m`` of the placed body, and the accommodation criteria
+(:mod:`seatkit.population`) judge them.
 
 What is reported (``trial.json``)
 ---------------------------------
