@@ -191,6 +191,7 @@ class Placement:
         t = self.theta
         return {
             "translation_m": [float(x) for x in t[:3]],
+            "relative_to": "the person posed as the build poses its sitter, at the chosen sitter's place (hip joints' midpoint above it, feet on the floor)",
             **{f"{name}_deg": float(np.degrees(a)) for name, a in zip(ANGLES, t[3:])},
             "objective": float(self.cost),
             "objective_unmoved": float(self.base_cost),
@@ -213,11 +214,13 @@ class _Poser:
     optimiser; :meth:`body` poses the whole body with the body model.
     """
 
-    def __init__(self, model, rig, pose: Pose):
+    def __init__(self, model, rig, pose: Pose, at=(0.0, 0.0, 0.0)):
         from seatkit.body.frame import canonical_frame, pose_canonical, turned_pose
 
         self.model, self.rig = model, rig
         self.body0, _ = pose_canonical(model, rig, pose)
+        if np.any(at):  # the seat of another sitter of the design (a bench)
+            self.body0 = self.body0.translated(np.asarray(at, dtype=np.float64))
         captured = model.pose(rig, pose, ground=True)
         self.pose0 = turned_pose(pose, canonical_frame(captured))
         raw = model.pose(rig, self.pose0, ground=False)
@@ -273,7 +276,7 @@ class _Poser:
         return body.translated(theta[:3]) if np.any(theta[:3]) else body
 
 
-def place(design: TrialDesign, model, rig, pose: Pose, *, importance=None, solver=None, terms: dict | None = None) -> tuple[Body, Placement]:
+def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importance=None, solver=None, terms: dict | None = None) -> tuple[Body, Placement]:
     """Seat one person on the design: the optimisation of the module docstring.
 
     Each round takes correspondences on the whole posed body (closest surface
@@ -284,6 +287,8 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, importance=None, solve
 
     Parameters
     ----------
+    seat : int
+        Which sitter's place of the design (0-based; :func:`seat_position`).
     terms : dict, optional
         Filled with each term of the objective at the result (for tests and
         diagnostics).
@@ -299,7 +304,7 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, importance=None, solve
     from seatkit.geometry.normals import vertex_normals
     from seatkit.pressure.contact import supported_vertices
 
-    poser = _Poser(model, rig, pose)
+    poser = _Poser(model, rig, pose, at=seat_position(design, seat))
     body0 = poser.body0
     if importance is None:
         p = design.recipe["pressure"]
@@ -438,7 +443,25 @@ class TrialResult:
     label: dict = field(default_factory=dict)
 
 
-def run_trial(design: TrialDesign, registry, model_name: str, params: dict, pose_spec, *, frame: int = 0, label: dict | None = None) -> TrialResult:
+def seat_position(design: TrialDesign, seat: int) -> np.ndarray:
+    """Where sitter ``seat`` (0-based) of the design sat: their hip joints' midpoint, horizontally (m).
+
+    A one-person design's sitter sat at the origin; a bench's people sat side by side.
+
+    Raises
+    ------
+    InputError
+        When the design has no such sitter.
+    """
+    n = len(design.bodies)
+    if not 0 <= seat < n:
+        raise InputError(f"--seat: expected a sitter of the design from 1 to {n}, got {seat + 1}")
+    j = design.bodies[seat].joints
+    centre = 0.5 * (j[S["LeftUpLeg"]] + j[S["RightUpLeg"]])
+    return np.array([centre[0], 0.0, centre[2]])
+
+
+def run_trial(design: TrialDesign, registry, model_name: str, params: dict, pose_spec, *, frame: int = 0, seat: int = 0, label: dict | None = None) -> TrialResult:
     """Seat the person ``model_name`` (with ``params``) in pose ``pose_spec`` on ``design`` and evaluate.
 
     Parameters
@@ -447,7 +470,9 @@ def run_trial(design: TrialDesign, registry, model_name: str, params: dict, pose
     registry : the plugin registry (body models, the pressure solver)
     model_name, params : the body model and its parameters (as a recipe's ``bodies[]`` entry)
     pose_spec : a library pose name, pose file, or a :class:`~seatkit.model.Pose`
+    seat : which sitter's place of the design, 0-based (:func:`seat_position`)
     """
+    seat_position(design, seat)  # one line for a seat the design has not, before any work
     from seatkit.body import load_pose
     from seatkit.body.measure import measure_rig
     from seatkit.dimensions import person_fit, support_dimensions
@@ -461,15 +486,15 @@ def run_trial(design: TrialDesign, registry, model_name: str, params: dict, pose
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1):  # small dense blocks: threaded BLAS only contends (as in a build)
-        return _run_trial(design, rig, model, pose, solver, p, label)
+        return _run_trial(design, rig, model, pose, solver, p, label, seat)
 
 
-def _run_trial(design, rig, model, pose, solver, p, label) -> TrialResult:
+def _run_trial(design, rig, model, pose, solver, p, label, seat=0) -> TrialResult:
     from seatkit.body.measure import measure_rig
     from seatkit.dimensions import person_fit, support_dimensions
     from seatkit.evaluate import evaluate_person
 
-    body, placement = place(design, model, rig, pose, solver=solver)
+    body, placement = place(design, model, rig, pose, seat=seat, solver=solver)
     importance = solver.solve(body, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
     metrics, fld = evaluate_person(
         body, importance, design.surface, solver=solver, support_distance=design.support_distance,

@@ -84,6 +84,7 @@ def test_trial_command_writes_its_figures_and_picture(design_dir, tmp_path):
         (["trial", "/no/such/folder"], "no such folder"),
         (["trial", "{design}", "--body", "nobody"], "unknown body model"),
         (["trial", "{design}", "--pose", "no-such-pose"], "unknown pose"),
+        (["trial", "{design}", "--seat", "2"], "--seat: expected a sitter of the design from 1 to 1"),
     ],
 )
 def test_trial_bad_input_gets_one_line(design_dir, tmp_path, args, expected):

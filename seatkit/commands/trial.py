@@ -26,6 +26,7 @@ def register(app: typer.Typer) -> None:
         mass: Optional[float] = typer.Option(None, "--mass", help="Body mass in kg (default the body's)."),
         height: Optional[float] = typer.Option(None, "--height", help="Stature in m (parametric bodies)."),
         frame: Optional[int] = typer.Option(None, "--frame", help="Frame of a BVH pose."),
+        seat: int = typer.Option(1, "--seat", help="Which sitter's place of the design (1 = the first; a bench has several)."),
         out: Optional[Path] = typer.Option(None, "--out", "-o", help="Trial folder (default trials/DESIGN--BODY--POSE)."),
         as_json: bool = typer.Option(False, "--json", help="Print trial.json on stdout."),
     ) -> None:
@@ -47,7 +48,7 @@ def register(app: typer.Typer) -> None:
             params["mass"] = mass
         if height is not None:
             params["height"] = height
-        result = run_trial(design, registry, spec["model"], params, pose, frame=frame or 0, label={"pose": pose})
+        result = run_trial(design, registry, spec["model"], params, pose, frame=frame or 0, seat=seat - 1, label={"pose": pose, "seat": seat})
         folder = out if out is not None else default_trial_folder(directory, body, pose)
         files = write_trial(design, result, folder)
         report = trial_report(design, result)
