@@ -222,7 +222,8 @@ CRITERIA = Criteria()
 def judge(metrics: dict, fit: dict, reference: dict, criteria: Criteria = CRITERIA) -> list[str]:
     """The reasons a person is not accommodated (empty: accommodated)."""
     if not metrics.get("supported"):
-        return [f"not supported: {metrics.get('reason', 'no solution')}"]
+        # one reason: the solver's own sentence may hold the separator of reasons
+        return [f"not supported: {str(metrics.get('reason') or 'no solution').replace('; ', ', ')}"]
     out = []
     depth = max(metrics["max_penetration_m"], metrics["max_body_depth_m"])
     if depth > criteria.max_depth_m:
