@@ -74,6 +74,7 @@ from __future__ import annotations
 import csv
 import functools
 import hashlib
+import math
 import io
 import json
 import time
@@ -252,12 +253,18 @@ def design_reference(directory: Path) -> dict:
     path = Path(directory) / "report.json"
     try:
         ours = json.loads(path.read_text(encoding="utf-8"))["metrics"]["ours"]
-        return {
-            "max_pressure_pa": max(float(m["max_pressure_pa"]) for m in ours if m.get("supported")),
-            "max_moment_nm": max(float(m["max_moment_nm"]) for m in ours if m.get("supported")),
+        out = {
+            key: max(float(m[key]) for m in ours if m.get("supported") is True)
+            for key in ("max_pressure_pa", "max_moment_nm")
         }
-    except (OSError, ValueError, KeyError, TypeError):
-        raise InputError(f"{path}: expected the build's report.json with metrics.ours (the design's own figures)") from None
+        if not all(math.isfinite(v) and v > 0 for v in out.values()):
+            raise ValueError
+        return out
+    except (OSError, UnicodeDecodeError, ValueError, KeyError, TypeError, AttributeError, RecursionError):
+        raise InputError(
+            f"{path}: expected the build's report.json with metrics.ours: the design's own sitters' "
+            "max_pressure_pa and max_moment_nm (positive numbers)"
+        ) from None
 
 
 # ----------------------------------------------------------------------------- the work on Dask

@@ -139,3 +139,40 @@ def test_accommodate_bad_input_gets_one_line(p50_upright_design, tmp_path, args,
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and expected in lines[0], res.output
     assert not (tmp_path / "x").exists()
+
+
+def test_design_reference_reads_any_report_json_or_refuses_in_one_line(tmp_path):
+    from hypothesis import example, given, settings
+    from hypothesis import strategies as st
+
+    from seatkit.errors import InputError
+    from seatkit.population import design_reference
+
+    figures = st.fixed_dictionaries({}, optional={
+        "supported": st.booleans(),
+        "max_pressure_pa": st.one_of(st.floats(allow_nan=True), st.text(max_size=5), st.none()),
+        "max_moment_nm": st.one_of(st.floats(allow_nan=True), st.integers(), st.none()),
+    })
+    documents = st.one_of(
+        st.binary(max_size=64).map(lambda b: b.decode("latin-1")),
+        st.recursive(st.none() | st.booleans() | st.floats() | st.text(max_size=5), lambda c: st.lists(c, max_size=3) | st.dictionaries(st.text(max_size=5), c, max_size=3), max_leaves=8).map(json.dumps),
+        st.lists(figures, max_size=3).map(lambda ours: json.dumps({"metrics": {"ours": ours}})),
+    )
+
+    @settings(max_examples=150, deadline=None)
+    @example('{"metrics": {"ours": [{"supported": true, "max_pressure_pa": NaN, "max_moment_nm": 3}]}}')
+    @example('{"metrics": {"ours": [{"supported": true, "max_pressure_pa": -1, "max_moment_nm": 3}]}}')
+    @example('{"metrics": {"ours": ["x"]}}')
+    @example('{"metrics": {"ours": [{"supported": true, "max_pressure_pa": 9000, "max_moment_nm": 30}]}}')
+    @given(documents)
+    def check(text):
+        (tmp_path / "report.json").write_text(text, encoding="utf-8")
+        try:
+            ref = design_reference(tmp_path)
+        except InputError as e:
+            assert "\n" not in str(e) and "report.json" in str(e)
+            return
+        assert set(ref) == {"max_pressure_pa", "max_moment_nm"}
+        assert all(np.isfinite(v) and v > 0 for v in ref.values())
+
+    check()
