@@ -49,8 +49,9 @@ skin, ``d_j`` their depth below the tangent plane of the nearest skin vertex
 height is the mean of its :data:`SOLE` lowest vertices less that mean's
 offset in the pose as given. The weights are :data:`WEIGHTS`.
 
-The start is the vertical lift (over +-:data:`LIFT_RANGE`) with the least
-objective; then each round takes correspondences on the whole posed body and
+The start is the vertical lift (over +-:data:`LIFT_RANGE`, in steps of 4
+:data:`LIFT_STEP`, then within 2 of the best) with the least objective
+(measured on every :data:`LIFT_STRIDE`-th vertex); then each round takes correspondences on the whole posed body and
 measures offsets from the planes of the closest points (point-to-plane, as
 in ICP), each unknown moving at most :data:`TRUST` per round, for at most
 :data:`ROUNDS` rounds; the round with the least objective (correspondences
@@ -126,7 +127,7 @@ SOLE = 20
 MAX_PULL = 600
 MAX_NEAR = 1200
 #: The start's vertical lift is searched over +-LIFT_RANGE in LIFT_STEP steps, m.
-LIFT_RANGE = 0.15
+LIFT_RANGE = 0.16
 LIFT_STEP = 0.01
 LIFT_STRIDE = 4
 #: Bounds of the unknowns: translation (m), heading and joint changes (rad).
@@ -347,15 +348,14 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
         behind = np.flatnonzero(along & (side < 0))
         along[behind[~inside_furniture(design.surface, v[behind])]] = False
         near = _thinned(np.flatnonzero((d <= NEAR) & along), MAX_NEAR)
-        normals = vertex_normals(v, body0.faces)[support]
-        facing = along[support] & (np.einsum("ki,ki->k", normals, np.nan_to_num(sn[support])) < -MIN_FACING)
+        skin_n = vertex_normals(v, body0.faces)
+        facing = along[support] & (np.einsum("ki,ki->k", skin_n[support], np.nan_to_num(sn[support])) < -MIN_FACING)
         keep = _thinned(np.flatnonzero(facing), MAX_PULL)
         w = weight[keep]
         # the surface's own points near the skin (a border or a wing cuts into the body where no
         # body vertex is behind the surface): each against the tangent plane of its nearest skin vertex
         gap, owner = body_tree(v).query(surface_points, distance_upper_bound=NEAR)
         close = np.flatnonzero(np.isfinite(gap))
-        skin_n = vertex_normals(v, body0.faces)
         offset = np.einsum("ki,ki->k", surface_points[close] - v[owner[close]], skin_n[owner[close]])
         probe = _thinned(close[np.abs(offset) >= PROBE_ALONG * gap[close]], MAX_NEAR)
         pull = support[keep]
@@ -392,7 +392,7 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
     # a start clear of the seat: the vertical lift with the least exact objective, coarse then fine
     lifted = lambda h: np.r_[0.0, h, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # noqa: E731
     tried = {0.0: exact(lifted(0.0), thin=True)[0]}
-    for h in np.arange(-LIFT_RANGE, LIFT_RANGE + 1e-9, 3 * LIFT_STEP):
+    for h in np.arange(-LIFT_RANGE, LIFT_RANGE + 1e-9, 4 * LIFT_STEP):
         tried.setdefault(round(float(h), 6), exact(lifted(h), thin=True)[0])
     centre = min(tried, key=tried.get)
     for h in (centre - 2 * LIFT_STEP, centre - LIFT_STEP, centre + LIFT_STEP, centre + 2 * LIFT_STEP):
