@@ -23,6 +23,7 @@ import hashlib
 import json
 import math
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, Iterable, Sequence
@@ -303,6 +304,34 @@ def _flat_metrics(metrics: dict) -> dict:
     return out
 
 
+@contextmanager
+def dask_client(scheduler: str | None = None, workers: int | None = None):
+    """A Dask client: of the scheduler at ``scheduler`` (``tcp://host:8786``), else of a ``LocalCluster``.
+
+    The local cluster has ``workers`` processes (default one per core) of one
+    thread each; it is closed with the client.
+    """
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError as e:  # pragma: no cover - depends on the install
+        raise MissingExtraError("dask[distributed]", "batch") from e
+    import os
+
+    cluster = None
+    if scheduler:
+        client = Client(scheduler)
+    else:
+        n = workers or os.cpu_count() or 1
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+        client = Client(cluster)
+    try:
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
 def run_batch(
     items: Sequence[BatchItem],
     out: Path,
@@ -332,10 +361,9 @@ def run_batch(
     list of ItemResult, in item order.
     """
     try:
-        from dask.distributed import Client, LocalCluster, as_completed
+        from dask.distributed import as_completed
     except ImportError as e:  # pragma: no cover - depends on the install
         raise MissingExtraError("dask[distributed]", "batch") from e
-    import os
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -352,14 +380,7 @@ def run_batch(
         for r in list(results.values()):
             progress(done, len(items), r)
     if todo:
-        cluster = None
-        if scheduler:
-            client = Client(scheduler)
-        else:
-            n = workers or os.cpu_count() or 1
-            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
-            client = Client(cluster)
-        try:
+        with dask_client(scheduler, workers) as client:
             futures = {client.submit(run_item, it.recipe, tuple(disabled), key=f"seatkit-{it.name}-{it.recipe['seed']}", pure=False): it for it in todo}
             for fut in as_completed(futures):
                 it = futures[fut]
@@ -380,10 +401,6 @@ def run_batch(
                 done += 1
                 if progress:
                     progress(done, len(items), res)
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
     ordered = [results[it.name] for it in items]
     write_summary(ordered, out)
     return ordered

@@ -29,3 +29,20 @@ def seated():
             body = pose_rig(rig, load_pose(info.name), ground=True)
             out[info.name] = (body, solve_pressure(body))
     return out
+
+
+@pytest.fixture(scope="session")
+def p50_upright_design(tmp_path_factory):
+    """A p50-male upright chair, built and written (design.npz, report.json): the design trials sit on."""
+    from seatkit import build
+
+    out = tmp_path_factory.mktemp("design") / "p50m"
+    recipe = {
+        "template": "chair",
+        "bodies": [{"model": "p50-male", "pose": "upright-sitting"}],
+        "output": str(out),
+        "exporters": ["design", "report-json"],
+        "evaluate": {"baseline": None},
+    }
+    build(recipe, processes=False)
+    return out

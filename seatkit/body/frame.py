@@ -40,7 +40,7 @@ import numpy as np
 from seatkit.model import Body, Pose
 from seatkit.skeleton import SEGMENT_INDEX as S
 
-__all__ = ["CAPTURE_FRAME_EXPORTERS", "MIN_LATERAL", "POSE_DECIMALS", "CanonicalFrame", "body_heading", "canonical_frame", "pose_canonical", "result_in_capture_frame", "rotation_about_y", "to_canonical"]
+__all__ = ["CAPTURE_FRAME_EXPORTERS", "MIN_LATERAL", "POSE_DECIMALS", "CanonicalFrame", "body_heading", "canonical_frame", "pose_canonical", "result_in_capture_frame", "turned_pose", "rotation_about_y", "to_canonical"]
 
 #: Horizontal length below which the summed left-right axis (at most 2) is
 #: taken as vertical (a body lying on its side): the chest's normal gives the heading instead.
@@ -202,14 +202,9 @@ def pose_canonical(model, rig, pose: Pose) -> tuple[Body, CanonicalFrame]:
     frame : CanonicalFrame
         The move from the body posed as captured (grounded) into ``body``'s frame.
     """
-    from scipy.spatial.transform import Rotation
-
     captured = model.pose(rig, pose, ground=True)
     frame = canonical_frame(captured)
-    rotations = np.array(pose.rotations, dtype=np.float64)
-    turn = Rotation.from_matrix(frame.rotation)
-    rotations[0] = (turn * Rotation.from_rotvec(rotations[0])).as_rotvec()
-    turned = Pose(np.round(rotations, POSE_DECIMALS), np.zeros(3), pose.name)
+    turned = turned_pose(pose, frame)
     body = model.pose(rig, turned, ground=True)
     j = body.joints
     body = body.translated(-_horizontal(0.5 * (j[S["LeftUpLeg"]] + j[S["RightUpLeg"]])))
@@ -218,6 +213,16 @@ def pose_canonical(model, rig, pose: Pose) -> tuple[Body, CanonicalFrame]:
     translation = centre(body) - frame.rotation @ centre(captured)
     translation[np.abs(translation) <= _IDENTITY_TOLERANCE] = 0.0
     return body, CanonicalFrame(frame.heading, frame.rotation, translation + 0.0)
+
+
+def turned_pose(pose: Pose, frame: CanonicalFrame) -> Pose:
+    """``pose`` with its root turned by ``frame``'s rotation, rounded, without translation (the pose :func:`pose_canonical` poses)."""
+    from scipy.spatial.transform import Rotation
+
+    rotations = np.array(pose.rotations, dtype=np.float64)
+    turn = Rotation.from_matrix(frame.rotation)
+    rotations[0] = (turn * Rotation.from_rotvec(rotations[0])).as_rotvec()
+    return Pose(np.round(rotations, POSE_DECIMALS), np.zeros(3), pose.name)
 
 
 #: The exporters whose files ``export_frame: capture`` moves into the capture's

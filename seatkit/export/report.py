@@ -440,7 +440,12 @@ def _body_layer(scene: _Scene, view: str, family: str, contact: np.ndarray | Non
     return scene.layer("body", view, family, rgb)
 
 
-def _surface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
+def write_surface_png(result, path, *, title: str | None = None) -> Path:
+    """``surface.png`` of ``result`` (the body on the limit surface, coloured by its contact pressure) at ``path``; ``title`` leads its title."""
+    return _surface_png(_scene(result), Path(path), heading=title)
+
+
+def _surface_png(scene: _Scene, path: Path, save=_write_png, heading: str | None = None) -> Path:
     contact = scene.contact
     vmax = contact_scale(contact) if contact is not None else 0.0
     panels = []
@@ -448,6 +453,8 @@ def _surface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
         layers = [_body_layer(scene, view, "scene", contact, vmax), scene.layer("surface", view, "scene", SURFACE_RGB, SURFACE_ALPHA)]
         panels.append((_pil(rs.composite(BACKGROUND, layers)), view))
     title = f"Limit surface (level {scene.surface_level}, {len(scene.surface.faces)} triangles) with the body"
+    if heading:
+        title = f"{heading}: {title[0].lower()}{title[1:]}"
     if contact is None or vmax <= 0:
         return save(_sheet(title, panels), path)
     below = rs.composite(BACKGROUND, [_body_layer(scene, "from below", "body", contact, vmax)])
