@@ -105,6 +105,9 @@ MAX_PEOPLE = 100_000
 FIGURES = ("stature", "mass", "sitting_height", "hip_breadth", "buttock_knee", "popliteal_height", "buttock_popliteal_length")
 #: The figures that are the parametric body's inputs besides stature and mass.
 MODEL_INPUTS = ("sitting_height", "hip_breadth", "buttock_knee", "popliteal_height")
+#: The knee's shape inputs (scales, no survey column of their own), interpolated over the manikins of the
+#: person's sex by the survey figure they set: buttock-popliteal length for the calf's depth, stature for the knee's.
+SHAPE_INPUTS = {"calf_depth": "buttock_popliteal_length", "knee_depth": "stature"}
 #: Most redraws of one person before the sampler gives up (never reached with the shipped statistics).
 MAX_REDRAWS = 1000
 
@@ -182,6 +185,12 @@ def _calibration(sex: str) -> dict:
         ratio = np.array([p["model_inputs"][key] / p["survey"][key] for p in presets])
         order = np.argsort(survey)
         out[key] = (survey[order], ratio[order])
+    for key, by in SHAPE_INPUTS.items():
+        if all(key in p["model_inputs"] for p in presets):
+            survey = np.array([p["survey"][by] for p in presets])
+            value = np.array([p["model_inputs"][key] for p in presets])
+            order = np.argsort(survey)
+            out[key] = (survey[order], value[order])
     return out
 
 
@@ -193,6 +202,10 @@ def person_params(person: Person) -> tuple[str, dict]:
     for key in MODEL_INPUTS:
         xs, ratios = cal[key]
         params[key] = round(float(f[key] * np.interp(f[key], xs, ratios)), 5)
+    for key, by in SHAPE_INPUTS.items():
+        if key in cal:
+            xs, values = cal[key]
+            params[key] = round(float(np.interp(f[by], xs, values)), 5)
     return f"default-{person.sex}", params
 
 
