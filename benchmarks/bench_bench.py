@@ -1,4 +1,4 @@
-"""Bench build time against the number of people (issue 8: at most linear growth).
+"""Bench build time against the number of people (the goal: at most linear growth).
 
 1 person is the chair (the bench template needs 2 to 6); 2 to 6 people use
 the bench with library poses cycling through supportable sitting poses and

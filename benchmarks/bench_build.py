@@ -2,7 +2,7 @@
 
 Wall time of the command in a fresh process (Python start-up and imports
 included), repeated; prints the median and each stage's share from the
-report. Target (issue 9): at most 3 s on 2 cores.
+report. Target: at most 2 s on 2 cores (docs/performance.md).
 
     python benchmarks/bench_build.py [--repeat 5] [--template chair] [-- extra seatkit build flags]
 """

@@ -1,4 +1,4 @@
-"""The structural analysis of the default chair (issue 19): time, memory and convergence.
+"""The structural analysis of the default chair: time, memory and convergence.
 
 Builds the default chair once (nothing written), then times
 :func:`seatkit.structure.analyse` on it: the first call (scikit-fem's import
