@@ -37,10 +37,13 @@ up axis, written to a temporary one-frame BVH: no stored copies), on every
 ``--bodies`` body: whether the pose rule accepts it, whether the full
 default build (first ``--seeds`` seed) finishes, the paper's Table 1 wins
 over the flat patch, and whether every heading gives the same cage (the
-canonical frame, seatkit.body.frame). The real-capture run of
-docs/evaluation.md:
+canonical frame, seatkit.body.frame). The real-capture runs of
+docs/evaluation.md, the frames picked by eye and those taken from each take
+by a fixed rule (benchmarks/captures/sampled; ``--capture-seated`` keeps
+the frames with a thigh within 45 deg of level and lists the others):
 
     nice -n 10 python benchmarks/bench_generalisation.py --poses 0 --unsupported 0 --library-seeds 0 --seeds 0 --captures benchmarks/captures --workers 2 --results captures.jsonl --markdown captures.md
+    nice -n 10 python benchmarks/bench_generalisation.py --poses 0 --unsupported 0 --library-seeds 0 --seeds 0 --captures benchmarks/captures/sampled --capture-seated --workers 2 --results sampled.jsonl --markdown sampled.md
 
 Pose-and-body tasks run in ``--workers`` processes (concurrent.futures);
 each build runs in one process (``processes=False``) with BLAS on one
