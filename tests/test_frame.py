@@ -164,3 +164,24 @@ def test_the_rule_refuses_feet_under_the_body_only_when_the_calf_lies_under_the_
     # the library's feet-tucked pose stays refused
     tucked = assess_pose(pose_rig(rig, load_pose("feet-tucked")))
     assert not tucked.supportable and any("feet under the body" in r for r in tucked.reasons)
+
+
+
+@pytest.mark.parametrize("degrees", [0.0, 135.0])
+def test_the_rule_refuses_a_capture_with_a_leg_reaching_back(rig, degrees):
+    from seatkit.body import pose_rig
+    from seatkit.body.frame import to_canonical
+    from seatkit.template.pose_rule import assess_pose
+
+    # a yoga frame (CMU 111_38, frame taken by the sampling rule, nobody picked it): the right knee well behind the hip,
+    # the left knee up in front; the fitted cage's bridge between the legs would cross the seat
+    yoga = load_pose(CAPTURE.parent / "sampled" / "cmu-111_38.bvh", frame=1, rig=rig)
+    verdict = assess_pose(to_canonical(pose_rig(rig, _turned(yoga, degrees)))[0])
+    assert not verdict.supportable
+    assert any("a leg reaching back: the right knee" in r for r in verdict.reasons), verdict.reasons
+    assert "RightUpLeg" in verdict.parts and "LeftUpLeg" not in verdict.parts
+    assert verdict.measures["legs"]["Right"]["knee_ahead_thighs"] < -0.5 < verdict.measures["legs"]["Left"]["knee_ahead_thighs"]
+    # the knees of seated, reclined and lying people are ahead of their hips; a standing person's thighs point down
+    for name in ("lying-supine", "upright-sitting", "leaning-forward", "standing-leaning-back"):
+        held = assess_pose(pose_rig(rig, load_pose(name)))
+        assert held.supportable, (name, held.reasons)

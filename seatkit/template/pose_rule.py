@@ -8,6 +8,13 @@ docs/templates.md, "The pose rule"):
 
 - **lying on the side**: the body's left-right axis (hips and shoulders)
   tilted more than ``max_roll_deg`` from horizontal: the columns would stack;
+- **a leg reaching back**: a thigh within 45 deg of level whose knee is
+  less than ``min_knee_ahead`` thigh lengths ahead of the hip joint (along
+  the body's facing direction): behind the hip, as in a lunge or a yoga
+  pose with one knee back; the leg columns run forward from the seat to the
+  feet, and the bridges between a leg forward and a leg back would cross
+  the seat (a thigh pointing down, standing or kneeling, is the standing
+  and kneeling tests' concern);
 - **sitting sideways**: a thigh turned more than ``max_thigh_turn_deg``
   from straight ahead towards the line across the shoulders, seen from above: the leg columns would leave
   the seat sideways and cross the back's columns;
@@ -55,6 +62,7 @@ DEFAULT_RULE = {
     "max_thigh_turn_deg": 50.0,
     "max_shank_back_deg": 25.0,
     "min_foot_ahead": 0.25,
+    "min_knee_ahead": 0.0,
     "max_shank_back_foot_ahead_deg": 45.0,
     "kneel_height": 0.2,
 }
@@ -140,10 +148,22 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
         thigh_down = float(np.degrees(np.arcsin(np.clip(-_unit(thigh) @ _UP, -1.0, 1.0))))
         # how far the foot (ankle joint) is ahead of the hip joint, in thigh lengths, along the facing direction
         ahead = float((ankle - hip) @ facing) / max(float(np.linalg.norm(thigh)), 1e-9)
-        leg = {"thigh_turn_deg": turn, "shank_back_deg": back, "knee_height_m": knee_h, "thigh_down_deg": thigh_down, "foot_ahead_thighs": ahead}
+        # how far the knee is ahead of the hip joint, in thigh lengths, along the facing direction
+        knee_ahead = float(thigh @ facing) / max(float(np.linalg.norm(thigh)), 1e-9)
+        leg = {
+            "thigh_turn_deg": turn, "shank_back_deg": back, "knee_height_m": knee_h, "thigh_down_deg": thigh_down,
+            "foot_ahead_thighs": ahead, "knee_ahead_thighs": knee_ahead,
+        }
         measures["legs"][side] = leg
         name = side.lower()
-        if roll <= r["max_roll_deg"] and turn > r["max_thigh_turn_deg"]:
+        if roll <= r["max_roll_deg"] and thigh_down < 45.0 and knee_ahead < r["min_knee_ahead"]:
+            reasons.append(
+                f"a leg reaching back: the {name} knee is {-knee_ahead:.2f} thigh lengths behind the hip joint (it must be at least "
+                f"{r['min_knee_ahead']:.2f} ahead) with the thigh {abs(thigh_down):.0f} deg from level: the chair's leg columns run forward "
+                "from the seat, and the bridge to the other leg would cross the seat"
+            )
+            parts += [side + "UpLeg", side + "Leg"]
+        elif roll <= r["max_roll_deg"] and turn > r["max_thigh_turn_deg"]:
             reasons.append(
                 f"sitting sideways: the {name} thigh is turned {turn:.0f} deg from straight ahead towards the shoulders' line (at most "
                 f"{r['max_thigh_turn_deg']:.0f}): the leg columns would leave the seat beside the backrest"
@@ -196,7 +216,7 @@ class PoseRuleStep:
     """Refuse, before any fitting, the poses the template's grid cannot follow (:func:`assess_pose`)."""
 
     name = "pose-rule"
-    description = "refuse poses the grid cannot follow (lying on the side, sitting sideways, feet under the body, kneeling, standing upright), from the skeleton, before fitting"
+    description = "refuse poses the grid cannot follow (lying on the side, a leg reaching back, sitting sideways, feet under the body, kneeling, standing upright), from the skeleton, before fitting"
     stage = "blocks"
     requires = ()
     options = {
@@ -205,6 +225,7 @@ class PoseRuleStep:
         "max_shank_back_deg": Option("number", "largest swing of a shank behind the vertical through its knee (unless its foot is at least min_foot_ahead ahead of the hip)", DEFAULT_RULE["max_shank_back_deg"], "deg", 0.0, 180.0),
         "max_shank_back_foot_ahead_deg": Option("number", "largest swing of a shank behind the vertical through its knee when its foot is at least min_foot_ahead ahead of the hip", DEFAULT_RULE["max_shank_back_foot_ahead_deg"], "deg", 0.0, 180.0),
         "min_foot_ahead": Option("number", "a shank swung back further than max_shank_back_deg is refused when its foot is less than this far ahead of the hip joint", DEFAULT_RULE["min_foot_ahead"], "1", -2.0, 2.0),
+        "min_knee_ahead": Option("number", "a thigh within 45 deg of level is refused when its knee is less than this far ahead of the hip joint (reaching back)", DEFAULT_RULE["min_knee_ahead"], "1", -2.0, 2.0),
         "kneel_height": Option("number", "a knee this close to the floor with its shank swung back is kneeling", DEFAULT_RULE["kneel_height"], "m", 0.0, 2.0),
     }
 
