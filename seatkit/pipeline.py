@@ -214,7 +214,7 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
     result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
     if recipe["evaluate"]["enabled"]:
-        evaluate_result(result, registry, timer, baseline=baseline)
+        evaluate_result(result, registry, timer, baseline=baseline, helper=baseline_helper)
         if recipe.get("sitters"):
             with timer.stage("own designs"):  # the cost of sharing: each sitter's design alone (seatkit.sitters)
                 from seatkit.sitters import sharing_metrics

@@ -277,6 +277,10 @@ class Helper:
         self._jobs.append(job)
         return job
 
+    def idle(self) -> bool:
+        """Whether every task submitted so far is done (a new one would start at once)."""
+        return all(job.done() for job in self._jobs)
+
     def result(self, future: Future) -> Any:
         """A task's value, its error re-raised, or :class:`WorkerLost` if the worker died."""
         try:
