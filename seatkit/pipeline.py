@@ -120,7 +120,7 @@ def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool
             baseline_helper = _helper(helpers, "baseline", [], processes and _wants_baseline(recipe))
             result = _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper)
             if write:
-                _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper)
+                _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper, spare=baseline_helper)
     return result
 
 
@@ -283,9 +283,14 @@ def own_designs(recipe: Recipe, registry) -> list[dict]:
     return out
 
 
-def _run_exporters(exporters: list, result: BuildResult, directory: Path, capture: BuildResult | None = None) -> list[dict]:
-    """Each exporter's ``{role: path}``, in order (the export helper's job)."""
-    return [exporter.export(_exported(exporter, result, capture), directory) for exporter in exporters]
+def _run_exporters(exporters: list, result: BuildResult, directory: Path, capture: BuildResult | None = None, prepare: bool = False) -> list[dict]:
+    """Each exporter's ``{role: path}``, in order (a helper's job); with ``prepare``, each prepared first."""
+    out = []
+    for exporter in exporters:
+        if prepare:
+            exporter.prepare()
+        out.append(exporter.export(_exported(exporter, result, capture), directory))
+    return out
 
 
 def _exported(exporter, result: BuildResult, capture: BuildResult | None) -> BuildResult:
@@ -304,32 +309,41 @@ def _capture_result(result: BuildResult) -> BuildResult | None:
     return result_in_capture_frame(result)
 
 
-def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *, overwrite: bool, helper=None) -> None:
+def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *, overwrite: bool, helper=None, spare=None) -> None:
     """Run the exporters into a staging folder, report.json last, and move the folder into place.
 
     With an export ``helper``, the exporters whose ``prepare_ahead`` is true
     run there (on a pickled copy of the result) while this process runs the
-    others; the files of both are listed in recipe order.
+    others. With a ``spare`` helper that is idle (the baseline's, its work
+    done), the exporters whose ``runs_apart`` is true (costly, with nothing
+    to import ahead: the report's pictures) run there too. The files of all
+    are listed in recipe order.
     """
     from seatkit.io import mark_complete
 
     target = output_target(result.recipe)
     ahead = [i for i, e in enumerate(exporters) if e.prepare_ahead] if helper is not None else []
+    apart = []
+    if spare is not None and spare.idle():
+        apart = [i for i, e in enumerate(exporters) if i not in ahead and getattr(e, "runs_apart", False)]
     capture = _capture_result(result)
     with staging_folder(target, overwrite=overwrite) as staging:
         with timer.stage("export"):
-            job = helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture) if ahead else None
+            jobs = []  # (helper, exporter indices, job)
+            if ahead:
+                jobs.append((helper, ahead, helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture)))
+            if apart:
+                jobs.append((spare, apart, spare.submit(_run_exporters, [exporters[i] for i in apart], result, staging, capture, True)))
             written = {}
             try:
                 for i, exporter in enumerate(exporters):
-                    if i not in ahead:
+                    if i not in ahead and i not in apart:
                         exporter.prepare()
                         written[i] = exporter.export(_exported(exporter, result, capture), staging)
-            finally:  # the helper's files are in the staging folder before it is moved or deleted
-                if job is not None:
-                    wait([job])
-            if job is not None:
-                written.update(zip(ahead, helper.result(job)))
+            finally:  # the helpers' files are in the staging folder before it is moved or deleted
+                wait([job for _, _, job in jobs])
+            for owner, indices, job in jobs:
+                written.update(zip(indices, owner.result(job)))
         files = {role: target / Path(path).name for i in range(len(exporters)) for role, path in written[i].items()}
         result.timings, result.files = timer.timings, files
         report = registry.get("exporter", REPORT_EXPORTER).export(result, staging)

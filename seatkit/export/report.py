@@ -966,6 +966,8 @@ class ReportPngExporter:
     description = "pressure.png, cage.png, surface.png, comparison.png: renders of the body, cage, surface and baseline"
 
     prepare_ahead = False
+    #: Costly (0.3-0.5 s of drawing) with nothing big to import: a build runs it in an idle helper process, beside the other exporters.
+    runs_apart = True
 
     def prepare(self) -> None:
         """Nothing to prepare: this exporter imports nothing big."""
