@@ -222,7 +222,11 @@ class Exporter(Protocol):
     also say ``runs_apart = True`` (optional, default false): it costs much
     to run but imports nothing big (the report's pictures), so a build
     with an idle helper process (the baseline's, its work done) runs it
-    there, on a pickled copy of the result, beside the other exporters.
+    there, on a pickled copy of the result, beside the other exporters;
+    one whose work divides declares ``parts`` (a count),
+    ``export_part(result, directory, part)`` and optionally
+    ``join_parts(list of each part's files)``, and the build runs the parts
+    in its idle processes in turn.
     """
 
     name: str

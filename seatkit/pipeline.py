@@ -283,14 +283,30 @@ def own_designs(recipe: Recipe, registry) -> list[dict]:
     return out
 
 
-def _run_exporters(exporters: list, result: BuildResult, directory: Path, capture: BuildResult | None = None, prepare: bool = False) -> list[dict]:
-    """Each exporter's ``{role: path}``, in order (a helper's job); with ``prepare``, each prepared first."""
-    out = []
-    for exporter in exporters:
-        if prepare:
-            exporter.prepare()
-        out.append(exporter.export(_exported(exporter, result, capture), directory))
-    return out
+def _run_exporters(exporters: list, result: BuildResult, directory: Path, capture: BuildResult | None = None) -> list[dict]:
+    """Each exporter's ``{role: path}``, in order (the export helper's job)."""
+    return [exporter.export(_exported(exporter, result, capture), directory) for exporter in exporters]
+
+
+def _run_part(exporter, result: BuildResult, directory: Path, capture: BuildResult | None, part: int | None) -> dict:
+    """An exporter prepared and run, whole (``part`` None) or one part of it (``export_part``): its ``{role: path}``."""
+    exporter.prepare()
+    exported = _exported(exporter, result, capture)
+    return exporter.export(exported, directory) if part is None else exporter.export_part(exported, directory, part)
+
+
+def _parts(exporter) -> list:
+    """The parts a ``runs_apart`` exporter's work divides into (``parts`` and ``export_part``), or ``[None]``: whole."""
+    n = int(getattr(exporter, "parts", 1) or 1)
+    return list(range(n)) if n > 1 and hasattr(exporter, "export_part") else [None]
+
+
+def _joined(exporter, files: list[dict]) -> dict:
+    """The files of an exporter's parts as its ``export`` would list them (``join_parts``, else in part order)."""
+    if len(files) == 1:
+        return files[0]
+    join = getattr(exporter, "join_parts", None)
+    return join(files) if join is not None else {role: path for f in files for role, path in f.items()}
 
 
 def _exported(exporter, result: BuildResult, capture: BuildResult | None) -> BuildResult:
@@ -316,8 +332,11 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
     run there (on a pickled copy of the result) while this process runs the
     others. With a ``spare`` helper that is idle (the baseline's, its work
     done), the exporters whose ``runs_apart`` is true (costly, with nothing
-    to import ahead: the report's pictures) run there too. The files of all
-    are listed in recipe order.
+    to import ahead: the report's pictures) are run apart: whole, or in the
+    parts they declare (``parts``, ``export_part``), each in turn in the
+    spare helper, the export helper (after its own exporters) and this
+    process (after the others). The files of all are listed in recipe
+    order, an exporter's parts as its ``export`` lists them (``join_parts``).
     """
     from seatkit.io import mark_complete
 
@@ -329,21 +348,29 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
     capture = _capture_result(result)
     with staging_folder(target, overwrite=overwrite) as staging:
         with timer.stage("export"):
-            jobs = []  # (helper, exporter indices, job)
-            if ahead:
-                jobs.append((helper, ahead, helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture)))
-            if apart:
-                jobs.append((spare, apart, spare.submit(_run_exporters, [exporters[i] for i in apart], result, staging, capture, True)))
+            job = helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture) if ahead else None
+            # the parts run apart, in turn: the spare helper, the export helper, this process
+            places = [spare] + ([helper] if helper is not None else []) + [None]
+            tasks = [(i, part, places[k % len(places)]) for k, (i, part) in enumerate((i, part) for i in apart for part in _parts(exporters[i]))]
+            remote = [(i, part, place, place.submit(_run_part, exporters[i], result, staging, capture, part)) for i, part, place in tasks if place is not None]
+            done: dict[int, dict] = {i: {} for i in apart}  # exporter index -> {part: its files}
             written = {}
             try:
                 for i, exporter in enumerate(exporters):
                     if i not in ahead and i not in apart:
                         exporter.prepare()
                         written[i] = exporter.export(_exported(exporter, result, capture), staging)
+                for i, part, place in tasks:
+                    if place is None:
+                        done[i][part] = _run_part(exporters[i], result, staging, capture, part)
             finally:  # the helpers' files are in the staging folder before it is moved or deleted
-                wait([job for _, _, job in jobs])
-            for owner, indices, job in jobs:
-                written.update(zip(indices, owner.result(job)))
+                wait([job] * (job is not None) + [r[3] for r in remote])
+            if job is not None:
+                written.update(zip(ahead, helper.result(job)))
+            for i, part, place, part_job in remote:
+                done[i][part] = place.result(part_job)
+            for i in apart:
+                written[i] = _joined(exporters[i], [done[i][part] for part in _parts(exporters[i])])
         files = {role: target / Path(path).name for i in range(len(exporters)) for role, path in written[i].items()}
         result.timings, result.files = timer.timings, files
         report = registry.get("exporter", REPORT_EXPORTER).export(result, staging)
