@@ -218,7 +218,15 @@ class Exporter(Protocol):
     ``prepare()`` is called just before ``export``. An exporter that declares
     ``options`` (name -> :class:`seatkit.options.Option`) is called
     ``export(result, directory, options=...)`` with a recipe's ``params``
-    for it, checked before any geometry, and its defaults.
+    for it, checked before any geometry, and its defaults. An exporter may
+    also say ``runs_apart = True`` (optional, default false): it costs much
+    to run but imports nothing big (the report's pictures), so a build
+    with an idle helper process (the baseline's, its work done) runs it
+    there, on a pickled copy of the result, beside the other exporters;
+    one whose work divides declares ``parts`` (a count),
+    ``export_part(result, directory, part)`` and optionally
+    ``join_parts(list of each part's files)``, and the build runs the parts
+    in its idle processes in turn.
     """
 
     name: str

@@ -120,7 +120,7 @@ def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool
             baseline_helper = _helper(helpers, "baseline", [], processes and _wants_baseline(recipe))
             result = _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper)
             if write:
-                _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper)
+                _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper, spare=baseline_helper)
     return result
 
 
@@ -214,7 +214,7 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
     result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
     if recipe["evaluate"]["enabled"]:
-        evaluate_result(result, registry, timer, baseline=baseline)
+        evaluate_result(result, registry, timer, baseline=baseline, helper=baseline_helper)
         if recipe.get("sitters"):
             with timer.stage("own designs"):  # the cost of sharing: each sitter's design alone (seatkit.sitters)
                 from seatkit.sitters import sharing_metrics
@@ -288,6 +288,27 @@ def _run_exporters(exporters: list, result: BuildResult, directory: Path, captur
     return [exporter.export(_exported(exporter, result, capture), directory) for exporter in exporters]
 
 
+def _run_part(exporter, result: BuildResult, directory: Path, capture: BuildResult | None, part: int | None) -> dict:
+    """An exporter prepared and run, whole (``part`` None) or one part of it (``export_part``): its ``{role: path}``."""
+    exporter.prepare()
+    exported = _exported(exporter, result, capture)
+    return exporter.export(exported, directory) if part is None else exporter.export_part(exported, directory, part)
+
+
+def _parts(exporter) -> list:
+    """The parts a ``runs_apart`` exporter's work divides into (``parts`` and ``export_part``), or ``[None]``: whole."""
+    n = int(getattr(exporter, "parts", 1) or 1)
+    return list(range(n)) if n > 1 and hasattr(exporter, "export_part") else [None]
+
+
+def _joined(exporter, files: list[dict]) -> dict:
+    """The files of an exporter's parts as its ``export`` would list them (``join_parts``, else in part order)."""
+    if len(files) == 1:
+        return files[0]
+    join = getattr(exporter, "join_parts", None)
+    return join(files) if join is not None else {role: path for f in files for role, path in f.items()}
+
+
 def _exported(exporter, result: BuildResult, capture: BuildResult | None) -> BuildResult:
     """The result ``exporter`` writes: in the capture's frame (``capture``) for the geometry exporters when the recipe asks."""
     from seatkit.body.frame import CAPTURE_FRAME_EXPORTERS
@@ -304,32 +325,52 @@ def _capture_result(result: BuildResult) -> BuildResult | None:
     return result_in_capture_frame(result)
 
 
-def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *, overwrite: bool, helper=None) -> None:
+def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *, overwrite: bool, helper=None, spare=None) -> None:
     """Run the exporters into a staging folder, report.json last, and move the folder into place.
 
     With an export ``helper``, the exporters whose ``prepare_ahead`` is true
     run there (on a pickled copy of the result) while this process runs the
-    others; the files of both are listed in recipe order.
+    others. With a ``spare`` helper that is idle (the baseline's, its work
+    done), the exporters whose ``runs_apart`` is true (costly, with nothing
+    to import ahead: the report's pictures) are run apart: whole, or in the
+    parts they declare (``parts``, ``export_part``), each in turn in the
+    spare helper, the export helper (after its own exporters) and this
+    process (after the others). The files of all are listed in recipe
+    order, an exporter's parts as its ``export`` lists them (``join_parts``).
     """
     from seatkit.io import mark_complete
 
     target = output_target(result.recipe)
     ahead = [i for i, e in enumerate(exporters) if e.prepare_ahead] if helper is not None else []
+    apart = []
+    if spare is not None and spare.idle():
+        apart = [i for i, e in enumerate(exporters) if i not in ahead and getattr(e, "runs_apart", False)]
     capture = _capture_result(result)
     with staging_folder(target, overwrite=overwrite) as staging:
         with timer.stage("export"):
             job = helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture) if ahead else None
+            # the parts run apart, in turn: the spare helper, the export helper, this process
+            places = [spare] + ([helper] if helper is not None else []) + [None]
+            tasks = [(i, part, places[k % len(places)]) for k, (i, part) in enumerate((i, part) for i in apart for part in _parts(exporters[i]))]
+            remote = [(i, part, place, place.submit(_run_part, exporters[i], result, staging, capture, part)) for i, part, place in tasks if place is not None]
+            done: dict[int, dict] = {i: {} for i in apart}  # exporter index -> {part: its files}
             written = {}
             try:
                 for i, exporter in enumerate(exporters):
-                    if i not in ahead:
+                    if i not in ahead and i not in apart:
                         exporter.prepare()
                         written[i] = exporter.export(_exported(exporter, result, capture), staging)
-            finally:  # the helper's files are in the staging folder before it is moved or deleted
-                if job is not None:
-                    wait([job])
+                for i, part, place in tasks:
+                    if place is None:
+                        done[i][part] = _run_part(exporters[i], result, staging, capture, part)
+            finally:  # the helpers' files are in the staging folder before it is moved or deleted
+                wait([job] * (job is not None) + [r[3] for r in remote])
             if job is not None:
                 written.update(zip(ahead, helper.result(job)))
+            for i, part, place, part_job in remote:
+                done[i][part] = place.result(part_job)
+            for i in apart:
+                written[i] = _joined(exporters[i], [done[i][part] for part in _parts(exporters[i])])
         files = {role: target / Path(path).name for i in range(len(exporters)) for role, path in written[i].items()}
         result.timings, result.files = timer.timings, files
         report = registry.get("exporter", REPORT_EXPORTER).export(result, staging)

@@ -73,13 +73,14 @@ __all__ = [
 
 
 #: Modules the fork server imports before it forks any worker: what the
-#: baseline's job imports (its arguments unpickled, the flat-patch template,
-#: the refiners, the limit surface, the evaluation and its pressure solve;
-#: measured with ``sys.modules`` around a baseline job in a process that
-#: imported only these: nothing more is imported) and nothing more: on two
-#: busy cores every import is CPU the build's own stages want. The big
-#: exporter libraries are not among them: the export worker imports those
-#: itself, beside the build, so the baseline worker need not wait for them.
+#: baseline worker's jobs import (its arguments unpickled, the flat-patch
+#: template, the refiners, the limit surface, the evaluation and its
+#: pressure solve; then the interface pressure and a part of the report's
+#: pictures: measured with ``sys.modules`` around those jobs in a process
+#: that imported only these: nothing more is imported), so that no job
+#: waits for an import, and nothing more. The big exporter libraries are not
+#: among them: the export worker imports those itself, beside the build, so
+#: the baseline worker need not wait for them.
 PRELOAD = (
     "seatkit.background",  # first: lowers the fork server's priority (and so its workers')
     "numpy",
@@ -94,6 +95,12 @@ PRELOAD = (
     "seatkit.stages",
     "seatkit.recipe",
     "threadpoolctl",
+    "seatkit.pressure.compliant",  # the interface pressure
+    "clarabel",
+    "seatkit.export.report",  # the report's pictures
+    "PIL.Image",
+    "PIL.ImageDraw",
+    "PIL.ImageFont",
 )
 
 
@@ -276,6 +283,10 @@ class Helper:
         job = self._pool.submit(_portable_call, fn, *args)
         self._jobs.append(job)
         return job
+
+    def idle(self) -> bool:
+        """Whether every task submitted so far is done (a new one would start at once)."""
+        return all(job.done() for job in self._jobs)
 
     def result(self, future: Future) -> Any:
         """A task's value, its error re-raised, or :class:`WorkerLost` if the worker died."""

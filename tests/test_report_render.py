@@ -152,6 +152,22 @@ def test_rendering_writes_every_picture_in_role_order_and_surfaces_a_drawing_err
         report.render_pngs(result, tmp_path / "two")
 
 
+def test_the_pictures_drawn_in_parts_are_the_whole_pictures(tmp_path):
+    """A build with idle helper processes draws the report's parts apart: together they are export()'s files, byte for byte, in its order."""
+    result = evaluated_result()
+    exporter = report.ReportPngExporter()
+    (tmp_path / "whole").mkdir()
+    whole = exporter.export(result, tmp_path / "whole")
+    written = []
+    for part in range(exporter.parts):
+        (tmp_path / f"part{part}").mkdir()
+        written.append(exporter.export_part(result, tmp_path / f"part{part}", part))
+    joined = exporter.join_parts(written)
+    assert list(joined) == list(whole) == list(report.PNG_FILES)
+    for role, path in joined.items():
+        assert path.read_bytes() == whole[role].read_bytes(), role
+
+
 def test_comparison_only_with_a_baseline(tmp_path):
     files = report.ReportPngExporter().export(plain_result(), tmp_path)
     assert set(files) == {"report_pressure_png", "report_cage_png", "report_surface_png"}

@@ -378,13 +378,15 @@ for name in PRELOAD:
 before = set(sys.modules)
 recipe, bodies, pressures, components, segments = pickle.loads(sys.stdin.buffer.read())
 from seatkit.stages import fit_baseline_with
-fit_baseline_with(recipe, bodies, pressures, components, segments)
+base = fit_baseline_with(recipe, bodies, pressures, components, segments)
+from seatkit.evaluate import evaluate_interface
+evaluate_interface(bodies, base.surface)  # the worker's next job, when idle
 print(" ".join(sorted(set(sys.modules) - before)))
 """
 
 
 def test_the_fork_server_preloads_every_module_the_baseline_job_imports():
-    """PRELOAD is what a baseline job imports (its arguments unpickled, the fit, the evaluation), so no worker imports it again."""
+    """PRELOAD is what a baseline job and the interface pressure import (their arguments unpickled, the fit, the evaluation), so no worker imports it again."""
     import subprocess
     import sys
 

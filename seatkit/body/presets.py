@@ -28,7 +28,8 @@ PRESETS: tuple[str, ...] = ("p5-female", "p50-female", "p95-female", "p5-male", 
 @functools.lru_cache(maxsize=1)
 def preset_table() -> dict:
     """The parsed ``presets.yaml``: ``source``, ``files_sha256`` and ``presets``."""
-    return yaml.safe_load(data_path("bodies", "presets.yaml").read_text(encoding="utf-8"))
+    # the packaged file: libyaml's safe loader where PyYAML has it (10x faster; the same data)
+    return yaml.load(data_path("bodies", "presets.yaml").read_text(encoding="utf-8"), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
 
 
 def make_preset(name: str, *, mass: float | None = None, height: float | None = None):

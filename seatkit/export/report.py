@@ -553,12 +553,19 @@ def _interface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
     return save(_sheet(title, panels, colorbar=_colorbar(PANEL_HEIGHT, vmax, "kPa")), path)
 
 
-def render_pngs(result, directory) -> dict[str, Path]:
+#: The report's pictures in parts that share most of their rasters (the same
+#: meshes in the same views), drawn each in its own process when a build has
+#: idle helper processes (``ReportPngExporter.export_part``).
+PNG_PARTS = (("report_cage_png",), ("report_pressure_png", "report_interface_png"), ("report_surface_png", "report_comparison_png"))
+
+
+def render_pngs(result, directory, roles=None) -> dict[str, Path]:
     """Write the report's PNG files into ``directory`` and return them by role.
 
     ``comparison.png`` is written only when the result holds a baseline
     surface; ``cage.png`` and ``surface.png`` only when it holds a cage and a
-    surface.
+    surface. ``roles`` (a subset of :data:`PNG_FILES`' keys): only those
+    pictures.
     """
     directory = Path(directory)
     scene = _scene(result)
@@ -571,6 +578,8 @@ def render_pngs(result, directory) -> dict[str, Path]:
             jobs.append(("report_comparison_png", _comparison_png))
         if scene.interface is not None and contact_scale(scene.interface) > 0:
             jobs.append(("report_interface_png", _interface_png))
+    if roles is not None:
+        jobs = [job for job in jobs if job[0] in roles]
     return _render(scene, jobs, directory)
 
 
@@ -966,12 +975,26 @@ class ReportPngExporter:
     description = "pressure.png, cage.png, surface.png, comparison.png: renders of the body, cage, surface and baseline"
 
     prepare_ahead = False
+    #: Costly (0.3-0.5 s of drawing) with nothing big to import: a build with
+    #: idle helper processes draws its parts (:data:`PNG_PARTS`) there and in
+    #: its own process, beside the other exporters.
+    runs_apart = True
+    parts = len(PNG_PARTS)
 
     def prepare(self) -> None:
         """Nothing to prepare: this exporter imports nothing big."""
 
     def export(self, result, directory: Path) -> dict[str, Path]:
         return render_pngs(result, directory)
+
+    def export_part(self, result, directory: Path, part: int) -> dict[str, Path]:
+        """The pictures of one part (:data:`PNG_PARTS`) only; the parts together write what :meth:`export` writes."""
+        return render_pngs(result, directory, roles=PNG_PARTS[part])
+
+    def join_parts(self, written: list) -> dict[str, Path]:
+        """The parts' files by role, in the order :meth:`export` gives them."""
+        merged = {role: path for files in written for role, path in files.items()}
+        return {role: merged[role] for role in PNG_FILES if role in merged}
 
 
 class ReportHtmlExporter:

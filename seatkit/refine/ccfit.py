@@ -311,6 +311,29 @@ def skin_depth_near(skins: Sequence[SkinDistance], points: np.ndarray, near: flo
     return depth, foot, out
 
 
+#: The samples of a way out asked at once, in turn, each batch only for the rays still inside
+#: (a library pose's probes: 15% leave at the first sample, 78% at the second, 7% later).
+_RETREAT_BATCHES = ((0, 2), (2, 4), (4, len(_RETREAT_SCALE)))
+
+
+def _depths_to_exit(skins: Sequence[SkinDistance], ray: np.ndarray) -> np.ndarray:
+    """(k, s) depths of the samples ``ray`` (k, s, 3) along each ray, up to its first sample outside every body.
+
+    The samples of a ray after its first outside one are not asked (they
+    read as outside, ``-inf``): the way out uses the depths up to the exit
+    only. Each sample's depth is :func:`skin_depth`'s.
+    """
+    k, s, _ = ray.shape
+    dd = np.full((k, s), -np.inf)
+    still = np.arange(k)  # rays with no sample outside yet
+    for lo, hi in _RETREAT_BATCHES:
+        if not still.size:
+            break
+        dd[still, lo:hi] = skin_depth(skins, ray[still, lo:hi].reshape(-1, 3))[0].reshape(still.size, hi - lo)
+        still = still[~(dd[still, lo:hi] <= 0.0).any(axis=1)]
+    return dd
+
+
 def _boundary_samples(ops) -> np.ndarray:
     """(p,) bool: refined vertices on the boundary of the refined mesh."""
     q = ops.faces
@@ -711,7 +734,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
                 # and the first outside
                 t = depth[inside, None] * _RETREAT_SCALE[None, :] + _RETREAT_EXTRA[None, :]
                 ray = Y[inside, None, :] + t[:, :, None] * back[:, None, :]
-                dd = skin_depth(skins, ray.reshape(-1, 3))[0].reshape(t.shape)
+                dd = _depths_to_exit(skins, ray)
                 outside = dd <= 0.0
                 exits = outside.any(axis=1)
                 first = np.argmax(outside, axis=1)
