@@ -941,21 +941,23 @@ def _body_params(model) -> list[dict]:
 #: The template step options offered as a designer's controls (the rest are behind the page's
 #: "advanced" fold): (step, option, label). Each is a declared option of the step (its unit and
 #: range are the step's), set as a recipe sets it: ``template_params: {steps: {STEP: {OPTION: value}}}``.
-DESIGNER_OPTIONS: tuple[tuple[str, str, str], ...] = (
-    ("outer-columns", "margin", "seat and back: width beyond the body"),
-    ("border", "width", "seat edge: surface beyond the body"),
-    ("border", "margin", "base: margin of the ground rectangle"),
-    ("clearance", "sink", "softness: deepest sink into the surface"),
-    ("armrests", "min_load_fraction", "armrests: share of the load an arm must carry"),
-    ("no-backrest", "min_load_fraction", "backrest: share of the load below which there is none"),
+DESIGNER_OPTIONS: tuple[tuple[str, str, str, bool], ...] = (
+    ("seat", "height", "seat height (under the ischia, above the floor)", False),
+    ("outer-columns", "margin", "seat and back: width beyond the body", False),
+    ("border", "width", "seat edge: surface beyond the body", False),
+    ("border", "margin", "base: margin of the ground rectangle", False),
+    ("clearance", "sink", "softness: deepest sink into the surface", False),
+    ("armrests", "min_load_fraction", "armrests: share of the load an arm must carry", True),
+    ("no-backrest", "min_load_fraction", "backrest: share of the load below which there is none", True),
 )
+"""The template options the page offers (step, option, label, behind the *advanced* fold): a designer's dimensions first, the algorithm's thresholds folded away."""
 
 
 def _designer_options(spec, registry) -> list[dict]:
     """The :data:`DESIGNER_OPTIONS` a YAML template has (a step it runs once), with the template's values as defaults."""
     out = []
     names = [entry.get("step") for entry in spec.steps]
-    for step, key, label in DESIGNER_OPTIONS:
+    for step, key, label, advanced in DESIGNER_OPTIONS:
         if names.count(step) != 1:
             continue
         try:
@@ -972,7 +974,8 @@ def _designer_options(spec, registry) -> list[dict]:
                 "minimum": declared.minimum,
                 "maximum": declared.maximum,
                 "description": f"{declared.description} (template_params: steps: {entry.get('label', step)}: {key})",
-                "advanced": False,
+                "placeholder": "from the pose" if entry.get(key, declared.default) is None else None,
+                "advanced": advanced,
             }
         )
     return out

@@ -26,6 +26,7 @@ from seatkit.template.grid import FitState, GridMesh
 from seatkit.template.options import Option, options_table
 from seatkit.template.planes import Plane, fit_support_plane
 from seatkit.template.pose_rule import PoseRuleStep
+from seatkit.template.seat import SeatStep
 from seatkit.template.special_cases import add_armrests, fit_outer_face, merge_crossed_legs
 
 __all__ = ["BUILTIN_STEPS", "builtin_steps"]
@@ -703,6 +704,7 @@ def builtin_steps() -> list:
         BorderStep(),
         ClearanceStep(),
         PoseRuleStep(),
+        SeatStep(),
     ]
 
 
