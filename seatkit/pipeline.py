@@ -211,6 +211,9 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         from seatkit.subdivision import limit_surface
 
         surface = limit_surface(mesh, level=recipe["surface_level"])
+    from seatkit.template.seat import check_design
+
+    check_design(recipe, registry, bodies, surface)  # a dimension the designer set is the built design's
 
     result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
     if recipe["evaluate"]["enabled"]:

@@ -580,6 +580,7 @@ def test_seat_height_is_a_designer_control_and_moves_the_seat(client, designer):
     declared = designer.registry.get("template_step", "seat").options["height"]
     assert not seat["advanced"] and seat["default"] is None and seat["placeholder"] == "from the pose"
     assert (seat["unit"], seat["minimum"], seat["maximum"]) == ("m", declared.minimum, declared.maximum)
+    assert not by_key["steps.seat.backrest_height"]["advanced"] and by_key["steps.seat.backrest_height"]["placeholder"] == "from the fit"
     assert by_key["steps.armrests.min_load_fraction"]["advanced"] and by_key["steps.no-backrest.min_load_fraction"]["advanced"]
     base = client.post(FAST, json={}).json()
     h0 = float(seat_point(designer.get(base["id"]).result.bodies[0])[1])

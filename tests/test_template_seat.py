@@ -98,3 +98,27 @@ def test_the_option_flag_sets_a_step_option_as_a_recipe_does():
     # out of the declared range: the recipe's one-line message
     out = CliRunner().invoke(app, ["build", "--template", "chair", "--option", "seat.height=3", "-q"])
     assert out.exit_code != 0 and "template_params.steps.seat.height" in out.output and "0.1 to 1.5" in out.output, out.output
+
+
+@pytest.mark.parametrize(("body", "pose", "backrest"), [("default-female", "upright-sitting", 0.7), ("p95-male", "reclined-sitting", 0.62)])
+def test_a_set_backrest_height_is_the_built_designs(body, pose, backrest):
+    from seatkit.template.seat import backrest_top, seat_height_of
+
+    recipe = _recipe(body, pose)
+    recipe["template_params"] = {"steps": {"seat": {"backrest_height": backrest}}}
+    result = build(recipe, write=False, processes=False)
+    seat_y, seat_z = seat_height_of(result.bodies)
+    top = backrest_top(result.surface.vertices, seat_z)
+    assert abs(top - seat_y - backrest) <= GUARANTEE  # the backrest's top at that height above the seat, within 5 mm
+    ours = result.metrics["ours"][0]
+    assert ours["max_penetration_m"] <= GUARANTEE and ours["max_body_depth_m"] <= GUARANTEE  # the 5 mm guarantee holds
+    assert result.metrics["dimensions"][0]["back_height_m"] > 0.2  # the back is still carried
+
+
+def test_a_backrest_lower_than_its_last_row_allows_is_refused_on_one_line():
+    recipe = _recipe("default-female", "upright-sitting")
+    recipe["template_params"] = {"steps": {"seat": {"backrest_height": 0.2}}}
+    with pytest.raises(RecipeError) as e:
+        build(recipe, write=False, processes=False)
+    message = str(e.value)
+    assert "\n" not in message and message.startswith("template_params.steps.seat.backrest_height:") and "at least" in message

@@ -945,6 +945,7 @@ def _body_params(model) -> list[dict]:
 #: range are the step's), set as a recipe sets it: ``template_params: {steps: {STEP: {OPTION: value}}}``.
 DESIGNER_OPTIONS: tuple[tuple[str, str, str, bool], ...] = (
     ("seat", "height", "seat height (under the ischia, above the floor)", False),
+    ("seat", "backrest_height", "backrest height (its top above the seat)", False),
     ("outer-columns", "margin", "seat and back: width beyond the body", False),
     ("border", "width", "seat edge: surface beyond the body", False),
     ("border", "margin", "base: margin of the ground rectangle", False),
@@ -953,6 +954,9 @@ DESIGNER_OPTIONS: tuple[tuple[str, str, str, bool], ...] = (
     ("no-backrest", "min_load_fraction", "backrest: share of the load below which there is none", True),
 )
 """The template options the page offers (step, option, label, behind the *advanced* fold): a designer's dimensions first, the algorithm's thresholds folded away."""
+
+#: What a blank designer option means (the field's placeholder).
+BLANK_MEANS = {("seat", "height"): "from the pose", ("seat", "backrest_height"): "from the fit"}
 
 
 def _designer_options(spec, registry) -> list[dict]:
@@ -976,7 +980,7 @@ def _designer_options(spec, registry) -> list[dict]:
                 "minimum": declared.minimum,
                 "maximum": declared.maximum,
                 "description": f"{declared.description} (template_params: steps: {entry.get('label', step)}: {key})",
-                "placeholder": "from the pose" if entry.get(key, declared.default) is None else None,
+                "placeholder": BLANK_MEANS.get((step, key), "the template's") if entry.get(key, declared.default) is None else None,
                 "advanced": advanced,
             }
         )

@@ -546,6 +546,7 @@ def grid_to_mesh(grid: GridMesh, *, meta: dict) -> ControlMesh:
         np.add.at(cnt, quads[:, i], 1.0)
     weights = acc / np.maximum(cnt, 1.0) + 0.05
     ground = grid.ground.ravel().copy()
+    fixed = ground.copy() if grid.fixed is None else ground | np.asarray(grid.fixed, bool).ravel()
     return ControlMesh(
         vertices=grid.vertices.reshape(-1, 3).copy(),
         faces=quads.astype(np.int64),
@@ -555,7 +556,7 @@ def grid_to_mesh(grid: GridMesh, *, meta: dict) -> ControlMesh:
         plane_points=grid.plane_point.reshape(-1, 3).copy(),
         plane_normals=grid.plane_normal.reshape(-1, 3).copy(),
         vertex_weights=weights,
-        fixed=ground.copy(),
+        fixed=fixed,
         ground=ground,
         meta=meta,
     )

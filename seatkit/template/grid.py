@@ -334,6 +334,9 @@ class GridMesh:
         Importance carried by the face, in [0, 1].
     ground : (R+1, C+1) bool
         Vertices on the ground rectangle.
+    fixed : (R+1, C+1) bool, optional
+        Vertices the refiners keep where they are (besides the ground ring):
+        a dimension a designer set (the ``seat`` step's backrest height).
     """
 
     vertices: np.ndarray
@@ -344,6 +347,7 @@ class GridMesh:
     plane_normal: np.ndarray
     face_weight: np.ndarray
     ground: np.ndarray
+    fixed: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
