@@ -110,7 +110,7 @@ class SeatStep:
             "seat height: the seat surface under the ischia (the lowest pelvis skin) above the floor; default: as the pose has it, the feet on the floor. Higher lifts the body (the foot faces become a footrest); lower than the pose allows is refused",
             None,
             "m",
-            0.1,
+            0.0,
             1.5,
         ),
         "backrest_height": Option(
