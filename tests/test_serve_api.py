@@ -587,7 +587,7 @@ def test_seat_height_is_a_designer_control_and_moves_the_seat(client, designer):
     r = client.post(FAST, json={"template_params": {"steps": {"seat": {"height": round(h0 + 0.08, 3)}}}})
     assert r.status_code == 200, r.text
     lifted = designer.get(r.json()["id"]).result
-    assert seat_point(lifted.bodies[0])[1] == pytest.approx(round(h0 + 0.08, 3), abs=1e-9)
+    assert seat_point(lifted.bodies[0])[1] == pytest.approx(round(h0 + 0.08, 3), abs=0.005)  # the body sits on the seat set (tests/test_template_seat.py measures the surface)
     assert lifted.control_mesh.vertices[:, 1].max() == pytest.approx(designer.get(base["id"]).result.control_mesh.vertices[:, 1].max() + 0.08, abs=0.03)
     # lower than the pose allows: the one-line refusal naming the option, and the server goes on
     r = client.post(FAST, json={"template_params": {"steps": {"seat": {"height": round(h0 - 0.05, 3)}}}})

@@ -59,15 +59,14 @@ def test_a_set_seat_height_is_the_built_designs(body, pose, lift):
     result = build(_recipe(body, pose, height), write=False, processes=False)
     body0 = result.bodies[0]
     point = seat_point(body0)
-    assert point[1] == pytest.approx(height, abs=1e-9)
-    assert abs(_surface_below(result.surface, point) - height) <= GUARANTEE  # the seat at that height, within 5 mm
-    assert body0.vertices[:, 1].min() == pytest.approx(height - h0, abs=1e-6)  # the feet lifted off the floor ...
+    assert abs(_surface_below(result.surface, point) - height) <= 0.001  # the seat at that height (the design is moved onto it) ...
+    assert abs(point[1] - height) <= GUARANTEE  # ... and the body sits on it
+    assert body0.vertices[:, 1].min() == pytest.approx(point[1] - h0, abs=GUARANTEE)  # the feet lifted off the floor ...
     ground = np.asarray(result.control_mesh.ground, dtype=bool)
     assert ground.any() and np.allclose(result.control_mesh.vertices[ground, 1], 0.0, atol=1e-9)  # ... the floor stays at y = 0
     ours = result.metrics["ours"][0]
     assert ours["max_penetration_m"] <= GUARANTEE and ours["max_body_depth_m"] <= GUARANTEE  # the 5 mm guarantee holds
-    seat = result.control_mesh.meta["seat"][0]
-    assert seat["set"] and seat["seat_height_m"] == pytest.approx(height, abs=1e-4)
+    assert result.control_mesh.meta["seat"][0]["set"]
 
 
 def test_a_seat_lower_than_the_pose_allows_is_refused_on_one_line():

@@ -1,4 +1,4 @@
-"""The seat's height: a designer's dimension, declared as the ``seat`` step's option.
+"""The seat's height and the backrest's: a designer's dimensions, declared as the ``seat`` step's options.
 
 The method fits the furniture to the body in its pose, so the seat is where
 the body's buttocks are: with the feet on the floor (the body is grounded,
@@ -6,25 +6,25 @@ its lowest point at y = 0), the seat height follows from the pose and the
 body's legs. A designer who wants another seat height sets the ``seat``
 step's ``height`` (``template_params: {steps: {seat: {height: 0.55}}}``):
 
-- **the seat height** is the height above the floor of the body's *seat
-  point*, the lowest skin of the pelvis (under the ischial tuberosities when
-  sitting; :func:`seat_point`). The designed surface carries the body there,
-  within the 5 mm the design is held to, so this is the height of the seat
-  surface under the ischia;
+- **the seat height** is the height above the floor of the designed surface
+  under the body's *seat point*, the lowest skin of the pelvis (under the
+  ischial tuberosities when sitting; :func:`seat_point`);
 - **set higher** than the pose gives, the body and its design are lifted
   and the floor stays at y = 0: the feet leave the floor and the template's
   foot faces become a footrest on the furniture (the importance map, the
   pressure "supported everywhere", does not change with a vertical move);
 - **set lower**, the feet would go through the floor: refused with one line
   naming the option, how far below the floor the lowest point would be and
-  the lowest seat height this body in this pose allows (bend the knees or
-  choose a shorter body to lower the seat).
+  the lowest seat height this body in this pose allows.
 
-The lift is applied when the bodies are placed, before the pressure
-(:func:`seat_bodies`, called by :func:`seatkit.stages.place_bodies`), so every
-later stage, the evaluation and the files see the lifted body; the step's
-own ``run`` records the seat height of each person in the template's
-``meta`` (report.json ``control_mesh.meta.seat``).
+The bodies are lifted when they are placed, before the pressure
+(:func:`seat_bodies`, called by :func:`seatkit.stages.place_bodies`), so that
+the seat point is at the height; after the design search the design is moved
+by the gap between the seat point and the surface under it
+(:func:`seat_design`), so that the built surface is there. The step's own
+``run`` records the seat point of each person in the template's ``meta``
+(report.json ``control_mesh.meta.seat``) and, with ``backrest_height``, moves
+the backrest's top (:func:`set_backrest_height`; docs/templates.md, "seat").
 """
 
 from __future__ import annotations
@@ -37,13 +37,16 @@ from seatkit.errors import RecipeError
 from seatkit.skeleton import SEGMENT_INDEX
 from seatkit.template.options import Option
 
-__all__ = ["SeatStep", "seat_point", "seat_bodies", "set_backrest_height", "check_design", "SEAT_BAND", "FLOOR_TOLERANCE", "BACKREST_TOLERANCE"]
+__all__ = ["SeatStep", "seat_point", "seat_bodies", "seat_design", "set_backrest_height", "check_design", "surface_below", "SEAT_BAND", "FLOOR_TOLERANCE", "BACKREST_TOLERANCE"]
 
 #: Pelvis skin within this of its lowest point makes up the seat point (its mean x and z), m.
 SEAT_BAND = 0.01
 
 #: How far below the floor the lowest point of a lowered body may go before it is refused, m.
 FLOOR_TOLERANCE = 0.001
+
+#: How far below the seat point the surface may be and still be the seat that carries it, m.
+SEAT_REACH = 0.04
 
 #: Shortest the backrest's last row may be made along its plane by a lower backrest height, m.
 MIN_TOP_ROW = 0.03
@@ -213,10 +216,93 @@ def set_backrest_height(state, height: float, *, where: str = "template_params.s
     return {"height_m": height, "seat_height_m": round(seat_y, 4), "moved_m": round(float(t1), 4)}
 
 
+def surface_below(surface_vertices: np.ndarray, surface_faces: np.ndarray, point: np.ndarray, *, reach: float) -> float | None:
+    """Height of the highest point of a (quad or triangle) surface on the vertical through ``point``, at most ``reach`` below it (or 5 cm above it); None if there is none."""
+    v = np.asarray(surface_vertices, dtype=np.float64)
+    f = np.asarray(surface_faces)
+    tris = v[np.vstack([f[:, [0, 1, 2]], f[:, [0, 2, 3]]])] if f.shape[1] == 4 else v[f]
+    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
+    x, z = float(point[0]), float(point[2])
+    det = (b[:, 0] - a[:, 0]) * (c[:, 2] - a[:, 2]) - (c[:, 0] - a[:, 0]) * (b[:, 2] - a[:, 2])
+    ok = np.abs(det) > 1e-14
+    det = np.where(ok, det, 1.0)
+    u = ((x - a[:, 0]) * (c[:, 2] - a[:, 2]) - (c[:, 0] - a[:, 0]) * (z - a[:, 2])) / det
+    w = ((b[:, 0] - a[:, 0]) * (z - a[:, 2]) - (x - a[:, 0]) * (b[:, 2] - a[:, 2])) / det
+    hit = ok & (u >= 0) & (w >= 0) & (u + w <= 1)
+    y = (a[:, 1] + u * (b[:, 1] - a[:, 1]) + w * (c[:, 1] - a[:, 1]))[hit]
+    y = y[(y < point[1] + 0.05) & (y >= point[1] - reach)]
+    return float(y.max()) if len(y) else None
+
+
+def _seat_options(recipe: Mapping, registry) -> dict | None:
+    template = registry.get("template", recipe["template"])
+    return template.step_options("seat", recipe.get("template_params")) if hasattr(template, "step_options") else None
+
+
+def seat_design(recipe: Mapping, registry, bodies: Sequence, initial, mesh, *, limit: float = 0.005) -> tuple[list, Any, Any, float]:
+    """The design moved up or down so that its seat surface under the seat point is at the height set (as it is when none is set).
+
+    The bodies were lifted so that their seat point is at the height
+    (:func:`seat_bodies`); the surface carries the body there within a
+    few millimetres, more where the lowest pelvis skin is not where the
+    seat carries it (crossed legs: one buttock higher). That gap is the
+    design's own, so the design (bodies and cage, the ground ring left on
+    the floor) is moved by it, and the surface's depths are measured again.
+
+    Returns
+    -------
+    bodies, initial, mesh, moved
+        ``moved`` in metres (0.0 when nothing was set or moved).
+
+    Raises
+    ------
+    RecipeError
+        The design does not carry the pelvis (no surface within
+        :data:`SEAT_REACH` below the seat point: a standing or leaning pose),
+        or the moved design reaches deeper than ``limit`` into a body.
+    """
+    from seatkit.subdivision import limit_surface
+
+    options = _seat_options(recipe, registry)
+    if not options or options.get("height") is None:
+        return list(bodies), initial, mesh, 0.0
+    height = float(options["height"])
+    level = int(recipe.get("surface_level", 3))
+    surface = limit_surface(mesh, level=level)
+    point = seat_point(max(bodies, key=lambda b: seat_point(b)[1]))
+    under = surface_below(surface.vertices, surface.faces, point, reach=SEAT_REACH)
+    if under is None:
+        raise RecipeError(
+            f"template_params.steps.seat.height: this design does not carry the pelvis (no seat within {SEAT_REACH * 100:.0f} cm under it: a standing or leaning pose); leave the seat height out"
+        )
+    moved = height - under
+    if abs(moved) < 1e-6:
+        return list(bodies), initial, mesh, 0.0
+    if float(min(np.asarray(b.vertices)[:, 1].min() for b in bodies)) + moved < -FLOOR_TOLERANCE:
+        raise RecipeError(f"template_params.steps.seat.height: {height:g} m puts the feet below the floor once the seat carries the body; in this pose the seat is at least {height - moved - float(min(np.asarray(b.vertices)[:, 1].min() for b in bodies)):.3f} m high")
+    from seatkit.refine.ccfit import final_depths
+
+    before = max(final_depths(mesh, bodies, level).values())
+    bodies = [b.translated([0.0, moved, 0.0]) for b in bodies]
+    initial, mesh = _lifted_cage(initial, moved), _lifted_cage(mesh, moved)
+    depths = final_depths(mesh, bodies, level)
+    if max(depths.values()) > max(limit, before + 0.0005):  # only the base's walls change: no deeper than before, or than the limit
+        raise RecipeError(f"template_params.steps.seat.height: at {height:g} m the design's base reaches {1000 * max(depths.values()):.1f} mm into the body (above the {1000 * limit:.0f} mm limit); try another height")
+    return bodies, initial, mesh, moved
+
+
+def _lifted_cage(mesh, dy: float):
+    """``mesh`` with every vertex but the ground ring moved up by ``dy``."""
+    from dataclasses import replace
+
+    v = np.array(mesh.vertices, dtype=np.float64)
+    v[~np.asarray(mesh.ground, bool), 1] += dy
+    return replace(mesh, vertices=v)
+
+
 def check_design(recipe: Mapping, registry, bodies, surface) -> None:
     """Refuse a built design whose backrest's top is not where the ``seat`` step's ``backrest_height`` put it (a repair moved it), within :data:`BACKREST_TOLERANCE`."""
-    template = registry.get("template", recipe["template"])
-    options = template.step_options("seat", recipe.get("template_params")) if hasattr(template, "step_options") else None
+    options = _seat_options(recipe, registry)
     if not options or options.get("backrest_height") is None:
         return
     seat_y, seat_z = seat_height_of(bodies)
