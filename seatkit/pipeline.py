@@ -204,9 +204,10 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     fit_last = bool(refiners) and refiners[-1][0] == "catmull-clark-fit"
     outcome = search(sources, lambda cage: refine(cage, refiners, bodies, pressures, timer), bodies, fit_last=fit_last, stage=timer.stage)
     initial, mesh = outcome.design()
+    from seatkit.refine.ccfit import final_depths
     from seatkit.template.seat import check_design, seat_design
 
-    bodies, initial, mesh, moved = seat_design(recipe, registry, bodies, initial, mesh)  # a seat height set is the built design's
+    bodies, initial, mesh, moved = seat_design(recipe, registry, bodies, initial, mesh, depths=final_depths)  # a seat height set is the built design's
     if moved:
         baseline = None  # fitted for the bodies before the move: fitted again in evaluate_result
     if baseline is not None and design_segments(initial) != segments:

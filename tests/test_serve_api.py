@@ -572,7 +572,7 @@ def test_designer_options_are_the_templates_declared_step_options(client, design
 
 def test_seat_height_is_a_designer_control_and_moves_the_seat(client, designer):
     """The seat height: a shown control (the seat step's option, blank = from the pose); set, the design's seat is there; the thresholds are folded away."""
-    from seatkit.template.seat import seat_point
+    from seatkit.template.seat import seat_point, surface_below
 
     chair = next(t for t in client.get("/api/options").json()["templates"] if t["name"] == "chair")
     by_key = {p["key"]: p for p in chair["params"]}
@@ -587,7 +587,8 @@ def test_seat_height_is_a_designer_control_and_moves_the_seat(client, designer):
     r = client.post(FAST, json={"template_params": {"steps": {"seat": {"height": round(h0 + 0.08, 3)}}}})
     assert r.status_code == 200, r.text
     lifted = designer.get(r.json()["id"]).result
-    assert seat_point(lifted.bodies[0])[1] == pytest.approx(round(h0 + 0.08, 3), abs=0.005)  # the body sits on the seat set (tests/test_template_seat.py measures the surface)
+    under = surface_below(lifted.surface.vertices, lifted.surface.faces, seat_point(lifted.bodies[0]), reach=0.04)
+    assert under == pytest.approx(round(h0 + 0.08, 3), abs=0.005)  # the seat surface under the pelvis at the height set
     assert lifted.control_mesh.vertices[:, 1].max() == pytest.approx(designer.get(base["id"]).result.control_mesh.vertices[:, 1].max() + 0.08, abs=0.03)
     # lower than the pose allows: the one-line refusal naming the option, and the server goes on
     r = client.post(FAST, json={"template_params": {"steps": {"seat": {"height": round(h0 - 0.05, 3)}}}})

@@ -16,7 +16,7 @@ from seatkit.cli import app
 from seatkit.errors import RecipeError
 from seatkit.pipeline import build
 from seatkit.recipe import apply_overrides, load_recipe
-from seatkit.template.seat import seat_point
+from seatkit.template.seat import seat_point, surface_below
 
 #: The design is held to this: no body vertex deeper in the furniture, no surface deeper in the skin (m).
 GUARANTEE = 0.005
@@ -32,22 +32,10 @@ def _recipe(body: str, pose: str, height: float | None = None) -> dict:
 
 
 def _surface_below(surface, point) -> float:
-    """Height of the highest point of ``surface`` straight below (or at most 5 cm above) ``point``."""
-    v = np.asarray(surface.vertices, dtype=np.float64)
-    f = np.asarray(surface.faces)
-    tris = v[np.vstack([f[:, [0, 1, 2]], f[:, [0, 2, 3]]])] if f.shape[1] == 4 else v[f]
-    a, b, c = tris[:, 0], tris[:, 1], tris[:, 2]
-    x, z = point[0], point[2]
-    det = (b[:, 0] - a[:, 0]) * (c[:, 2] - a[:, 2]) - (c[:, 0] - a[:, 0]) * (b[:, 2] - a[:, 2])
-    ok = np.abs(det) > 1e-14
-    det = np.where(ok, det, 1.0)
-    u = ((x - a[:, 0]) * (c[:, 2] - a[:, 2]) - (c[:, 0] - a[:, 0]) * (z - a[:, 2])) / det
-    w = ((b[:, 0] - a[:, 0]) * (z - a[:, 2]) - (x - a[:, 0]) * (b[:, 2] - a[:, 2])) / det
-    hit = ok & (u >= 0) & (w >= 0) & (u + w <= 1)
-    y = (a[:, 1] + u * (b[:, 1] - a[:, 1]) + w * (c[:, 1] - a[:, 1]))[hit]
-    y = y[y < point[1] + 0.05]
-    assert len(y), "no surface under the seat point"
-    return float(y.max())
+    """Height of the highest point of ``surface`` straight below (or at most 5 cm above) ``point``, within 10 cm."""
+    y = surface_below(surface.vertices, surface.faces, point, reach=0.1)
+    assert y is not None, "no surface under the seat point"
+    return y
 
 
 @pytest.mark.parametrize(("body", "pose", "lift"), [("default-female", "upright-sitting", 0.12), ("p95-male", "reclined-sitting", 0.06)])

@@ -355,6 +355,13 @@ class GridMesh:
         return self.segment.shape
 
 
+def grid_quads(shape: tuple[int, int]) -> np.ndarray:
+    """(R*C, 4) int64 quads of a structured grid of (R, C) faces, as in :func:`seatkit.template.engine.grid_to_mesh`."""
+    R, C = shape
+    ids = np.arange((R + 1) * (C + 1)).reshape(R + 1, C + 1)
+    return np.stack([ids[:-1, :-1], ids[:-1, 1:], ids[1:, 1:], ids[1:, :-1]], axis=-1).reshape(-1, 4)
+
+
 @dataclass
 class FitState:
     """What the steps of one fit share: the view a template step reads and changes.

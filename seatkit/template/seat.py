@@ -165,7 +165,7 @@ def set_backrest_height(state, height: float, *, where: str = "template_params.s
         leaning forward), or the height is lower than the last row allows.
     """
     from seatkit.subdivision import Cage, build_operators
-    from seatkit.template.steps import grid_quads
+    from seatkit.template.grid import grid_quads
 
     grid = state.grid
     kept = state.blocks[0].rows
@@ -239,7 +239,7 @@ def _seat_options(recipe: Mapping, registry) -> dict | None:
     return template.step_options("seat", recipe.get("template_params")) if hasattr(template, "step_options") else None
 
 
-def seat_design(recipe: Mapping, registry, bodies: Sequence, initial, mesh, *, limit: float = 0.005) -> tuple[list, Any, Any, float]:
+def seat_design(recipe: Mapping, registry, bodies: Sequence, initial, mesh, *, depths, limit: float = 0.005) -> tuple[list, Any, Any, float]:
     """The design moved up or down so that its seat surface under the seat point is at the height set (as it is when none is set).
 
     The bodies were lifted so that their seat point is at the height
@@ -248,6 +248,10 @@ def seat_design(recipe: Mapping, registry, bodies: Sequence, initial, mesh, *, l
     seat carries it (crossed legs: one buttock higher). That gap is the
     design's own, so the design (bodies and cage, the ground ring left on
     the floor) is moved by it, and the surface's depths are measured again.
+
+    ``depths(mesh, bodies, level)`` gives the surface's two depths
+    (``surface_in_body``, ``body_in_surface``, m): the surface fit's
+    :func:`seatkit.refine.ccfit.final_depths`, passed in by the pipeline.
 
     Returns
     -------
@@ -280,14 +284,12 @@ def seat_design(recipe: Mapping, registry, bodies: Sequence, initial, mesh, *, l
         return list(bodies), initial, mesh, 0.0
     if float(min(np.asarray(b.vertices)[:, 1].min() for b in bodies)) + moved < -FLOOR_TOLERANCE:
         raise RecipeError(f"template_params.steps.seat.height: {height:g} m puts the feet below the floor once the seat carries the body; in this pose the seat is at least {height - moved - float(min(np.asarray(b.vertices)[:, 1].min() for b in bodies)):.3f} m high")
-    from seatkit.refine.ccfit import final_depths
-
-    before = max(final_depths(mesh, bodies, level).values())
+    before = max(depths(mesh, bodies, level).values())
     bodies = [b.translated([0.0, moved, 0.0]) for b in bodies]
     initial, mesh = _lifted_cage(initial, moved), _lifted_cage(mesh, moved)
-    depths = final_depths(mesh, bodies, level)
-    if max(depths.values()) > max(limit, before + 0.0005):  # only the base's walls change: no deeper than before, or than the limit
-        raise RecipeError(f"template_params.steps.seat.height: at {height:g} m the design's base reaches {1000 * max(depths.values()):.1f} mm into the body (above the {1000 * limit:.0f} mm limit); try another height")
+    after = depths(mesh, bodies, level)
+    if max(after.values()) > max(limit, before + 0.0005):  # only the base's walls change: no deeper than before, or than the limit
+        raise RecipeError(f"template_params.steps.seat.height: at {height:g} m the design's base reaches {1000 * max(after.values()):.1f} mm into the body (above the {1000 * limit:.0f} mm limit); try another height")
     return bodies, initial, mesh, moved
 
 
