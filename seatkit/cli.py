@@ -138,6 +138,9 @@ def build(
     size_thickness: bool = typer.Option(False, "--size-thickness", help="Find the thinnest shell that keeps --safety-factor and --max-deflection."),
     safety_factor: Optional[float] = typer.Option(None, "--safety-factor", help="Safety factor --size-thickness keeps (default 2)."),
     max_deflection: Optional[float] = typer.Option(None, "--max-deflection", help="Deflection limit in m --size-thickness keeps (default 0.01)."),
+    option: List[str] = typer.Option(
+        [], "--option", help="STEP.KEY=VALUE: a template step's option, e.g. seat.height=0.55 (repeatable; docs/templates.md lists every step's options)."
+    ),
 ) -> None:
     """Design a support for a body in a pose and write the cage, surface and report.
 
@@ -175,8 +178,9 @@ def build(
         surface_level=level,
         export_frame=export_frame,
         sitters=sitter or None,
+        options=option or None,
     )
-    if merged["output"] is None and recipe is not None and not (template or pose or body or sitter or mass is not None or frame is not None):
+    if merged["output"] is None and recipe is not None and not (template or pose or body or sitter or option or mass is not None or frame is not None):
         merged["output"] = str(Path("seatkit-out") / recipe.stem)  # the recipe's design, named after it
 
     if structure or size_thickness or any(v is not None for v in (material, thickness, safety_factor, max_deflection)):

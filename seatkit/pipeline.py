@@ -204,6 +204,12 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     fit_last = bool(refiners) and refiners[-1][0] == "catmull-clark-fit"
     outcome = search(sources, lambda cage: refine(cage, refiners, bodies, pressures, timer), bodies, fit_last=fit_last, stage=timer.stage)
     initial, mesh = outcome.design()
+    from seatkit.refine.ccfit import final_depths
+    from seatkit.template.seat import check_design, seat_design
+
+    bodies, initial, mesh, moved = seat_design(recipe, registry, bodies, initial, mesh, depths=final_depths)  # a seat height set is the built design's
+    if moved:
+        baseline = None  # fitted for the bodies before the move: fitted again in evaluate_result
     if baseline is not None and design_segments(initial) != segments:
         baseline = None  # a later cage supports other segments: its baseline is fitted here, in evaluate_result
 
@@ -211,6 +217,7 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         from seatkit.subdivision import limit_surface
 
         surface = limit_surface(mesh, level=recipe["surface_level"])
+    check_design(recipe, registry, bodies, surface)  # a dimension the designer set is the built design's
 
     result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
     if recipe["evaluate"]["enabled"]:

@@ -478,6 +478,7 @@ def apply_overrides(
     baseline: str | None = None,
     export_frame: str | None = None,
     sitters: list[str] | None = None,
+    options: list[str] | None = None,
 ) -> dict:
     """Return a copy of ``recipe`` (a normalised dict or a :class:`Recipe`) with command-line flags applied (flags win).
 
@@ -540,7 +541,34 @@ def apply_overrides(
         r["evaluate"]["baseline"] = baseline or None
     if export_frame is not None:
         r["export_frame"] = export_frame
+    for spec in options or ():
+        step, key, value = parse_option_spec(spec)
+        steps = r.setdefault("template_params", {}).setdefault("steps", {})
+        if not isinstance(steps, dict):
+            raise RecipeError(f"--option {spec}: the recipe's template_params.steps is not a mapping")
+        steps.setdefault(step, {})[key] = value
     return r
+
+
+def parse_option_spec(spec: str) -> tuple[str, str, Any]:
+    """``STEP.KEY=VALUE`` of ``--option`` (a template step's option, as ``template_params.steps.STEP.KEY`` of a recipe): the step, the key and the value read as YAML.
+
+    Raises
+    ------
+    RecipeError
+        Not of that form.
+    """
+    name, sep, text = str(spec).partition("=")
+    step, dot, key = name.strip().rpartition(".")
+    if not sep or not dot or not step or not key or not text.strip():
+        raise RecipeError(f"--option {spec}: expected STEP.KEY=VALUE, a template step's option (e.g. seat.height=0.5, border.width=0.08)")
+    import yaml
+
+    try:
+        value = yaml.safe_load(text)
+    except yaml.YAMLError:
+        value = text.strip()
+    return step.strip(), key.strip(), value
 
 
 def check_recipe(recipe: Mapping, registry, *, document: Document | None = None) -> Recipe:

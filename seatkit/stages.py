@@ -101,7 +101,18 @@ def place_bodies(recipe: Mapping, registry) -> tuple[list[Body], list]:
         body, frame = pose_canonical(model, rig, pose)
         bodies.append(body)
         frames.append(frame)
-    return _placed(recipe, bodies), frames
+    return _placed(recipe, seated_at_height(recipe, bodies, registry)), frames
+
+
+def seated_at_height(recipe: Mapping, bodies: list[Body], registry) -> list[Body]:
+    """``bodies`` lifted to the seat height the template's ``seat`` step sets, if it sets one (:mod:`seatkit.template.seat`)."""
+    template = registry.get("template", recipe["template"])
+    options = template.step_options("seat", recipe.get("template_params")) if hasattr(template, "step_options") else None
+    if not options or options.get("height") is None:
+        return bodies
+    from seatkit.template.seat import seat_bodies
+
+    return seat_bodies(bodies, options["height"])
 
 
 def _placed(recipe: Mapping, bodies: list[Body]) -> list[Body]:

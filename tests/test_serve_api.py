@@ -554,8 +554,8 @@ def test_designer_options_are_the_templates_declared_step_options(client, design
     """Width, edge, base, softness, armrests, backrest: step options with the step's unit and range, set as a recipe sets them."""
     chair = next(t for t in client.get("/api/options").json()["templates"] if t["name"] == "chair")
     shown = [p for p in chair["params"] if not p["advanced"]]
-    assert {p["key"] for p in shown} >= {"steps.outer-columns.margin", "steps.border.width", "steps.armrests.min_load_fraction"}
-    for p in shown:
+    assert {p["key"] for p in shown} >= {"steps.seat.height", "steps.outer-columns.margin", "steps.border.width"}
+    for p in [p for p in chair["params"] if p["key"].startswith("steps.")]:
         _, step, option = p["key"].split(".")
         declared = designer.registry.get("template_step", step).options[option]
         assert (p["unit"], p["minimum"], p["maximum"]) == (declared.unit, declared.minimum, declared.maximum)
@@ -568,3 +568,28 @@ def test_designer_options_are_the_templates_declared_step_options(client, design
     wide = client.post(FAST, json={"template_params": {"steps": {"outer-columns": {"margin": 0.12}}}}).json()
     assert wide["id"] != base["id"]
     assert width(wide) > width(base) + 0.02  # the ground rectangle widens with the outer faces
+
+
+def test_seat_height_is_a_designer_control_and_moves_the_seat(client, designer):
+    """The seat height: a shown control (the seat step's option, blank = from the pose); set, the design's seat is there; the thresholds are folded away."""
+    from seatkit.template.seat import seat_point, surface_below
+
+    chair = next(t for t in client.get("/api/options").json()["templates"] if t["name"] == "chair")
+    by_key = {p["key"]: p for p in chair["params"]}
+    seat = by_key["steps.seat.height"]
+    declared = designer.registry.get("template_step", "seat").options["height"]
+    assert not seat["advanced"] and seat["default"] is None and seat["placeholder"] == "from the pose"
+    assert (seat["unit"], seat["minimum"], seat["maximum"]) == ("m", declared.minimum, declared.maximum)
+    assert not by_key["steps.seat.backrest_height"]["advanced"] and by_key["steps.seat.backrest_height"]["placeholder"] == "from the fit"
+    assert by_key["steps.armrests.min_load_fraction"]["advanced"] and by_key["steps.no-backrest.min_load_fraction"]["advanced"]
+    base = client.post(FAST, json={}).json()
+    h0 = float(seat_point(designer.get(base["id"]).result.bodies[0])[1])
+    r = client.post(FAST, json={"template_params": {"steps": {"seat": {"height": round(h0 + 0.08, 3)}}}})
+    assert r.status_code == 200, r.text
+    lifted = designer.get(r.json()["id"]).result
+    under = surface_below(lifted.surface.vertices, lifted.surface.faces, seat_point(lifted.bodies[0]), reach=0.04)
+    assert under == pytest.approx(round(h0 + 0.08, 3), abs=0.005)  # the seat surface under the pelvis at the height set
+    assert lifted.control_mesh.vertices[:, 1].max() == pytest.approx(designer.get(base["id"]).result.control_mesh.vertices[:, 1].max() + 0.08, abs=0.03)
+    # lower than the pose allows: the one-line refusal naming the option, and the server goes on
+    r = client.post(FAST, json={"template_params": {"steps": {"seat": {"height": round(h0 - 0.05, 3)}}}})
+    assert r.status_code == 422 and r.json()["error"].startswith("template_params.steps.seat.height:") and "below the floor" in r.json()["error"]

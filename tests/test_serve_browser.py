@@ -221,6 +221,19 @@ def test_the_designers_path_offline(server, tmp_path):
         page.wait_for_timeout(300)
         page.screenshot(path=str(shots / "serve-chair.png"))
 
+        # a designer's control: the seat height (blank: where the pose puts it), set 8 cm higher; the design's seat is there
+        from seatkit.template.seat import seat_point, surface_below
+
+        h0 = float(seat_point(designer.get(moved["id"]).result.bodies[0])[1])
+        n = page.evaluate("() => window.seatkit.designsShown")
+        field = 'input[data-key="steps.seat.height"]'
+        assert page.locator(field).input_value() == "" and page.locator(field).get_attribute("placeholder") == "from the pose"
+        _set(page, field, f"{h0 + 0.08:.3f}")
+        lifted = _wait_design(page, n, "seat height")
+        result = designer.get(lifted["id"]).result
+        under = surface_below(result.surface.vertices, result.surface.faces, seat_point(result.bodies[0]), reach=0.04)
+        assert under == pytest.approx(round(h0 + 0.08, 3), abs=0.005)  # the seat surface under the pelvis at the height set
+
         # the template switch: a bench of three different people, each with their own body and pose
         n = page.evaluate("() => window.seatkit.designsShown")
         page.select_option("#template-select", "bench")

@@ -240,6 +240,7 @@ class Design:
     evaluated: bool = False
     baseline: dict | None = None
     files: dict | None = None
+    people: list | None = None  # who it is for (:meth:`Designer._people`), read once
     lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
 
@@ -443,7 +444,7 @@ class Designer:
             "root": {"rotation": dict(zip("xyz", map(float, a[0]))), "translation": [float(v) for v in t]},
             "joints": {SEGMENTS[i]: dict(zip("xyz", map(float, a[i]))) for i in range(1, N_SEGMENTS)},
         }
-        text = yaml.safe_dump(doc, sort_keys=False)
+        text = yaml.dump(doc, Dumper=getattr(yaml, "CSafeDumper", yaml.SafeDumper), sort_keys=False)  # libyaml's emitter: the same text, a third of the time
         name = f"pose-{_digest(text.encode())}.yaml"
         path = self.uploads / name
         if not path.exists():  # two requests may make the same pose at once: each writes its own temporary file
@@ -828,7 +829,7 @@ class Designer:
                 "id": design.id,
                 "seq": design.seq,
                 "template": design.recipe["template"],
-                "people": self._people(design),
+                "people": self._people(design) if design.people is None else design.people,
                 "control_mesh": {"vertices": len(r.control_mesh.vertices), "faces": len(r.control_mesh.faces)},
                 "special_cases": r.control_mesh.meta.get("special_cases", []),
                 "evaluated": design.evaluated,
@@ -866,6 +867,7 @@ class Designer:
                     "params": used,
                 }
             )
+        design.people = out
         return out
 
     @staticmethod
@@ -941,21 +943,27 @@ def _body_params(model) -> list[dict]:
 #: The template step options offered as a designer's controls (the rest are behind the page's
 #: "advanced" fold): (step, option, label). Each is a declared option of the step (its unit and
 #: range are the step's), set as a recipe sets it: ``template_params: {steps: {STEP: {OPTION: value}}}``.
-DESIGNER_OPTIONS: tuple[tuple[str, str, str], ...] = (
-    ("outer-columns", "margin", "seat and back: width beyond the body"),
-    ("border", "width", "seat edge: surface beyond the body"),
-    ("border", "margin", "base: margin of the ground rectangle"),
-    ("clearance", "sink", "softness: deepest sink into the surface"),
-    ("armrests", "min_load_fraction", "armrests: share of the load an arm must carry"),
-    ("no-backrest", "min_load_fraction", "backrest: share of the load below which there is none"),
+DESIGNER_OPTIONS: tuple[tuple[str, str, str, bool], ...] = (
+    ("seat", "height", "seat height (under the ischia, above the floor)", False),
+    ("seat", "backrest_height", "backrest height (its top above the seat)", False),
+    ("outer-columns", "margin", "seat and back: width beyond the body", False),
+    ("border", "width", "seat edge: surface beyond the body", False),
+    ("border", "margin", "base: margin of the ground rectangle", False),
+    ("clearance", "sink", "softness: deepest sink into the surface", False),
+    ("armrests", "min_load_fraction", "armrests: share of the load an arm must carry", True),
+    ("no-backrest", "min_load_fraction", "backrest: share of the load below which there is none", True),
 )
+"""The template options the page offers (step, option, label, behind the *advanced* fold): a designer's dimensions first, the algorithm's thresholds folded away."""
+
+#: What a blank designer option means (the field's placeholder).
+BLANK_MEANS = {("seat", "height"): "from the pose", ("seat", "backrest_height"): "from the fit"}
 
 
 def _designer_options(spec, registry) -> list[dict]:
     """The :data:`DESIGNER_OPTIONS` a YAML template has (a step it runs once), with the template's values as defaults."""
     out = []
     names = [entry.get("step") for entry in spec.steps]
-    for step, key, label in DESIGNER_OPTIONS:
+    for step, key, label, advanced in DESIGNER_OPTIONS:
         if names.count(step) != 1:
             continue
         try:
@@ -972,7 +980,8 @@ def _designer_options(spec, registry) -> list[dict]:
                 "minimum": declared.minimum,
                 "maximum": declared.maximum,
                 "description": f"{declared.description} (template_params: steps: {entry.get('label', step)}: {key})",
-                "advanced": False,
+                "placeholder": BLANK_MEANS.get((step, key), "the template's") if entry.get(key, declared.default) is None else None,
+                "advanced": advanced,
             }
         )
     return out

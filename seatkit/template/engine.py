@@ -131,6 +131,19 @@ class YamlTemplate:
             per_step[i] = check_step_options(step.name, step.options, merged, rows=self.spec.rows, columns=self.spec.columns, fail=fail)
         return values, per_step
 
+    def step_options(self, name: str, params: Mapping[str, Any] | None = None) -> dict | None:
+        """The options of the step ``name`` (listed once) as a fit with ``params`` runs it: the template's, a recipe's overrides, the defaults; None when the template does not list it once.
+
+        For options applied outside the fit (the ``seat`` step's ``height``
+        lifts the bodies when they are placed: :mod:`seatkit.template.seat`).
+        """
+        names = [entry["step"] for entry in self.spec.steps]
+        if names.count(name) != 1:
+            return None
+        i = names.index(name)
+        _, per_step = self._overrides(params)
+        return dict(per_step.get(i, self._bound_plan()[i][1]))
+
     def _bound_plan(self) -> list:
         if self._plan is None:
             self._plan = _plan(self.spec, BUILTIN_STEPS)
@@ -533,6 +546,7 @@ def grid_to_mesh(grid: GridMesh, *, meta: dict) -> ControlMesh:
         np.add.at(cnt, quads[:, i], 1.0)
     weights = acc / np.maximum(cnt, 1.0) + 0.05
     ground = grid.ground.ravel().copy()
+    fixed = ground.copy() if grid.fixed is None else ground | np.asarray(grid.fixed, bool).ravel()
     return ControlMesh(
         vertices=grid.vertices.reshape(-1, 3).copy(),
         faces=quads.astype(np.int64),
@@ -542,7 +556,7 @@ def grid_to_mesh(grid: GridMesh, *, meta: dict) -> ControlMesh:
         plane_points=grid.plane_point.reshape(-1, 3).copy(),
         plane_normals=grid.plane_normal.reshape(-1, 3).copy(),
         vertex_weights=weights,
-        fixed=ground.copy(),
+        fixed=fixed,
         ground=ground,
         meta=meta,
     )

@@ -334,6 +334,9 @@ class GridMesh:
         Importance carried by the face, in [0, 1].
     ground : (R+1, C+1) bool
         Vertices on the ground rectangle.
+    fixed : (R+1, C+1) bool, optional
+        Vertices the refiners keep where they are (besides the ground ring):
+        a dimension a designer set (the ``seat`` step's backrest height).
     """
 
     vertices: np.ndarray
@@ -344,11 +347,19 @@ class GridMesh:
     plane_normal: np.ndarray
     face_weight: np.ndarray
     ground: np.ndarray
+    fixed: np.ndarray | None = None
 
     @property
     def shape(self) -> tuple[int, int]:
         """(R, C) faces."""
         return self.segment.shape
+
+
+def grid_quads(shape: tuple[int, int]) -> np.ndarray:
+    """(R*C, 4) int64 quads of a structured grid of (R, C) faces, as in :func:`seatkit.template.engine.grid_to_mesh`."""
+    R, C = shape
+    ids = np.arange((R + 1) * (C + 1)).reshape(R + 1, C + 1)
+    return np.stack([ids[:-1, :-1], ids[:-1, 1:], ids[1:, 1:], ids[1:, :-1]], axis=-1).reshape(-1, 4)
 
 
 @dataclass

@@ -22,10 +22,11 @@ from seatkit.errors import RecipeError
 from seatkit.template.border import add_border
 from seatkit.template.checks import check_supportability, crossing_faces, enclosed_vertices, free_segments, held_segments, self_intersecting_faces
 from seatkit.template.clearance import lift_off_bodies
-from seatkit.template.grid import FitState, GridMesh
+from seatkit.template.grid import FitState, GridMesh, grid_quads
 from seatkit.template.options import Option, options_table
 from seatkit.template.planes import Plane, fit_support_plane
 from seatkit.template.pose_rule import PoseRuleStep
+from seatkit.template.seat import SeatStep
 from seatkit.template.special_cases import add_armrests, fit_outer_face, merge_crossed_legs
 
 __all__ = ["BUILTIN_STEPS", "builtin_steps"]
@@ -481,13 +482,6 @@ def _border_with_walls(state: FitState, border, enclosed, **kw) -> GridMesh:
     return border(meta=state.meta, hanging=hanging, **kw)
 
 
-def grid_quads(shape: tuple[int, int]) -> np.ndarray:
-    """(R*C, 4) int64 quads of a structured grid of (R, C) faces, as in :func:`grid_to_mesh`."""
-    R, C = shape
-    ids = np.arange((R + 1) * (C + 1)).reshape(R + 1, C + 1)
-    return np.stack([ids[:-1, :-1], ids[:-1, 1:], ids[1:, 1:], ids[1:, :-1]], axis=-1).reshape(-1, 4)
-
-
 #: ``facing`` of the first lift: only skin turned towards a face counts
 #: (a border wall folded over the feet is left alone).
 _FACING = -0.1
@@ -703,6 +697,7 @@ def builtin_steps() -> list:
         BorderStep(),
         ClearanceStep(),
         PoseRuleStep(),
+        SeatStep(),
     ]
 
 

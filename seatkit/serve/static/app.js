@@ -254,7 +254,7 @@ function paramInputs(container, params, prefix, values, onChange) {
       input.step = "any";
       if (p.minimum != null) input.min = p.minimum;
       if (p.maximum != null) input.max = p.maximum;
-      input.placeholder = "own";
+      input.placeholder = p.placeholder || "own";
       if (value != null) input.value = value;
     }
     input.dataset.key = p.key;
