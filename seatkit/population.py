@@ -68,7 +68,9 @@ Outputs (in ``--out``)
 ``people.csv`` (every person: inputs, figures, accommodated, reason),
 ``not-accommodated.csv`` (those not accommodated, with their reasons),
 ``accommodation.json`` (the criteria, shares overall and by sex, the
-sampler's settings and source), ``accommodation.png`` (accommodated or not
+count of each reason and, in ``sole_reasons``, of the people whom one
+criterion alone fails: what that criterion costs; the sampler's settings
+and source), ``accommodation.png`` (accommodated or not
 against stature and mass). Each person's result is written to
 ``people/NNNNN.json`` as it arrives; running the same command again skips
 the people already done (the sample is the same for the same seed and N).
@@ -442,10 +444,13 @@ def _write_outputs(out: Path, directory: Path, people, results, reference, crite
     rows = _rows(people, results, reference, criteria)
     failed = [r for r in rows if not r["accommodated"]]
     reasons: dict[str, int] = {}
+    sole: dict[str, int] = {}  # people failing one criterion only: the share that criterion alone costs
     for r in failed:
-        for reason in r["reason"].split("; "):
-            head = reason.split(":")[0]
+        heads = [reason.split(":")[0] for reason in r["reason"].split("; ")]
+        for head in heads:
             reasons[head] = reasons.get(head, 0) + 1
+        if len(heads) == 1:
+            sole[heads[0]] = sole.get(heads[0], 0) + 1
     cpu = [r["cpu_s"] for r in rows if isinstance(r["cpu_s"], (int, float))]
     stats = load_population(run["population"])
     summary = {
@@ -459,6 +464,7 @@ def _write_outputs(out: Path, directory: Path, people, results, reference, crite
         "share": _share(rows),
         "share_by_sex": {s: _share([r for r in rows if r["sex"] == s]) for s in ("female", "male")},
         "reasons": dict(sorted(reasons.items(), key=lambda kv: -kv[1])),
+        "sole_reasons": dict(sorted(sole.items(), key=lambda kv: -kv[1])),
         "cpu_seconds_per_person": float(np.mean(cpu)) if cpu else None,
         "files": {"people": "people.csv", "not_accommodated": "not-accommodated.csv", "plot": "accommodation.png"},
     }

@@ -139,6 +139,10 @@ def test_small_study_on_dask_writes_its_table_and_plot_and_resumes(p50_upright_d
             heads = [x.split(":")[0] for x in r["reason"].split("; ") if x]
             assert (("peak pressure too high" in heads) and ("joint moment too high" in heads)) == failing
             assert failing or not ({"peak pressure too high", "joint moment too high"} & set(heads))
+        # the people one criterion alone fails, by that criterion
+        single = [r["reason"].split(":")[0] for r in rows if r["reason"] and "; " not in r["reason"]]
+        assert judged["sole_reasons"] == {h: single.count(h) for h in set(single)}
+        assert not failing or not judged["sole_reasons"]  # both limits fail everyone: nobody has one reason
 
 
 @pytest.mark.parametrize(

@@ -51,6 +51,7 @@ def register(app: typer.Typer) -> None:
                 progress=lambda done, total: bar.update(task, completed=done, total=total),
             )
         click.echo(share_text(summary))
+        sole = summary["sole_reasons"]
         for reason, count in summary["reasons"].items():
-            click.echo(f"  {count} {reason}")
+            click.echo(f"  {count} {reason}" + (f" ({sole[reason]} for this reason alone)" if reason in sole else ""))
         click.echo(f"{folder / 'accommodation.json'}")
