@@ -58,7 +58,10 @@ A person is accommodated when every one holds (their limits are options):
     ``seat_height_high`` (1.0) times the person's popliteal height plus the
     25 mm shoe allowance: the feet reach the floor and the thighs are not
     lifted off the seat (Parcells, Stommel and Hubbard 1999 recommend 88 to
-    95 %; the upper end is widened to 100 %, where the feet still reach);
+    95 %; the upper end is widened to 100 %, where the feet still reach, as
+    the rule "(popliteal height + shoes) cos 30 deg to cos 5 deg" of later
+    school-furniture studies does: the lower leg 5 to 30 degrees from
+    vertical, 87 to 99.6 %);
 ``seat depth``
     the loaded seat shorter than the person's buttock-popliteal length
     (ANSI/HFES 100-2007, 8.3.3: the front edge clears the back of the knee).
