@@ -57,7 +57,11 @@ in ICP), each unknown moving at most :data:`TRUST` per round, for at most
 :data:`ROUNDS` rounds; the round with the least objective (correspondences
 taken again there) is kept. The optimiser skins only the vertices it needs
 (linear blend skinning, as every built-in body model poses); the kept
-placement is posed by the body model. The result is measured, not trusted:
+placement is posed by the body model. Nothing is measured twice: a round
+starts from the correspondences its start was measured with, a translation
+reuses the skin normals and the skin's search tree (the surface's points are
+moved the other way), and a finite difference in the translation or heading
+reuses the skinned vertices of the joint changes it leaves alone. The result is measured, not trusted:
 the trial reports the evaluation's ``max_penetration_m`` and
 ``max_body_depth_m`` of the placed body, and the accommodation criteria
 (:mod:`seatkit.population`) judge them.
