@@ -57,7 +57,11 @@ in ICP), each unknown moving at most :data:`TRUST` per round, for at most
 :data:`ROUNDS` rounds; the round with the least objective (correspondences
 taken again there) is kept. The optimiser skins only the vertices it needs
 (linear blend skinning, as every built-in body model poses); the kept
-placement is posed by the body model. The result is measured, not trusted:
+placement is posed by the body model. Nothing is measured twice: a round
+starts from the correspondences its start was measured with, a translation
+reuses the skin normals and the skin's search tree (the surface's points are
+moved the other way), and a finite difference in the translation or heading
+reuses the skinned vertices of the joint changes it leaves alone. The result is measured, not trusted:
 the trial reports the evaluation's ``max_penetration_m`` and
 ``max_body_depth_m`` of the placed body, and the accommodation criteria
 (:mod:`seatkit.population`) judge them.
@@ -227,6 +231,7 @@ class _Poser:
         raw = model.pose(rig, self.pose0, ground=False)
         self.offset = self.body0.vertices[0] - raw.vertices[0]  # grounding and centring of the build
         self.feet = [np.flatnonzero(np.argmax(rig.weights, axis=1) == S[f"{side}Foot"]) for side in _LEGS]
+        self._skinned: dict = {}  # (subset, joint changes) -> skinned vertices (:meth:`turned`)
 
     def pose(self, theta: np.ndarray) -> Pose:
         from scipy.spatial.transform import Rotation
@@ -257,15 +262,34 @@ class _Poser:
 
     def points(self, theta: np.ndarray, subset: tuple) -> np.ndarray:
         """(k, 3) positions at ``theta`` of the vertices of ``subset`` (:meth:`subset`)."""
+        return self.turned(theta, subset) + theta[:3]
+
+    def turned(self, theta: np.ndarray, subset: tuple) -> np.ndarray:
+        """:meth:`points` before the translation: the pose's joint changes and the heading only.
+
+        The skinned positions of the last few joint changes are kept: a
+        finite-difference Jacobian moves one unknown at a time, and half of
+        them (the translation, the heading) leave the skinning as it was.
+        """
         from seatkit.body.skinning import segment_transforms, skin_vertices
 
         idx, rest, weights = subset
         if np.any(theta[4:]):
-            linear, offset = segment_transforms(self.rig.joints, self.pose(theta))
-            v = skin_vertices(rest, weights, linear, offset) + self.offset
+            key = (id(subset), theta[4:].tobytes())  # the entry holds the subset: its id is not reused
+            v = self._skinned.get(key, (None, None))[1]
+            if v is None:
+                linear, offset = segment_transforms(self.rig.joints, self.pose(theta))
+                v = skin_vertices(rest, weights, linear, offset) + self.offset
+                if len(self._skinned) >= 4:
+                    self._skinned.pop(next(iter(self._skinned)))
+                self._skinned[key] = (subset, v)
         else:
             v = self.body0.vertices[idx]
-        return self._moved(v, theta)
+        if theta[3]:  # the heading, about the hip joints' midpoint (above the origin)
+            from seatkit.body.frame import rotation_about_y
+
+            v = v @ rotation_about_y(theta[3]).T
+        return v
 
     def body(self, theta: np.ndarray) -> Body:
         body = self.body0
@@ -326,15 +350,39 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
     coarse = np.union1d(np.arange(0, len(body0.vertices), LIFT_STRIDE), support)
     surface_points = np.asarray(design.surface.vertices, dtype=np.float64)
 
-    def body_tree(v):
+    shapes: dict = {}  # joint changes and heading -> the turned body, its skin normals and its tree
+
+    def shape(theta):
+        """The whole body at ``theta`` before the translation, its skin normals and a tree of it.
+
+        A translation changes neither the normals nor the tree (the surface's points are moved
+        the other way instead), so the start's lifts and every round share one.
+        """
         from scipy.spatial import cKDTree
 
-        return cKDTree(v, balanced_tree=False, compact_nodes=False)
+        key = theta[3:].tobytes()
+        if key not in shapes:
+            if len(shapes) >= 2:
+                shapes.pop(next(iter(shapes)))
+            u = poser.turned(theta, every)
+            shapes[key] = (u, vertex_normals(u, body0.faces), cKDTree(u, balanced_tree=False, compact_nodes=False))
+        return shapes[key]
+
+    taken: dict = {}  # (theta, thin) -> correspondences: a round starts where the last was measured
 
     def correspondences(theta, thin=False):
+        key = (theta.tobytes(), thin)
+        if key not in taken:
+            if len(taken) >= 4:
+                taken.pop(next(iter(taken)))
+            taken[key] = _correspondences(theta, thin)
+        return taken[key]
+
+    def _correspondences(theta, thin):
         from seatkit.geometry.surface import inside_furniture
 
-        v = poser.points(theta, every)
+        u, skin_n, tree = shape(theta)
+        v = u + theta[:3]
         if thin:  # the others are taken as far from the surface
             d, side, sn = np.full(len(v), np.inf), np.full(len(v), np.nan), np.full((len(v), 3), np.nan)
             d[coarse], side[coarse], sn[coarse] = q.closest_normals(v[coarse], within=NEAR)
@@ -348,13 +396,12 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
         behind = np.flatnonzero(along & (side < 0))
         along[behind[~inside_furniture(design.surface, v[behind])]] = False
         near = _thinned(np.flatnonzero((d <= NEAR) & along), MAX_NEAR)
-        skin_n = vertex_normals(v, body0.faces)
         facing = along[support] & (np.einsum("ki,ki->k", skin_n[support], np.nan_to_num(sn[support])) < -MIN_FACING)
         keep = _thinned(np.flatnonzero(facing), MAX_PULL)
         w = weight[keep]
         # the surface's own points near the skin (a border or a wing cuts into the body where no
         # body vertex is behind the surface): each against the tangent plane of its nearest skin vertex
-        gap, owner = body_tree(v).query(surface_points, distance_upper_bound=NEAR)
+        gap, owner = tree.query(surface_points - theta[:3], distance_upper_bound=NEAR)
         close = np.flatnonzero(np.isfinite(gap))
         offset = np.einsum("ki,ki->k", surface_points[close] - v[owner[close]], skin_n[owner[close]])
         probe = _thinned(close[np.abs(offset) >= PROBE_ALONG * gap[close]], MAX_NEAR)

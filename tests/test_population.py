@@ -120,6 +120,29 @@ def test_small_study_on_dask_writes_its_table_and_plot_and_resumes(p50_upright_d
     assert again["accommodated"] == first["accommodated"]
     summary = json.loads((out / "accommodation.json").read_text())
     assert summary["share"] == pytest.approx(first["accommodated"] / 3)
+    # another build's own figures as the limits (designs compared under one limit): the people are
+    # judged again without new trials; a reference far below everyone's figures fails them all on
+    # both limits, one far above fails nobody on them
+    people = {r["person"]: r for r in csv.DictReader((out / "people.csv").open())}
+    for scale, failing in ((1e-6, True), (1e6, False)):
+        ref = tmp_path / f"ref{scale:g}"
+        ref.mkdir()
+        own = [{"supported": True, "max_pressure_pa": 8000.0 * scale, "max_moment_nm": 30.0 * scale}]
+        (ref / "report.json").write_text(json.dumps({"metrics": {"ours": own}}))
+        judged = run_accommodation(p50_upright_design, out, n=3, seed=1, workers=1, reference=ref)
+        assert judged["run"]["run_now"] == 0
+        assert judged["reference"]["max_pressure_pa"] == pytest.approx(8000.0 * scale)
+        assert str(ref) in judged["criteria"]["peak pressure"]
+        rows = list(csv.DictReader((out / "people.csv").open()))
+        for r in rows:
+            assert float(r["max_pressure_pa"]) == pytest.approx(float(people[r["person"]]["max_pressure_pa"]))
+            heads = [x.split(":")[0] for x in r["reason"].split("; ") if x]
+            assert (("peak pressure too high" in heads) and ("joint moment too high" in heads)) == failing
+            assert failing or not ({"peak pressure too high", "joint moment too high"} & set(heads))
+        # the people one criterion alone fails, by that criterion
+        single = [r["reason"].split(":")[0] for r in rows if r["reason"] and "; " not in r["reason"]]
+        assert judged["sole_reasons"] == {h: single.count(h) for h in set(single)}
+        assert not failing or not judged["sole_reasons"]  # both limits fail everyone: nobody has one reason
 
 
 @pytest.mark.parametrize(
@@ -130,6 +153,7 @@ def test_small_study_on_dask_writes_its_table_and_plot_and_resumes(p50_upright_d
         (["accommodate", "{design}", "--n", "-5"], "--n: expected a whole number"),
         (["accommodate", "{design}", "--population", "mars"], "unknown population"),
         (["accommodate", "{design}", "--female-share", "2"], "--female-share"),
+        (["accommodate", "{design}", "--reference", "/no/such/folder"], "/no/such/folder/report.json: expected the build's report.json"),
     ],
 )
 def test_accommodate_bad_input_gets_one_line(p50_upright_design, tmp_path, args, expected):

@@ -94,3 +94,35 @@ def test_trial_bad_input_gets_one_line(design_dir, tmp_path, args, expected):
     lines = [ln for ln in res.output.splitlines() if ln.strip()]
     assert len(lines) == 1 and expected in lines[0], res.output
     assert not (tmp_path / "x").exists()
+
+
+def test_the_posed_points_the_placement_measures_are_those_of_a_fresh_pose(registry):
+    """Skinned points kept between evaluations (a Jacobian moves one unknown at a time) never stand for another pose or subset."""
+    import gc
+
+    from seatkit.body import load_pose
+    from seatkit.trial import _Poser
+
+    model = registry.get("body_model", "p50-male")
+    rig = model.make_body(params={})
+    pose = load_pose("upright-sitting", rig=rig, dirs=registry.pose_dirs)
+    poser = _Poser(model, rig, pose)
+    rng = np.random.default_rng(0)
+    n = len(rig.vertices)
+    for _ in range(12):
+        # a new subset each time (the old one freed): its id may be an old one's
+        subset = poser.subset(rng.choice(n, size=int(rng.integers(50, 400)), replace=False))
+        theta = np.r_[rng.uniform(-0.05, 0.05, 3), rng.uniform(-0.2, 0.2, 5)] * rng.integers(0, 2, 8)
+        got = poser.points(theta, subset)
+        fresh = _Poser(model, rig, pose).points(theta, poser.subset(subset[0]))
+        np.testing.assert_allclose(got, fresh, atol=1e-12)
+        # the translation and the heading moved alone (as a finite difference does) move the points rigidly
+        moved = theta.copy()
+        moved[:4] += [0.01, -0.02, 0.003, 0.05]
+        np.testing.assert_allclose(poser.points(moved, subset), _Poser(model, rig, pose).points(moved, poser.subset(subset[0])), atol=1e-12)
+        del subset
+        gc.collect()
+    # the whole body at theta is the body model's own pose of it
+    theta = np.array([0.01, 0.02, -0.01, 0.1, 0.15, -0.1, 0.05, 0.08])
+    whole = poser.points(theta, poser.subset(np.arange(n)))
+    np.testing.assert_allclose(whole, poser.body(theta).vertices[:n], atol=1e-6)

@@ -21,6 +21,10 @@ def register(app: typer.Typer) -> None:
         female_share: float = typer.Option(0.5, "--female-share", help="Share of women in the sample (0 to 1)."),
         pressure_ratio: float = typer.Option(2.0, "--pressure-ratio", help="Peak pressure limit, times the design's own sitters'."),
         moment_ratio: float = typer.Option(2.0, "--moment-ratio", help="Joint moment limit, times the design's own sitters'."),
+        reference: Optional[Path] = typer.Option(
+            None, "--reference",
+            help="A build folder whose own sitters' peak pressure and joint moment set the limits instead of the design's (compare designs under the same limits).",
+        ),
         scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Address of an existing Dask scheduler."),
         workers: Optional[int] = typer.Option(None, "--workers", help="Local worker processes (default: one per core)."),
     ) -> None:
@@ -43,10 +47,11 @@ def register(app: typer.Typer) -> None:
             task = bar.add_task("", total=max(n, 1))
             summary = run_accommodation(
                 directory, folder, n=n, population=population, seed=seed, female_share=female_share, pose=pose,
-                criteria=criteria, scheduler=scheduler, workers=workers,
+                criteria=criteria, scheduler=scheduler, workers=workers, reference=reference,
                 progress=lambda done, total: bar.update(task, completed=done, total=total),
             )
         click.echo(share_text(summary))
+        sole = summary["sole_reasons"]
         for reason, count in summary["reasons"].items():
-            click.echo(f"  {count} {reason}")
+            click.echo(f"  {count} {reason}" + (f" ({sole[reason]} for this reason alone)" if reason in sole else ""))
         click.echo(f"{folder / 'accommodation.json'}")
