@@ -14,15 +14,16 @@ from seatkit.search import BUDGETS, Origin, bind, judge, search, template_cages
 
 @dataclasses.dataclass(frozen=True)
 class _Cage:
-    """A stand-in for a ControlMesh: a name, ``meta`` and ``vertices`` (its depth in mm, for the fake fit)."""
+    """A stand-in for a ControlMesh: a name, ``meta``, its depth in mm (for the fake fit) and ``vertices`` (its name's letters: two names, two cages)."""
 
     name: str
     depth_mm: float = 9.0
     meta: dict = dataclasses.field(default_factory=dict)
+    faces = np.zeros((1, 4), dtype=np.int64)
 
     @property
     def vertices(self):
-        return np.full((2, 3), self.depth_mm)
+        return np.array([[self.depth_mm] * 3, [float(ord(c)) for c in self.name.ljust(3)[:3]], [float(len(self.name)), 0.0, 0.0]])
 
 
 def _fitted(cage, depth_mm, limit=0.005):
@@ -133,6 +134,15 @@ def test_the_sources_take_turns_in_their_declared_order():
     assert fit.seen == ["a", "a+walls", "z", "b", "b+walls", "y"]
     assert asked == ["walls a", "last", "walls b"]  # walls answer the template's starts only
     assert cage.name == "y" and refined.meta["search"]["winner"] == {"origin": "last-resort", "start": 2, "candidate": 6}
+
+
+def test_a_cage_two_sources_derive_alike_is_refined_once():
+    """Walls against two rejected starts can be one cage: the second is not refined again, and not counted against the budget."""
+    fit = _Fit()
+    outcome = _search(_Template([("a", 9.0), ("b", 9.0), ("c", 1.0)], walls=lambda cage: _Cage("w", 9.0)), fit)
+    cage, _ = outcome.design()
+    assert fit.seen == ["a", "w", "b", "c"] and cage.name == "c"
+    assert [t.candidate.origin for t in outcome.tried] == [Origin.START, Origin.WALLS_AGAINST, Origin.START, Origin.START]
 
 
 def test_each_rejected_design_is_pushed_out_once_and_one_within_the_limit_is_the_design(monkeypatch):
