@@ -189,6 +189,20 @@ def test_the_acceptance_check_reads_the_fits_depths_and_its_limit():
     assert judge(cage, []).accepted  # no surface fit: nothing to judge
 
 
+def test_the_report_gives_each_over_limit_fit_of_a_candidate():
+    """A candidate whose first fit and refit were over the limit reports both depths, in order; the accepted one none."""
+
+    def fit(cage):
+        out = _fitted(cage, cage.depth_mm)
+        if cage.name == "a":
+            out.meta["catmull-clark-fit"]["repair_rounds"] = [{"surface_in_body": 0.012, "body_in_surface": 0.03}, {"surface_in_body": 0.009, "body_in_surface": 0.004}]
+        return out
+
+    _, refined = _search(_Template([("a", 9.0), ("b", 1.0)]), fit).design()
+    rows = refined.meta["search"]["candidates"]
+    assert rows[0]["over_limit_fits_m"] == [0.03, 0.009] and rows[1]["over_limit_fits_m"] == []
+
+
 def test_the_chair_offers_its_valid_starts_in_order_and_its_first_is_fit(seated):
     from seatkit.resources import template_path
     from seatkit.template import load_template
