@@ -35,6 +35,8 @@ import enum
 from dataclasses import dataclass, field, replace
 from typing import Callable, Iterator, Sequence
 
+import numpy as np
+
 from seatkit.errors import SolverError, UnsupportedPoseError
 from seatkit.interfaces import OffersLastResort, OffersStarts, OffersWallsAgainst
 from seatkit.model import ControlMesh
@@ -130,7 +132,7 @@ class Outcome:
     def report(self) -> dict:
         """The ``search`` section of report.json: the winner's origin and start, and every candidate's verdict, in order."""
         rows = [
-            {"origin": t.candidate.origin.value, "start": t.candidate.start, "accepted": t.verdict.accepted, "reason": t.verdict.reason, "depth_m": t.verdict.depth_m}
+            {"origin": t.candidate.origin.value, "start": t.candidate.start, "accepted": t.verdict.accepted, "reason": t.verdict.reason, "depth_m": t.verdict.depth_m, "over_limit_fits_m": _fit_depths(t.refined)}
             for t in self.tried
         ]
         won = self.tried[self.winner].candidate if self.winner is not None else None
@@ -259,7 +261,10 @@ def search(sources: Sequence[Source], refine: Callable[[ControlMesh], ControlMes
     with its message as the reason); ``fit_last`` says the surface fit is
     its last refiner (:func:`judge` then reads the fit's own measurement).
     A candidate the source made refined already (a pushed-out design,
-    measured by its repair) is only judged. Every candidate's verdict
+    measured by its repair) is only judged; a cage refined already (a
+    walled start and the same start walled against its rejection can be
+    one cage) is skipped, uncounted: the refiners would give it the same
+    verdict. Every candidate's verdict
     is kept, in order, in the :class:`Outcome`. ``stage(name)`` (a
     :meth:`seatkit.stages.StageTimer.stage`) times the sources' work.
     """
@@ -278,6 +283,8 @@ def search(sources: Sequence[Source], refine: Callable[[ControlMesh], ControlMes
                 left[k] = 0  # the source is spent
             if not candidate:
                 continue  # nothing from this source in this round
+            if candidate.refined is None and any(_same_cage(candidate.cage, t.candidate.cage) for t in outcome.tried if t.candidate.refined is None):
+                continue  # a cage refined already (two sources derive it alike): its verdict would be the same
             left[k] -= 1
             progressed = True
             refined, verdict = candidate.refined, None
@@ -293,6 +300,17 @@ def search(sources: Sequence[Source], refine: Callable[[ControlMesh], ControlMes
                 return outcome
         if not progressed:
             return outcome
+
+
+def _fit_depths(refined: ControlMesh | None) -> list[float]:
+    """The deepest of the two 5 mm figures after each fit of the surface fit that was over its limit, in order (empty: none was)."""
+    report = (refined.meta.get("catmull-clark-fit") if refined is not None else None) or {}
+    return [max(r["surface_in_body"], r["body_in_surface"]) for r in report.get("repair_rounds", ())]
+
+
+def _same_cage(a: ControlMesh, b: ControlMesh) -> bool:
+    """``a`` and ``b`` are the same cage: the same faces and control points, bit for bit (the refiners are deterministic)."""
+    return a.vertices.shape == b.vertices.shape and np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
 
 
 def _start(cage: ControlMesh) -> int:

@@ -309,6 +309,29 @@ def test_a_raised_calf_under_the_seats_front_edge_is_repaired_not_refused(rigs, 
             chair.fit([b], [p], seed=1, params={"steps": {"clearance": {"repair": False}}})
 
 
+@pytest.mark.parametrize("body", BODIES)
+def test_a_hand_on_the_floor_is_refused_by_the_rule_and_the_build_alike(rigs, chair, body):
+    """A body propped on a hand on the floor (reclined-029, draw seed 2026: the buttocks 3-8 cm above the ground).
+
+    The chair stands on the floor around the seat, so its side would pass
+    through the hand: the rule refuses it with that reason, and the build's
+    first stage (its template's ``pose-rule`` step) refuses it the same way,
+    before any fitting. A hand 11 cm above the floor beside the seat
+    (reclined-001) is not refused.
+    """
+    rule = template_rule(chair)
+    drawn = draw_pose(np.random.default_rng([2026, 29]), "reclined")
+    propped = pose_rig(rigs[body], drawn.pose)
+    v = assess_pose(propped, rule)
+    assert not v.supportable and "LeftHand" in v.parts
+    assert any("a hand on the floor" in r for r in v.reasons), v.reasons
+    assert v.measures["hands"]["Left"]["above_floor_m"] <= rule.get("hand_floor", 0.03)
+    with pytest.raises(UnsupportedPoseError, match="a hand on the floor"):
+        chair.fit([propped], [solve_pressure(propped)], seed=0)
+    beside = assess_pose(pose_rig(rigs[body], draw_pose(np.random.default_rng([2026, 1]), "reclined").pose), rule)
+    assert beside.supportable and beside.measures["hands"]["Left"]["above_floor_m"] > 0.05
+
+
 def test_hands_beside_the_seat_or_the_calf_are_built_around_not_refused(rigs, chair):
     """Hands are not refused (docs/templates.md, "The pose rule").
 

@@ -14,15 +14,16 @@ from seatkit.search import BUDGETS, Origin, bind, judge, search, template_cages
 
 @dataclasses.dataclass(frozen=True)
 class _Cage:
-    """A stand-in for a ControlMesh: a name, ``meta`` and ``vertices`` (its depth in mm, for the fake fit)."""
+    """A stand-in for a ControlMesh: a name, ``meta``, its depth in mm (for the fake fit) and ``vertices`` (its name's letters: two names, two cages)."""
 
     name: str
     depth_mm: float = 9.0
     meta: dict = dataclasses.field(default_factory=dict)
+    faces = np.zeros((1, 4), dtype=np.int64)
 
     @property
     def vertices(self):
-        return np.full((2, 3), self.depth_mm)
+        return np.array([[self.depth_mm] * 3, [float(ord(c)) for c in self.name.ljust(3)[:3]], [float(len(self.name)), 0.0, 0.0]])
 
 
 def _fitted(cage, depth_mm, limit=0.005):
@@ -135,6 +136,15 @@ def test_the_sources_take_turns_in_their_declared_order():
     assert cage.name == "y" and refined.meta["search"]["winner"] == {"origin": "last-resort", "start": 2, "candidate": 6}
 
 
+def test_a_cage_two_sources_derive_alike_is_refined_once():
+    """Walls against two rejected starts can be one cage: the second is not refined again, and not counted against the budget."""
+    fit = _Fit()
+    outcome = _search(_Template([("a", 9.0), ("b", 9.0), ("c", 1.0)], walls=lambda cage: _Cage("w", 9.0)), fit)
+    cage, _ = outcome.design()
+    assert fit.seen == ["a", "w", "b", "c"] and cage.name == "c"
+    assert [t.candidate.origin for t in outcome.tried] == [Origin.START, Origin.WALLS_AGAINST, Origin.START, Origin.START]
+
+
 def test_each_rejected_design_is_pushed_out_once_and_one_within_the_limit_is_the_design(monkeypatch):
     pushed = []
 
@@ -177,6 +187,20 @@ def test_the_acceptance_check_reads_the_fits_depths_and_its_limit():
     assert not verdict.accepted and "5.1 mm into the body" in verdict.reason and verdict.depth_m == pytest.approx(0.0051)
     assert judge(_fitted(cage, 50.0, limit=0.0), [], measured=True).accepted  # surface_limit 0: off
     assert judge(cage, []).accepted  # no surface fit: nothing to judge
+
+
+def test_the_report_gives_each_over_limit_fit_of_a_candidate():
+    """A candidate whose first fit and refit were over the limit reports both depths, in order; the accepted one none."""
+
+    def fit(cage):
+        out = _fitted(cage, cage.depth_mm)
+        if cage.name == "a":
+            out.meta["catmull-clark-fit"]["repair_rounds"] = [{"surface_in_body": 0.012, "body_in_surface": 0.03}, {"surface_in_body": 0.009, "body_in_surface": 0.004}]
+        return out
+
+    _, refined = _search(_Template([("a", 9.0), ("b", 1.0)]), fit).design()
+    rows = refined.meta["search"]["candidates"]
+    assert rows[0]["over_limit_fits_m"] == [0.03, 0.009] and rows[1]["over_limit_fits_m"] == []
 
 
 def test_the_chair_offers_its_valid_starts_in_order_and_its_first_is_fit(seated):

@@ -2,8 +2,8 @@
 
 The chair's grid runs from the feet up the legs, under the pelvis and up the
 back, with the legs side by side in front of the trunk (paper Sec. 5). The
-rule measures, on the posed skeleton only (joints and bone tips, no skin, no
-pressure), the things that grid cannot follow (paper Sec. 6 and
+rule measures, on the posed skeleton (joints and bone tips; the skin only
+for the floor, the soles and the hands; no pressure), the things that grid cannot follow (paper Sec. 6 and
 docs/templates.md, "The pose rule"):
 
 - **lying on the side**: the body's left-right axis (hips and shoulders)
@@ -29,9 +29,13 @@ docs/templates.md, "The pose rule"):
 - **kneeling**: the same, with the knee within ``kneel_height`` of the
   floor and the thigh more than 45 deg below level: the body rests on the shins, which the chair's leg rows cannot
   reach from below;
-- hands are not refused: hanging beside the seat, on the thighs, beside or
-  behind a calf, the chair is built around them (the fit repairs the faces
-  an arm meets; docs/templates.md, "The pose rule");
+- **a hand on the floor**: a hand within ``hand_floor`` of the floor (the
+  body propped on it, the buttocks just above the ground): the chair stands
+  on the floor around the seat, and its side down to the ground would pass
+  through the hand. Otherwise hands are not refused: hanging beside the
+  seat, on the thighs, beside or behind a calf, the chair is built around
+  them (the fit repairs the faces an arm meets; docs/templates.md, "The
+  pose rule");
 - **standing on its own feet**: both thighs more than 45 deg below level and
   the centre of mass above the soles' footprint: the body needs no support
   and leans on nothing the chair could give.
@@ -65,6 +69,7 @@ DEFAULT_RULE = {
     "min_knee_ahead": 0.0,
     "max_shank_back_foot_ahead_deg": 45.0,
     "kneel_height": 0.2,
+    "hand_floor": 0.03,
 }
 
 _UP = np.array([0.0, 1.0, 0.0])
@@ -188,15 +193,24 @@ def assess_pose(body: Body, rule: Mapping[str, Any] | None = None) -> PoseVerdic
     hip_axis = _unit(j[S["LeftUpLeg"]] - j[S["RightUpLeg"]])
     trunk_tilt = float(np.degrees(np.arccos(np.clip(trunk @ _UP, -1.0, 1.0))))
     measures.update({"trunk_tilt_deg": trunk_tilt, "hands": {}})
+    seg = segment_of_vertex(body)
     for side in ("Right", "Left"):
         wrist = j[S[side + "Hand"]]
-        measures["hands"][side] = {"above_hips_m": float(wrist[1] - hips_c[1]), "outside_hips_m": abs(float((wrist - hips_c) @ hip_axis)) - half}
+        hand = body.vertices[seg == S[side + "Hand"], 1]
+        above_floor = float(hand.min() - floor) if len(hand) else float("inf")
+        measures["hands"][side] = {"above_hips_m": float(wrist[1] - hips_c[1]), "outside_hips_m": abs(float((wrist - hips_c) @ hip_axis)) - half, "above_floor_m": above_floor}
+        if above_floor <= r["hand_floor"]:
+            reasons.append(
+                f"a hand on the floor: the {side.lower()} hand is {100 * above_floor:.0f} cm above the floor (at least {100 * r['hand_floor']:.0f}): "
+                "the chair stands on the floor around the seat and its side would pass through the hand; lift the hand onto the thigh or beside it"
+            )
+            parts.append(side + "Hand")
     # standing on its own feet: both thighs pointing down and the centre of
     # mass above the soles' footprint (along the facing direction), so the
     # body needs no support (standing-leaning-back has its centre of mass
     # behind the heels: it leans on the support)
     com = (body.segment_mass[:, None] * body.segment_com).sum(axis=0) / float(body.segment_mass.sum())
-    feet = np.isin(segment_of_vertex(body), [S["LeftFoot"], S["RightFoot"]])
+    feet = np.isin(seg, [S["LeftFoot"], S["RightFoot"]])
     sole = body.vertices[feet & (body.vertices[:, 1] < floor + 0.03)] @ front
     standing = all(leg["thigh_down_deg"] > 45.0 for leg in measures["legs"].values())
     if standing and len(sole):
@@ -216,7 +230,7 @@ class PoseRuleStep:
     """Refuse, before any fitting, the poses the template's grid cannot follow (:func:`assess_pose`)."""
 
     name = "pose-rule"
-    description = "refuse poses the grid cannot follow (lying on the side, a leg reaching back, sitting sideways, feet under the body, kneeling, standing upright), from the skeleton, before fitting"
+    description = "refuse poses the grid cannot follow (lying on the side, a leg reaching back, sitting sideways, feet under the body, kneeling, a hand on the floor, standing upright), from the skeleton, before fitting"
     stage = "blocks"
     requires = ()
     options = {
@@ -227,6 +241,7 @@ class PoseRuleStep:
         "min_foot_ahead": Option("number", "a shank swung back further than max_shank_back_deg is refused when its foot is less than this far ahead of the hip joint", DEFAULT_RULE["min_foot_ahead"], "1", -2.0, 2.0),
         "min_knee_ahead": Option("number", "a thigh within 45 deg of level is refused when its knee is less than this far ahead of the hip joint (reaching back)", DEFAULT_RULE["min_knee_ahead"], "1", -2.0, 2.0),
         "kneel_height": Option("number", "a knee this close to the floor with its shank swung back is kneeling", DEFAULT_RULE["kneel_height"], "m", 0.0, 2.0),
+        "hand_floor": Option("number", "a hand this close to the floor (the body propped on it) is refused: the chair's side down to the ground would pass through it", DEFAULT_RULE["hand_floor"], "m", 0.0, 2.0),
     }
 
     def run(self, state, *, options: Mapping[str, Any]) -> None:
