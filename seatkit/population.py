@@ -407,6 +407,13 @@ def run_accommodation(
     })
 
 
+def reason_heads(reason: str) -> list[str]:
+    """The criteria a row's ``reason`` names (``"seat too high; part cut: ..."`` -> its heads); a person who could not be tried is one ``error``, whatever its message says."""
+    if reason.startswith("error:"):
+        return ["error"]
+    return [part.split(":")[0] for part in reason.split("; ")]
+
+
 def _rows(people, results, reference, criteria) -> list[dict]:
     rows = []
     for p in people:
@@ -449,7 +456,7 @@ def _write_outputs(out: Path, directory: Path, people, results, reference, crite
     reasons: dict[str, int] = {}
     sole: dict[str, int] = {}  # people failing one criterion only: the share that criterion alone costs
     for r in failed:
-        heads = [reason.split(":")[0] for reason in r["reason"].split("; ")]
+        heads = reason_heads(r["reason"])
         for head in heads:
             reasons[head] = reasons.get(head, 0) + 1
         if len(heads) == 1:

@@ -200,3 +200,11 @@ def test_design_reference_reads_any_report_json_or_refuses_in_one_line(tmp_path)
         assert all(np.isfinite(v) and v > 0 for v in ref.values())
 
     check()
+
+
+def test_a_person_who_could_not_be_tried_counts_as_one_error_whatever_the_message():
+    from seatkit.population import reason_heads
+
+    message = "error: default-male: popliteal_height 0.49 m would move the hip joints +6 cm in the pelvis; accepted up to 6 cm either way"
+    assert reason_heads(message) == ["error"]
+    assert reason_heads("seat too high: 0.50 m against 0.45 m; part cut: 7 mm") == ["seat too high", "part cut"]
