@@ -120,11 +120,12 @@ PRELOAD = (
 
 #: The idle capacity, in cores, beside the build's own, from which helper
 #: processes pay for themselves (:func:`helpers_pay`). A build with helpers
-#: spends about 1.9 s more CPU than one in a single process (the fork
-#: server imports numpy, scipy and the stages again; the export worker's
-#: imports and the pickled result) to take about 1 s of work off the main
-#: process's path: on an idle second core that is a gain, on a core other
-#: jobs keep busy the niced helpers wait and the build takes longer
+#: forked from it spends about 0.3 s more CPU than one in a single process
+#: (the pickled design and result, rasters two picture parts both draw;
+#: with a fork server, which imports numpy, scipy and the stages again,
+#: 1.4-1.9 s) to take about 1.1 s of work off the main process's path: on
+#: an idle second core that is a gain, on cores other jobs keep busy the
+#: niced helpers wait and the build gains nothing
 #: (docs/performance.md, "Helper processes").
 SPARE_CORE = 0.5
 
