@@ -23,8 +23,8 @@ for). CPU time is user + system of the command *and every process it
 started*, helpers included: this script makes itself the child subreaper
 (Linux ``prctl``), so a helper process that outlives the command (a fork
 server ending after it) is reaped and counted here too. *Main CPU* is the
-command's own process alone (``os.wait4``): with helper processes, the
-work left on the build's critical path, which on a quiet machine is most
+command's own process alone (its ``/proc/PID/stat`` once it has ended: not
+the helpers it forked and reaped itself): with helper processes, the work left on the build's critical path, which on a quiet machine is most
 of its wall time, and which other jobs on a shared machine inflate less
 than the wall time. Printed: the medians, and per round the ratios new/old
 and new/floor (wall, CPU and main CPU), with their medians; the load
@@ -71,6 +71,24 @@ def _reap() -> None:
             return
 
 
+def _own_cpu_at_exit(pid: int) -> float | None:
+    """CPU time (user + system, s) of process ``pid`` alone, read once it has ended and before it is reaped.
+
+    Not the rusage that ``wait4`` returns: that includes the children the
+    process reaped itself (helper workers forked by the build). Linux
+    ``/proc/PID/stat`` of the zombie (``waitid`` with ``WNOWAIT``), fields
+    utime and stime; None where that cannot be read.
+    """
+    try:
+        os.waitid(os.P_PID, pid, os.WEXITED | os.WNOWAIT)
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            text = fh.read()
+    except (OSError, AttributeError):
+        return None
+    fields = text[text.rindex(b")") + 2 :].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
 def _children_cpu() -> float:
     r = resource.getrusage(resource.RUSAGE_CHILDREN)
     return r.ru_utime + r.ru_stime
@@ -90,8 +108,11 @@ def run(cmd: list[str], env: dict) -> tuple[float, float, float]:
     readers = [threading.Thread(target=lambda k=k, f=f: out.__setitem__(k, f.read())) for k, f in (("out", proc.stdout), ("err", proc.stderr))]
     for r in readers:
         r.start()
-    _, status, usage = os.wait4(proc.pid, 0)  # the command's own process: its rusage alone
+    own = _own_cpu_at_exit(proc.pid)
+    _, status, usage = os.wait4(proc.pid, 0)
     proc.returncode = os.waitstatus_to_exitcode(status)
+    if own is None:  # no /proc: the rusage of the command, with the children it reaped itself
+        own = usage.ru_utime + usage.ru_stime
     for r in readers:
         r.join()
     wall = time.perf_counter() - start
@@ -100,7 +121,7 @@ def run(cmd: list[str], env: dict) -> tuple[float, float, float]:
     _reap()
     if proc.returncode != 0:
         sys.exit(f"{' '.join(cmd)}: failed: {out.get('err', b'').decode(errors='replace').strip()[-2000:]}")
-    return wall, _children_cpu() - cpu0, usage.ru_utime + usage.ru_stime
+    return wall, _children_cpu() - cpu0, own
 
 
 def _python_of(seatkit: str) -> str:

@@ -149,7 +149,8 @@ def build(
     from seatkit.workers import helpers_pay, start_fork_server
 
     # helper processes only with an idle core beside this one (measured
-    # over this program's start-up); they are forked from a fork server that
+    # over this program's start-up); forks of this process once it has
+    # imported the stages, or, where it cannot fork, of a fork server that
     # imports numpy, scipy and the stages (seatkit.workers): started first,
     # its imports run beside this process's start-up, not beside the stages
     processes = helpers_pay(_STARTED)
@@ -197,9 +198,18 @@ def build(
         if quiet or as_json:
             result = run_build(merged, pm=pm, overwrite=overwrite, processes=processes)  # the entry point is guarded (seatkit.workers)
         else:
-            console = stderr_console()
-            with console.status("building") as status:
-                result = run_build(merged, pm=pm, overwrite=overwrite, processes=processes, progress=lambda s: status.update(f"[bold]{s}[/]"))
+            # the spinner (a thread) starts with the first stage, after the
+            # build has forked its helper processes (seatkit.workers)
+            status = stderr_console().status("building")
+
+            def progress(stage: str) -> None:
+                status.update(f"[bold]{stage}[/]")
+                status.start()  # (once: a started spinner ignores it)
+
+            try:
+                result = run_build(merged, pm=pm, overwrite=overwrite, processes=processes, progress=progress)
+            finally:
+                status.stop()
     finally:
         gc.unfreeze()
     summary = {

@@ -61,8 +61,9 @@ TISSUE_THICKNESS_RANGE_M = (0.01, 0.12)
 #: Default random seed of a build (RANSAC sampling).
 DEFAULT_SEED = 0
 
-#: Niceness added to the build's helper processes (the fork server, and so
-#: every worker it forks, :mod:`seatkit.background`; used by :mod:`seatkit.workers`): on two cores three
+#: Niceness added to the build's helper processes (each worker forked from
+#: the build, or the fork server and so every worker it forks,
+#: :mod:`seatkit.background`; used by :mod:`seatkit.workers`): on two cores three
 #: runnable processes would otherwise slow the build's own stages, which are
 #: the critical path; the helpers have slack (the baseline is done before our
 #: evaluation needs it, the export worker waits for the design).

@@ -116,8 +116,10 @@ def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool
             # rename: a second build into it, or a folder that cannot be
             # written, is refused now rather than after the whole design.
             helpers.enter_context(claim_output(output_target(recipe), overwrite=overwrite) if write else nullcontext())
-            export_helper = _helper(helpers, "export", [e for e in exporters if e.prepare_ahead], processes)
-            baseline_helper = _helper(helpers, "baseline", [], processes and _wants_baseline(recipe))
+            # one context for both, chosen before the first starts (workers.helper_context)
+            context = _helper_context() if processes else None
+            export_helper = _helper(helpers, "export", [e for e in exporters if e.prepare_ahead], processes, context)
+            baseline_helper = _helper(helpers, "baseline", [], processes and _wants_baseline(recipe), context)
             result = _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper)
             if write:
                 _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper, spare=baseline_helper)
@@ -152,13 +154,19 @@ def _wants_baseline(recipe) -> bool:
     return bool(recipe["evaluate"]["enabled"] and recipe["evaluate"]["baseline"])
 
 
-def _helper(stack: ExitStack, what: str, exporters: list, wanted: bool):
+def _helper_context():
+    from seatkit.workers import helper_context
+
+    return helper_context()
+
+
+def _helper(stack: ExitStack, what: str, exporters: list, wanted: bool, context=None):
     """A helper process closed with the build (:class:`seatkit.workers.Helper`), or None."""
     if not wanted or (what == "export" and not exporters):
         return None
     from seatkit.workers import Helper
 
-    return stack.enter_context(Helper(what, exporters))
+    return stack.enter_context(Helper(what, exporters, context))
 
 
 def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper) -> BuildResult:

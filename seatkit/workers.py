@@ -13,16 +13,26 @@ Work that pays for its own hand-off goes to a process instead
 
 Each is a :class:`Helper`: a one-worker :class:`ProcessPoolExecutor`.
 
-Every pool uses one multiprocessing context on every platform,
-``forkserver`` where the platform has it and ``spawn`` elsewhere: a worker
-never is a ``fork`` of a process whose threads run (the CLI's spinner, the
-PNG writer thread, ``seatkit serve``). The fork server is started once per
-Python process, from a fresh interpreter, and imports :data:`PRELOAD` first,
-so that each worker forked from it starts with numpy, scipy and seatkit's
-stages imported. It starts with the first pool, at the beginning of a build,
-while the build computes the bodies and their pressure, or earlier where a
-program calls :func:`start_fork_server` (``seatkit build`` does, first
-thing, so that those imports run beside its own start-up).
+A helper's worker is a ``fork`` of the build's own process where that is
+safe, so that it starts with numpy, scipy and seatkit's stages imported at
+no cost (copy-on-write: nothing is imported twice): on Linux, when the
+helpers are started from the main thread of a process that runs no other
+thread (:func:`helper_context`; ``seatkit build`` starts its spinner only
+after its helpers). The build's helpers are forked one after the other at
+the start of the build; a later one is forked beside the earlier pools'
+own threads (their manager and queue feeder), which only move tasks
+through their own pipes and hold no lock the new worker uses. The modules
+of :data:`PRELOAD` are imported first (the build needs nearly all of them
+itself), so that no worker imports them again.
+
+Elsewhere (a program that runs threads of its own, such as ``seatkit
+serve``; macOS; Windows) a worker never is a ``fork`` of a process whose
+threads run: the pools use ``forkserver`` where the platform has it and
+``spawn`` otherwise. The fork server is started once per Python process,
+from a fresh interpreter, and imports :data:`PRELOAD` first, so that each
+worker forked from it starts with numpy, scipy and seatkit's stages
+imported. It starts with the first pool, or earlier where a program calls
+:func:`start_fork_server`.
 
 Errors cross the boundary as they were raised (a
 :class:`~seatkit.errors.SeatkitError` stays one, with the same one-line
@@ -32,8 +42,8 @@ traceback. Workers run :data:`BACKGROUND_NICE` lower than the build: on two
 cores the build's own stages are the critical path. A worker ends with the
 build even when the build is killed outright (``kill -9``).
 
-A worker starts without the build's ``fork``, so, as for every
-``forkserver``/``spawn`` process, multiprocessing imports the caller's main
+A worker that is not a ``fork`` of the build is, as for every
+``forkserver``/``spawn`` process, one where multiprocessing imports the caller's main
 script in it again (as ``__mp_main__``): a script that builds at import
 time, without ``if __name__ == "__main__":``, would run again there.
 :func:`main_is_import_safe` tells whether the running program is safe that
@@ -44,6 +54,7 @@ way without being asked (the REPL, a notebook, ``python -c``);
 
 from __future__ import annotations
 
+import importlib
 import multiprocessing
 import os
 import pickle
@@ -64,6 +75,7 @@ __all__ = [
     "Helper",
     "WorkerLost",
     "cpu_snapshot",
+    "helper_context",
     "helpers_pay",
     "main_is_import_safe",
     "pool_context",
@@ -72,13 +84,15 @@ __all__ = [
 ]
 
 
-#: Modules the fork server imports before it forks any worker: what the
+#: Modules a worker must not import again: what the
 #: baseline worker's jobs import (its arguments unpickled, the flat-patch
 #: template, the refiners, the limit surface, the evaluation and its
 #: pressure solve; then the interface pressure and a part of the report's
 #: pictures: measured with ``sys.modules`` around those jobs in a process
 #: that imported only these: nothing more is imported), so that no job
-#: waits for an import, and nothing more. The big exporter libraries are not
+#: waits for an import, and nothing more. The fork server imports them
+#: before it forks any worker; a build that forks its workers itself imports
+#: them first (all but the first). The big exporter libraries are not
 #: among them: the export worker imports those itself, beside the build, so
 #: the baseline worker need not wait for them.
 PRELOAD = (
@@ -106,11 +120,12 @@ PRELOAD = (
 
 #: The idle capacity, in cores, beside the build's own, from which helper
 #: processes pay for themselves (:func:`helpers_pay`). A build with helpers
-#: spends about 1.9 s more CPU than one in a single process (the fork
-#: server imports numpy, scipy and the stages again; the export worker's
-#: imports and the pickled result) to take about 1 s of work off the main
-#: process's path: on an idle second core that is a gain, on a core other
-#: jobs keep busy the niced helpers wait and the build takes longer
+#: forked from it spends about 0.3 s more CPU than one in a single process
+#: (the pickled design and result, rasters two picture parts both draw;
+#: with a fork server, which imports numpy, scipy and the stages again,
+#: 1.4-1.9 s) to take about 1.1 s of work off the main process's path: on
+#: an idle second core that is a gain, on cores other jobs keep busy the
+#: niced helpers wait and the build gains nothing
 #: (docs/performance.md, "Helper processes").
 SPARE_CORE = 0.5
 
@@ -198,12 +213,29 @@ def main_is_import_safe() -> bool:
 
 
 def pool_context() -> multiprocessing.context.BaseContext:
-    """The one multiprocessing context of seatkit's pools (forkserver, else spawn)."""
+    """The multiprocessing context of seatkit's pools when they cannot fork the caller (forkserver, else spawn)."""
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload(list(PRELOAD))
         return ctx
     return multiprocessing.get_context("spawn")
+
+
+def _can_fork() -> bool:
+    """Whether a worker may be a ``fork`` of this process now: Linux, the main thread, no other thread running."""
+    if sys.platform != "linux" or "fork" not in multiprocessing.get_all_start_methods():
+        return False
+    return threading.current_thread() is threading.main_thread() and threading.active_count() == 1
+
+
+def helper_context() -> multiprocessing.context.BaseContext:
+    """The context for the helpers a caller is about to start: ``fork`` when :func:`_can_fork`, else :func:`pool_context`.
+
+    Asked once, before the first helper of a build starts (the helpers'
+    own pool threads then run beside the later forks; see the module's
+    documentation).
+    """
+    return multiprocessing.get_context("fork") if _can_fork() else pool_context()
 
 
 def start_fork_server() -> None:
@@ -213,10 +245,11 @@ def start_fork_server() -> None:
     build; a program that knows it will build (``seatkit build``) calls this
     before its own start-up work (the plugins, the recipe), so that the fork
     server's imports run beside the program's own instead of beside the
-    build's first stages. Without a fork server (spawn platforms) it does
-    nothing: every worker is a fresh interpreter there anyway.
+    build's first stages. It does nothing where the helpers would be forks
+    of this process (:func:`helper_context`), and without a fork server
+    (spawn platforms: every worker is a fresh interpreter there anyway).
     """
-    if "forkserver" in multiprocessing.get_all_start_methods():
+    if not _can_fork() and "forkserver" in multiprocessing.get_all_start_methods():
         from multiprocessing import forkserver
 
         pool_context()  # sets PRELOAD
@@ -243,8 +276,15 @@ def _end_with_the_build() -> None:
     threading.Thread(target=watch, name="seatkit-watch-build", daemon=True).start()
 
 
-def _start_worker(prepare: Sequence[Any]) -> None:
-    """A worker's first step: end with the build, then get its exporters ready."""
+def _start_worker(prepare: Sequence[Any], lower: bool = False) -> None:
+    """A worker's first step: run below the build, end with it, then get its exporters ready.
+
+    ``lower``: a ``fork`` of the build, which runs at the build's priority
+    (a worker of the fork server runs at the fork server's, lowered by
+    :mod:`seatkit.background`).
+    """
+    if lower:
+        _lower_priority()
     _end_with_the_build()
     if "forkserver" not in multiprocessing.get_all_start_methods():  # spawned: not forked from the niced fork server
         import seatkit.background  # noqa: F401
@@ -252,15 +292,30 @@ def _start_worker(prepare: Sequence[Any]) -> None:
         exporter.prepare()
 
 
+def _lower_priority() -> None:
+    try:
+        os.nice(BACKGROUND_NICE)
+    except (AttributeError, OSError):  # no nice() (Windows), or not allowed
+        pass
+
+
+def _share_imports() -> None:
+    """Import :data:`PRELOAD` here (but :mod:`seatkit.background`, which would lower this process), so that forked workers share them."""
+    for name in PRELOAD:
+        if name != "seatkit.background":
+            importlib.import_module(name)
+
+
 class Helper:
     """One helper process of a build: a one-worker :class:`ProcessPoolExecutor`, started now.
 
     The worker starts at once, not at the first :meth:`submit`, so that it
     gets ready (imports, ``prepare()`` of ``exporters``) while the build
-    computes what it will be given. Starting it waits until the fork server
-    has imported :data:`PRELOAD` and forked the worker, so it is asked for on
-    a thread (starting the fork server is a fork+exec, safe beside threads)
-    and the build goes on meanwhile.
+    computes what it will be given. A ``fork`` of this process starts at
+    once; a worker of the fork server waits until the fork server has
+    imported :data:`PRELOAD` and forked it, so it is asked for on a thread
+    (starting the fork server is a fork+exec, safe beside threads) and the
+    build goes on meanwhile.
 
     Parameters
     ----------
@@ -268,13 +323,24 @@ class Helper:
         Names the work in the :class:`WorkerLost` message.
     exporters : sequence of Exporter
         Prepared by the worker as it starts (they are pickled to it).
+    context : multiprocessing context, optional
+        Default :func:`helper_context`; a caller that starts several
+        helpers asks for it once, before the first.
     """
 
-    def __init__(self, what: str, exporters: Sequence[Any] = ()):
+    def __init__(self, what: str, exporters: Sequence[Any] = (), context: multiprocessing.context.BaseContext | None = None):
         self.what = what
-        self._pool = ProcessPoolExecutor(max_workers=1, mp_context=pool_context(), initializer=_start_worker, initargs=(tuple(exporters),))
+        context = context if context is not None else helper_context()
+        forked = context.get_start_method() == "fork"
+        if forked:
+            _share_imports()
+        self._pool = ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=_start_worker, initargs=(tuple(exporters), forked))
         self._jobs: list[Future] = []
         self._started: list[Future] = []  # the first task: the worker's process id
+        if forked:  # a fork takes milliseconds: now, before this process starts any other thread
+            self._started.append(self._pool.submit(os.getpid))
+            self._start = None
+            return
         self._start = threading.Thread(target=lambda: self._started.append(self._pool.submit(os.getpid)), name=f"seatkit-{what}-start", daemon=True)
         self._start.start()
 
@@ -299,7 +365,8 @@ class Helper:
 
     def pid(self) -> int:
         """The worker's process id."""
-        self._start.join()
+        if self._start is not None:
+            self._start.join()
         return self.result(self._started[0])
 
     def close(self, *, stop: bool = False) -> None:
@@ -308,7 +375,8 @@ class Helper:
         A build that failed stops its helpers (``SIGTERM``): their results
         are no longer wanted.
         """
-        self._start.join()
+        if self._start is not None:
+            self._start.join()
         if stop and any(not job.done() for job in self._jobs):
             try:
                 os.kill(self.pid(), signal.SIGTERM)

@@ -259,6 +259,7 @@ def _build_unprivileged(out: Path, monkeypatch):
         raise AssertionError("the design was computed before the folder was checked")
 
     monkeypatch.setattr(pl, "_design", design)
+    import jsonschema  # noqa: F401 - imported before dropping rights (a recipe mapping is checked against its schema)
     import threadpoolctl  # noqa: F401 - imported before dropping rights
 
     import seatkit.output  # noqa: F401

@@ -7,6 +7,7 @@ import os
 import pickle
 import re
 import signal
+import sys
 import time
 from pathlib import Path
 
@@ -452,3 +453,35 @@ def test_without_a_measurement_the_load_average_decides(monkeypatch):
     assert workers.helpers_pay(None) is True
     monkeypatch.setattr(workers.os, "getloadavg", lambda: (1.8, 1.5, 1.0))
     assert workers.helpers_pay(None) is False
+
+
+@needs_proc
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="helpers are forks of the build on Linux only")
+def test_a_worker_is_a_fork_of_the_build_only_while_no_other_thread_runs():
+    # a fork copies the build's imports (nothing imported twice); beside a
+    # running thread (a spinner, a server's) it could copy a lock that
+    # thread holds, so the worker comes from the fork server instead
+    import threading
+
+    from seatkit.workers import helper_context
+
+    def parent_of(pid):
+        return _processes()[pid][0]
+
+    with Helper("alone") as work:
+        pid = work.pid()
+        assert parent_of(pid) == os.getpid()
+        assert work.result(work.submit(_square_pid, 3.0))[0] == 9.0
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait, daemon=True)
+    other.start()
+    try:
+        assert helper_context().get_start_method() != "fork"
+        with Helper("beside a thread") as work:
+            pid = work.pid()
+            assert parent_of(pid) != os.getpid()
+            assert work.result(work.submit(_square_pid, 3.0))[0] == 9.0
+    finally:
+        stop.set()
+        other.join()
+    assert _children() == []

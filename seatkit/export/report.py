@@ -555,8 +555,13 @@ def _interface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
 
 #: The report's pictures in parts that share most of their rasters (the same
 #: meshes in the same views), drawn each in its own process when a build has
-#: idle helper processes (``ReportPngExporter.export_part``).
-PNG_PARTS = (("report_cage_png",), ("report_pressure_png", "report_interface_png"), ("report_surface_png", "report_comparison_png"))
+#: idle helper processes (``ReportPngExporter.export_part``). Largest first
+#: (CPU of the default build: about 0.27, 0.23 and 0.17 s): a build hands
+#: the parts in turn to its idle baseline helper, its export worker (after
+#: that worker's own exporters) and its own process (after its own
+#: exporters, on the build's critical path), so the last part is the
+#: smallest.
+PNG_PARTS = (("report_surface_png", "report_comparison_png"), ("report_cage_png",), ("report_pressure_png", "report_interface_png"))
 
 
 def render_pngs(result, directory, roles=None) -> dict[str, Path]:

@@ -9,6 +9,7 @@ geometry work. ``docs/templates.md`` describes every key.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +19,7 @@ from seatkit.errors import ParamError, RecipeError
 from seatkit.template.options import did_you_mean
 from seatkit.skeleton import SEGMENT_INDEX, SEGMENTS
 from seatkit.messages import quote
-from seatkit.yamlio import Document, load_yaml, parse_yaml, validate
+from seatkit.yamlio import Document, parse_yaml, read_text, validate
 
 __all__ = [
     "PARAMETERS",
@@ -223,6 +224,28 @@ class TemplateSpec:
         return self.doc.where(path)
 
 
+#: SHA-256 digests (:func:`template_digest`) of the shipped templates'
+#: text (``templates/*.yaml``), each checked against :data:`TEMPLATE_SCHEMA`
+#: by the test suite (``tests/test_template_engine.py``, which fails and
+#: prints the new digest when a shipped template changes). A template of
+#: exactly this text skips the schema check when it is read (jsonschema's
+#: import and validator: about 0.05 s of every build); every other one, an
+#: edited shipped template included, is checked. The checks of meaning
+#: that follow the schema run for every template.
+CHECKED_TEMPLATES = frozenset(
+    {
+        "ce1b357553e5de759992326f1515d13e9bbf38e2dbc10fa5be847c9a65c79184",  # bench.yaml
+        "45aaa5f05a9f1124ac5c08f19a7a60bd872e722c1611c196d271434be67e2880",  # chair.yaml
+        "901d76cce82bb7e6e74322af48c8e723f5e67113b69016d9c0cc9a054a6f45c0",  # saddle.yaml
+    }
+)
+
+
+def template_digest(text: str) -> str:
+    """The SHA-256 digest of a template's text, line ends as ``\\n`` (:data:`CHECKED_TEMPLATES`)."""
+    return hashlib.sha256(text.replace("\r\n", "\n").encode("utf-8")).hexdigest()
+
+
 def read_template(source: str | Path, *, text: str | None = None) -> TemplateSpec:
     """Read, validate and check a template.
 
@@ -242,10 +265,14 @@ def read_template(source: str | Path, *, text: str | None = None) -> TemplateSpe
     RecipeError
         ``file:line: key.path: problem`` for every schema or meaning error.
     """
-    doc = parse_yaml(text, source=str(source)) if text is not None else load_yaml(source)
+    if text is None:
+        source = Path(source)
+        text = read_text(source, "YAML file")
+    doc = parse_yaml(text, source=str(source))
     if not isinstance(doc.data, dict):
         raise doc.error((), f"a template must be a mapping (name, columns, rows, steps), got {type(doc.data).__name__}")
-    validate(doc, TEMPLATE_SCHEMA)
+    if template_digest(text) not in CHECKED_TEMPLATES:
+        validate(doc, TEMPLATE_SCHEMA)
     data = doc.data
     columns = list(data["columns"])
     rows = [r["name"] for r in data["rows"]]
