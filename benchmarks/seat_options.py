@@ -1,13 +1,17 @@
 """The seat step's options over every preset body and supported library pose: is the built design's dimension the one set?
 
 For each body and pose, a chair with the seat 8 cm above where the pose puts
-it (``seat.height``), or with a backrest 0.65 m above the seat point
-(``seat.backrest_height``); prints one JSON line per design: the height set,
-the one measured on the built surface (the surface under the seat point; the
-surface's highest point behind it, above the seat point), the evaluation's
-two 5 mm figures, or the refusal and its one line; then the counts.
+it (``seat.height``), with a backrest 0.65 m above the seat point
+(``seat.backrest_height``), or with a seat that ends 8 cm short of the nearer
+knee joint (``seat.depth``, the front edge clear of the back of the knee);
+prints one JSON line per design: the value set, the one measured on the
+built surface (the surface under the seat point; the surface's highest point
+behind it, above the seat point; the front edge from the back of the
+buttocks along the thighs), the evaluation's two 5 mm figures (for the
+depth also the largest contact pressure on the thigh more than 1 cm ahead of
+the front edge), or the refusal and its one line; then the counts.
 
-    python benchmarks/seat_options.py seat|backrest [--bodies default-female ...]
+    python benchmarks/seat_options.py seat|backrest|depth [--bodies default-female ...]
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ BODIES = ["default-female", "default-male", "p5-female", "p50-male", "p95-female
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("option", choices=["seat", "backrest"])
+    ap.add_argument("option", choices=["seat", "backrest", "depth"])
     ap.add_argument("--bodies", nargs="+", default=BODIES, help="preset bodies (default: six)")
     args = ap.parse_args()
     from seatkit.body import list_poses
@@ -31,7 +35,7 @@ def main() -> None:
     from seatkit.plugins import get_plugin_manager
     from seatkit.recipe import load_recipe
     from seatkit.stages import place_bodies
-    from seatkit.template.seat import backrest_top, seat_height_of, seat_point, surface_below
+    from seatkit.template.seat import backrest_top, depth_range, seat_axis, seat_depth_of, seat_height_of, seat_point, surface_below
 
     registry = get_plugin_manager().registry
     poses = [p.name for p in list_poses() if p.supported]
@@ -46,12 +50,18 @@ def main() -> None:
                 if args.option == "seat":
                     value = round(float(seat_point(place_bodies(recipe, registry)[0][0])[1]) + 0.08, 3)
                     recipe["template_params"] = {"steps": {"seat": {"height": value}}}
+                elif args.option == "depth":
+                    value = round(depth_range(place_bodies(recipe, registry)[0][0])[1] - 0.08, 3)
+                    recipe["template_params"] = {"steps": {"seat": {"depth": value}}}
                 else:
                     value = 0.65
                     recipe["template_params"] = {"steps": {"seat": {"backrest_height": value}}}
                 result = build(recipe, write=False, processes=False)
                 if args.option == "seat":
                     got = surface_below(result.surface.vertices, result.surface.faces, seat_point(result.bodies[0]), reach=0.1)
+                elif args.option == "depth":
+                    got = seat_depth_of(result.control_mesh, result.bodies)[0]
+                    row["thigh_ahead_max_pa"] = round(thigh_pressure_ahead(result, seat_axis, value + 0.01), 1)
                 else:
                     seat_y, seat_z = seat_height_of(result.bodies)
                     got = backrest_top(result.surface.vertices, seat_z) - seat_y
@@ -65,6 +75,24 @@ def main() -> None:
             row["seconds"] = round(time.perf_counter() - start, 1)
             print(json.dumps(row), flush=True)
     print(json.dumps(dict(outcome)))
+
+
+def thigh_pressure_ahead(result, seat_axis, depth: float) -> float:
+    """The largest contact pressure the built design puts on thigh skin more than ``depth`` from the back of the buttocks along the thighs, Pa (0 when none is carried there)."""
+    import numpy as np
+
+    from seatkit.skeleton import SEGMENT_INDEX
+    from seatkit.template.grid import segment_of_vertex
+
+    body = result.bodies[0]
+    field = result.contact_pressures[0] if result.contact_pressures else None
+    if field is None:
+        return float("nan")
+    s, back = seat_axis(body)
+    thighs = np.isin(segment_of_vertex(body), [SEGMENT_INDEX["RightUpLeg"], SEGMENT_INDEX["LeftUpLeg"]])
+    ahead = thighs & ((np.asarray(body.vertices) - back) @ s > depth)
+    p = np.asarray(field.pressure)[ahead]
+    return float(p.max()) if len(p) else 0.0
 
 
 if __name__ == "__main__":

@@ -217,7 +217,7 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         from seatkit.subdivision import limit_surface
 
         surface = limit_surface(mesh, level=recipe["surface_level"])
-    check_design(recipe, registry, bodies, surface)  # a dimension the designer set is the built design's
+    check_design(recipe, registry, bodies, surface, mesh)  # a dimension the designer set is the built design's
 
     result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
     if recipe["evaluate"]["enabled"]:

@@ -177,10 +177,24 @@ def solve_importance(recipe: Mapping, bodies, registry) -> list:
     """Each person's pressure "supported everywhere" (the importance map), with the recipe's settings."""
     p = recipe["pressure"]
     solver = registry.get("pressure_solver", p["solver"])
+    contacts = seat_contacts(recipe, bodies, registry)
     return [
         solver.solve(body, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
-        for body in bodies
+        if contact is None
+        else solver.solve(body, contact=contact, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
+        for body, contact in zip(bodies, contacts)
     ]
+
+
+def seat_contacts(recipe: Mapping, bodies, registry) -> list:
+    """Per body, the vertices the seat the template's ``seat`` step sets may carry (None: every vertex); a shorter seat leaves the thigh ahead of its front edge out (:func:`seatkit.template.seat.seat_contact`)."""
+    template = registry.get("template", recipe["template"])
+    options = template.step_options("seat", recipe.get("template_params")) if hasattr(template, "step_options") else None
+    if not options or options.get("depth") is None:
+        return [None] * len(bodies)
+    from seatkit.template.seat import seat_contact
+
+    return seat_contact(bodies, float(options["depth"]))
 
 
 def refine(mesh, refiners, bodies, pressures, timer: StageTimer | None = None):

@@ -37,7 +37,7 @@ from seatkit.errors import RecipeError
 from seatkit.skeleton import SEGMENT_INDEX
 from seatkit.template.options import Option
 
-__all__ = ["SeatStep", "seat_point", "seat_bodies", "seat_design", "set_backrest_height", "check_design", "surface_below", "SEAT_BAND", "FLOOR_TOLERANCE", "BACKREST_TOLERANCE"]
+__all__ = ["SeatStep", "seat_point", "seat_bodies", "seat_design", "set_backrest_height", "check_design", "surface_below", "seat_axis", "seat_contact", "seat_depth_of", "front_edge", "recline_of", "depth_range", "place_front_edge", "SEAT_BAND", "FLOOR_TOLERANCE", "BACKREST_TOLERANCE"]
 
 #: Pelvis skin within this of its lowest point makes up the seat point (its mean x and z), m.
 SEAT_BAND = 0.01
@@ -53,6 +53,30 @@ MIN_TOP_ROW = 0.03
 
 #: How far the built design's backrest top may end from the height set, m.
 BACKREST_TOLERANCE = 0.005
+
+#: How far the built seat's front edge may end from the depth set, m.
+DEPTH_TOLERANCE = 0.005
+
+#: Least a seat depth may reach beyond the seat point (the ischia), m: a shorter seat does not carry the thighs' roots.
+MIN_DEPTH_AHEAD = 0.08
+
+#: Shortest the thigh row may be made along its faces by a shorter seat, m.
+MIN_THIGH_ROW = 0.03
+
+#: Farthest the front edge may be moved ahead of where the fit put it, along the thigh faces, m.
+MAX_DEEPER = 0.2
+
+#: How far the built backrest's recline may end from the recline set, deg.
+RECLINE_TOLERANCE_DEG = 2.0
+
+#: Heights above the seat point between which the backrest's recline is measured, m.
+RECLINE_BAND = (0.10, 0.35)
+
+#: Half-width of the strip about the seat point's x in which the recline is measured, m.
+RECLINE_STRIP = 0.08
+
+#: Height of the bins whose frontmost surface (rearmost skin) points make the recline's line, m.
+RECLINE_BIN = 0.025
 
 
 def seat_point(body) -> np.ndarray:
@@ -70,6 +94,57 @@ def seat_point(body) -> np.ndarray:
     low = float(hips[:, 1].min())
     band = hips[hips[:, 1] <= low + SEAT_BAND]
     return np.array([band[:, 0].mean(), low, band[:, 2].mean()])
+
+
+def seat_axis(body) -> tuple[np.ndarray, np.ndarray]:
+    """(s, back): the seat's direction and the back of the buttocks, what a seat depth is measured along and from.
+
+    ``s`` is the unit direction of the thighs (the mean of the two hip-to-knee
+    joint lines) in the side view (its x dropped): along the seat, from back
+    to front. ``back`` is the body's rearmost pelvis (``Hips``) skin along
+    ``s``: the back of the buttocks, where the sitter meets the backrest
+    (the point the buttock-popliteal length is measured from).
+    """
+    from seatkit.template.grid import segment_of_vertex
+
+    j = np.asarray(body.joints, dtype=np.float64)
+    thigh = 0.5 * (j[SEGMENT_INDEX["RightLeg"]] + j[SEGMENT_INDEX["LeftLeg"]]) - 0.5 * (j[SEGMENT_INDEX["RightUpLeg"]] + j[SEGMENT_INDEX["LeftUpLeg"]])
+    s = np.array([0.0, thigh[1], thigh[2]])
+    s = s / max(float(np.linalg.norm(s)), 1e-12)
+    v = np.asarray(body.vertices, dtype=np.float64)
+    hips = v[segment_of_vertex(body) == SEGMENT_INDEX["Hips"]]
+    if len(hips) == 0:
+        hips = v
+    return s, hips[int(np.argmin(hips @ s))]
+
+
+def recline_of(points: np.ndarray, seat: np.ndarray, *, skin: bool) -> float | None:
+    """The recline of a backrest (or of a back), degrees from vertical, positive with its top behind its bottom; None when it cannot be measured.
+
+    In the strip :data:`RECLINE_STRIP` either side of the seat point's x,
+    behind the seat point, between :data:`RECLINE_BAND` above it, each
+    :data:`RECLINE_BIN` of height gives one point: the frontmost of
+    ``points`` (a surface: the backrest's face the sitter leans on) or,
+    with ``skin``, the rearmost (a body: the back that leans on it). The
+    recline is the angle from vertical of their least-squares line in the
+    side view (z against y). Fewer than four bins: None.
+    """
+    p = np.asarray(points, dtype=np.float64)
+    h = p[:, 1] - seat[1]
+    keep = (np.abs(p[:, 0] - seat[0]) <= RECLINE_STRIP) & (p[:, 2] < seat[2]) & (h >= RECLINE_BAND[0]) & (h <= RECLINE_BAND[1])
+    p, h = p[keep], h[keep]
+    ys, zs = [], []
+    for lo in np.arange(RECLINE_BAND[0], RECLINE_BAND[1] - 1e-9, RECLINE_BIN):
+        inside = (h >= lo) & (h < lo + RECLINE_BIN)
+        if inside.any():
+            q = p[inside]
+            k = int(np.argmin(q[:, 2])) if skin else int(np.argmax(q[:, 2]))
+            ys.append(q[k, 1])
+            zs.append(q[k, 2])
+    if len(ys) < 4:
+        return None
+    slope = np.polyfit(np.asarray(ys), np.asarray(zs), 1)[0]  # dz/dy
+    return float(np.degrees(np.arctan(-slope)))
 
 
 def seat_bodies(bodies: Sequence, height: float | None, *, where: str = "template_params.steps.seat.height") -> list:
@@ -124,6 +199,14 @@ class SeatStep:
             0.1,
             1.5,
         ),
+        "depth": Option(
+            "number",
+            "seat depth: along the seat (the thighs' direction, side view), from the back of the buttocks (where the sitter meets the backrest) to the seat's front edge (the crest of its rounded front); default: where the fit ends it, at the back of the knee. Set shorter, the front edge moves back and clears the knee (ANSI/HFES 100: below the buttock-popliteal length) and the thigh ahead of it is not carried; deeper than the knee allows, or too short to carry the thighs' roots, is refused",
+            None,
+            "m",
+            0.1,
+            1.0,
+        ),
     }
 
     def run(self, state, *, options: Mapping[str, Any]) -> None:
@@ -134,6 +217,9 @@ class SeatStep:
         state.meta["seat"] = seats
         if options.get("backrest_height") is not None:
             state.meta["backrest"] = set_backrest_height(state, float(options["backrest_height"]))
+        edge = front_edge(state)
+        if edge is not None:
+            state.meta["seat_front_edge"] = edge
 
 
 def seat_height_of(bodies) -> tuple[float, float]:
@@ -216,6 +302,154 @@ def set_backrest_height(state, height: float, *, where: str = "template_params.s
     return {"height_m": height, "seat_height_m": round(seat_y, 4), "moved_m": round(float(t1), 4)}
 
 
+def _thigh_row(spec) -> int | None:
+    """The template row whose faces fit the thighs (UpLeg), or None."""
+    thighs = {SEGMENT_INDEX["RightUpLeg"], SEGMENT_INDEX["LeftUpLeg"]}
+    for (r, _c), face in sorted(spec.faces.items()):
+        if face.role == "fit" and thighs & set(face.segments):
+            return int(r)
+    return None
+
+
+def front_edge(state) -> dict | None:
+    """The seat's front edge in the grid: the thigh row's boundary towards the feet, its inner vertices (flat indices) and whose seat each is; None when the design has no thigh row.
+
+    The row boundary is the cage's knee line (the chair's thigh faces meet
+    the shank faces there); its limit points are the crest of the seat's
+    rounded front (:func:`seat_depth_of`).
+    """
+    grid = state.grid
+    row = _thigh_row(state.spec)
+    kept = state.blocks[0].rows
+    if grid is None or row is None or row not in kept:
+        return None
+    R, C = grid.shape
+    b = kept.index(row) + 2  # two border rings before the first kept row
+    vertices, people = [], []
+    for k in range(2, C - 1):  # the inner vertices of the row (not the border's two rings either side)
+        faces = [grid.person[b, c] for c in (k - 1, k) if 0 <= c < C]
+        person = next((int(p) for p in faces if p >= 0), -1)
+        if person < 0:
+            continue
+        vertices.append(int(b * (C + 1) + k))
+        people.append(person)
+    return {"row": int(b), "columns": int(C + 1), "vertices": vertices, "person": people}
+
+
+def seat_depth_of(mesh, bodies) -> list[float]:
+    """The seat depth of a built design, per person: along :func:`seat_axis` from the back of the buttocks to the frontmost point of the seat's front edge (the limit surface over the cage's front-edge vertices, ``meta["seat_front_edge"]``), m; nan for a person without one."""
+    from seatkit.subdivision import limit_surface
+
+    edge = (mesh.meta or {}).get("seat_front_edge")
+    out = [float("nan")] * len(bodies)
+    if not edge:
+        return out
+    points = limit_surface(mesh, level=0).vertices
+    for i, body in enumerate(bodies):
+        s, back = seat_axis(body)
+        idx = [v for v, p in zip(edge["vertices"], edge["person"]) if p == i]
+        if idx:
+            out[i] = float(((points[idx] - back) @ s).max())
+    return out
+
+
+def depth_range(body) -> tuple[float, float]:
+    """(least, most) seat depth for ``body`` in its pose, m: :data:`MIN_DEPTH_AHEAD` beyond the seat point (the ischia), and the nearer knee joint (a front edge beyond it would cut the shin), both along :func:`seat_axis` from the back of the buttocks."""
+    s, back = seat_axis(body)
+    j = np.asarray(body.joints, dtype=np.float64)
+    knees = [float((j[SEGMENT_INDEX[k]] - back) @ s) for k in ("RightLeg", "LeftLeg")]
+    return float((seat_point(body) - back) @ s) + MIN_DEPTH_AHEAD, min(knees)
+
+
+def seat_contact(bodies: Sequence, depth: float | None, *, where: str = "template_params.steps.seat.depth") -> list:
+    """Per body, the vertices a seat of ``depth`` may carry (None: every vertex): all but the thigh skin ahead of its front edge.
+
+    A shorter seat leaves the distal thigh unsupported, so its skin leaves the
+    importance map (the pressure is solved without it): neither the template,
+    the refiners nor the flat patch it is compared with are guided by a load
+    the seat does not carry.
+
+    Raises
+    ------
+    RecipeError
+        The depth is outside :func:`depth_range` for a body: too short to
+        carry the thighs' roots, or past the back of the knee.
+    """
+    from seatkit.template.grid import segment_of_vertex
+
+    if depth is None:
+        return [None] * len(bodies)
+    thighs = [SEGMENT_INDEX["RightUpLeg"], SEGMENT_INDEX["LeftUpLeg"]]
+    out = []
+    for i, body in enumerate(bodies):
+        least, most = depth_range(body)
+        if not least - 1e-9 <= depth <= most + 1e-9:
+            who = f"person {i + 1} ({body.name})" if len(bodies) > 1 else f"{body.name}"
+            why = f"does not carry {who}'s thighs" if depth < least else f"reaches past the back of {who}'s knee (the seat's front would cut the shin)"
+            raise RecipeError(f"{where}: {depth:g} m {why}; in this pose the seat depth is from {least:.3f} to {most:.3f} m")
+        s, back = seat_axis(body)
+        v = np.asarray(body.vertices, dtype=np.float64)
+        ahead = np.isin(segment_of_vertex(body), thighs) & ((v - back) @ s > depth)
+        out.append(~ahead)
+    return out
+
+
+def place_front_edge(V: np.ndarray, ground: np.ndarray, edge: dict, axes: Sequence, depth: float, *, limit=None) -> tuple[np.ndarray, float]:
+    """``V`` (a grid's (R+1, C+1, 3) vertices) with its front-edge row moved along the thigh faces so that each inner front-edge vertex's limit point is ``depth`` from the back of its person's buttocks (a straight front edge); and the largest miss, m.
+
+    Each vertex of the row (the border's with the nearest inner one) moves
+    towards the row behind it (shorter) or away from it (deeper); the row
+    keeps :data:`MIN_THIGH_ROW`. The limit points are linear in the
+    vertices: a fixed-point iteration on them.
+    """
+    from seatkit.subdivision import Cage, build_operators
+    from seatkit.template.grid import grid_quads
+
+    V = np.asarray(V, dtype=np.float64)
+    C = V.shape[1] - 1
+    b = edge["row"]
+    direction = V[b + 1] - V[b]  # towards the row behind, along the thigh faces
+    length = np.linalg.norm(direction, axis=1)
+    direction = direction / np.maximum(length, 1e-12)[:, None]
+    room = np.maximum(length - MIN_THIGH_ROW, 0.0)
+    free = ~np.asarray(ground[b], bool)
+    if limit is None:
+        limit = build_operators(Cage(V.reshape(-1, 3), grid_quads((V.shape[0] - 1, C))), 0).limit
+    cols = np.array([v - b * (C + 1) for v in edge["vertices"]])
+    s = np.array([axes[p][0] for p in edge["person"]])
+    back = np.array([axes[p][1] for p in edge["person"]])
+    rows = limit[edge["vertices"]]
+    nearest = np.array([cols[int(np.argmin(np.abs(cols - k)))] for k in range(C + 1)])
+
+    def moved(t):
+        W = V.copy()
+        W[b] += (t * free)[:, None] * direction
+        return W
+
+    def depths(t):
+        return np.einsum("ij,ij->i", rows @ moved(t).reshape(-1, 3) - back, s)
+
+    t = np.zeros(C + 1)
+    along = np.maximum(-np.einsum("ij,ij->i", direction[cols], s), 0.1)  # how much shorter the seat gets per metre the front edge moves back along the thigh face
+    for _ in range(80):
+        miss = depths(t) - depth
+        if np.abs(miss).max() <= 1e-4:
+            break
+        t[cols] = np.clip(t[cols] + 1.5 * miss / along, -MAX_DEEPER, room[cols])  # the limit point follows about 2/3 of its row's move
+        t = t[nearest]
+    return moved(t), float(np.abs(depths(t) - depth).max())
+
+
+def seat_depth_of_grid(V: np.ndarray, edge: dict, axes: Sequence) -> float:
+    """The deepest front-edge point of a grid's vertices (``(R+1, C+1, 3)``) along its person's seat axis, m."""
+    from seatkit.subdivision import Cage, build_operators
+    from seatkit.template.grid import grid_quads
+
+    C = V.shape[1] - 1
+    points = build_operators(Cage(V.reshape(-1, 3), grid_quads((V.shape[0] - 1, C))), 0).limit_points(V.reshape(-1, 3))[edge["vertices"]]
+    return float(max((p - axes[i][1]) @ axes[i][0] for p, i in zip(points, edge["person"])))
+
+
 def surface_below(surface_vertices: np.ndarray, surface_faces: np.ndarray, point: np.ndarray, *, reach: float) -> float | None:
     """Height of the highest point of a (quad or triangle) surface on the vertical through ``point``, at most ``reach`` below it (or 5 cm above it); None if there is none."""
     v = np.asarray(surface_vertices, dtype=np.float64)
@@ -268,10 +502,12 @@ def seat_design(recipe: Mapping, registry, bodies: Sequence, initial, mesh, *, d
     from seatkit.subdivision import limit_surface
 
     options = _seat_options(recipe, registry)
+    level = int(recipe.get("surface_level", 3))
+    if options and options.get("depth") is not None:
+        mesh = _depth_design(mesh, bodies, float(options["depth"]), depths=lambda m: depths(m, bodies, level), limit=limit)
     if not options or options.get("height") is None:
         return list(bodies), initial, mesh, 0.0
     height = float(options["height"])
-    level = int(recipe.get("surface_level", 3))
     surface = limit_surface(mesh, level=level)
     point = seat_point(max(bodies, key=lambda b: seat_point(b)[1]))
     under = surface_below(surface.vertices, surface.faces, point, reach=SEAT_REACH)
@@ -293,6 +529,38 @@ def seat_design(recipe: Mapping, registry, bodies: Sequence, initial, mesh, *, d
     return bodies, initial, mesh, moved
 
 
+def _depth_design(mesh, bodies, depth: float, *, depths, limit: float, where: str = "template_params.steps.seat.depth"):
+    """``mesh`` with its front edge put back at ``depth`` where the refiners' moves of its neighbours shifted it (:func:`place_front_edge`), its depths in the bodies measured again.
+
+    Raises
+    ------
+    RecipeError
+        The front edge cannot be put there, or the moved design reaches
+        deeper than ``limit`` into a body.
+    """
+    from dataclasses import replace
+
+    edge = (mesh.meta or {}).get("seat_front_edge")
+    if not edge:
+        raise RecipeError(f"{where}: this design has no seat under the thighs (no thigh row); leave the seat depth out")
+    axes = [seat_axis(b) for b in bodies]
+    C1 = int(edge["columns"])
+    V = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, C1, 3)
+    if abs(seat_depth_of_grid(V, edge, axes) - depth) <= 1e-4:
+        return mesh
+    W, miss = place_front_edge(V, np.asarray(mesh.ground, bool).reshape(-1, C1), edge, axes, depth)
+    if miss > 1e-3:
+        least, most = depth_range(bodies[0])
+        raise RecipeError(f"{where}: the refined seat's front edge cannot be put back at {depth:g} m from the back of the buttocks (it stays {miss * 1000:.0f} mm from there); in this pose the seat depth is from {least:.3f} to {most:.3f} m")
+    before = max(depths(mesh).values())
+    moved = replace(mesh, vertices=W.reshape(-1, 3))
+    after = depths(moved)
+    if max(after.values()) > max(limit, before + 0.0005):
+        least, most = depth_range(bodies[0])
+        raise RecipeError(f"{where}: at {depth:g} m the seat's front edge reaches {1000 * max(after.values()):.1f} mm into the body (above the {1000 * limit:.0f} mm limit); in this pose the seat depth is from {least:.3f} to {most:.3f} m, try a shorter one")
+    return moved
+
+
 def _lifted_cage(mesh, dy: float):
     """``mesh`` with every vertex but the ground ring moved up by ``dy``."""
     from dataclasses import replace
@@ -302,10 +570,19 @@ def _lifted_cage(mesh, dy: float):
     return replace(mesh, vertices=v)
 
 
-def check_design(recipe: Mapping, registry, bodies, surface) -> None:
-    """Refuse a built design whose backrest's top is not where the ``seat`` step's ``backrest_height`` put it (a repair moved it), within :data:`BACKREST_TOLERANCE`."""
+def check_design(recipe: Mapping, registry, bodies, surface, mesh=None) -> None:
+    """Refuse a built design whose seat depth or backrest top is not where the ``seat`` step's ``depth`` and ``backrest_height`` put them (a refiner or a repair moved them), within :data:`DEPTH_TOLERANCE` and :data:`BACKREST_TOLERANCE`."""
     options = _seat_options(recipe, registry)
-    if not options or options.get("backrest_height") is None:
+    if not options:
+        return
+    if options.get("depth") is not None and mesh is not None:
+        want = float(options["depth"])
+        got = seat_depth_of(mesh, bodies)
+        far = max((g for g in got if np.isfinite(g)), key=lambda g: abs(g - want), default=float("nan"))
+        if not abs(far - want) <= DEPTH_TOLERANCE:
+            least, most = depth_range(bodies[0])
+            raise RecipeError(f"template_params.steps.seat.depth: the design's seat is {far:.3f} m deep, not {want:g} m (a repair moved its front edge); in this pose the seat depth is from {least:.3f} to {most:.3f} m, try another")
+    if options.get("backrest_height") is None:
         return
     seat_y, seat_z = seat_height_of(bodies)
     got = backrest_top(surface.vertices, seat_z) - seat_y
