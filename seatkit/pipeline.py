@@ -202,7 +202,15 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     refiners = [(r["name"], registry.guarded("refiner", r["name"], template=template), r["params"]) for r in recipe["refiners"]]
     sources = bind_search(template, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"], first=itertools.chain([initial], cages))
     fit_last = bool(refiners) and refiners[-1][0] == "catmull-clark-fit"
-    outcome = search(sources, lambda cage: refine(cage, refiners, bodies, pressures, timer), bodies, fit_last=fit_last, stage=timer.stage)
+    from seatkit.template.seat import refined_seat
+
+    def refit(cage):  # the surface fit again, around what a designer set (the seat depth's front edge)
+        return refine(cage, refiners[-1:], bodies, pressures, timer)
+
+    def refined(cage):  # a candidate refined, with the seat depth set put on it (seatkit.template.seat)
+        return refined_seat(recipe, registry, refine(cage, refiners, bodies, pressures, timer), bodies, refit if fit_last else None)
+
+    outcome = search(sources, refined, bodies, fit_last=fit_last, stage=timer.stage)
     initial, mesh = outcome.design()
     from seatkit.refine.ccfit import final_depths
     from seatkit.template.seat import check_design, seat_design

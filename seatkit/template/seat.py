@@ -25,6 +25,15 @@ by the gap between the seat point and the surface under it
 ``run`` records the seat point of each person in the template's ``meta``
 (report.json ``control_mesh.meta.seat``) and, with ``backrest_height``, moves
 the backrest's top (:func:`set_backrest_height`; docs/templates.md, "seat").
+
+The seat's ``depth`` is measured along the thighs from the back of the
+buttocks to the crest of the seat's rounded front edge (:func:`seat_axis`,
+:func:`seat_depth_of`). A shorter seat does not carry the thigh ahead of its
+front edge, so that skin leaves the pressure the design is guided by
+(:func:`seat_contact`, applied when the importance is solved); each refined
+candidate of the design search gets its front edge put at the depth, kept,
+and the surface fitted around it (:func:`refined_seat`); the built design is
+measured again (:func:`check_design`).
 """
 
 from __future__ import annotations
@@ -37,7 +46,7 @@ from seatkit.errors import RecipeError
 from seatkit.skeleton import SEGMENT_INDEX
 from seatkit.template.options import Option
 
-__all__ = ["SeatStep", "seat_point", "seat_bodies", "seat_design", "set_backrest_height", "check_design", "surface_below", "seat_axis", "seat_contact", "seat_depth_of", "front_edge", "recline_of", "depth_range", "place_front_edge", "SEAT_BAND", "FLOOR_TOLERANCE", "BACKREST_TOLERANCE"]
+__all__ = ["SeatStep", "seat_point", "seat_bodies", "seat_design", "set_backrest_height", "check_design", "surface_below", "seat_axis", "seat_contact", "seat_depth_of", "front_edge", "recline_of", "depth_range", "place_front_edge", "refined_seat", "SEAT_BAND", "FLOOR_TOLERANCE", "BACKREST_TOLERANCE"]
 
 #: Pelvis skin within this of its lowest point makes up the seat point (its mean x and z), m.
 SEAT_BAND = 0.01
@@ -60,10 +69,16 @@ DEPTH_TOLERANCE = 0.005
 #: Least a seat depth may reach beyond the seat point (the ischia), m: a shorter seat does not carry the thighs' roots.
 MIN_DEPTH_AHEAD = 0.08
 
+#: The shank skin this close to its knee joint and ahead of a shorter seat's front edge is not carried (the back of the knee, the top of the calf), m.
+KNEE_CLEARANCE = 0.12
+
 #: Shortest the thigh row may be made along its faces by a shorter seat, m.
 MIN_THIGH_ROW = 0.03
 
-#: Farthest the front edge may be moved ahead of where the fit put it, along the thigh faces, m.
+#: Rounds of putting the front edge at the depth and fitting the surface around it (a refit moves the front edge's neighbours, which shifts it by millimetres; the second round's shift is smaller).
+REFITS = 2
+
+#: Farthest the front edge may be moved ahead of where the refiners put it, along the seat, m.
 MAX_DEEPER = 0.2
 
 #: How far the built backrest's recline may end from the recline set, deg.
@@ -367,7 +382,9 @@ def seat_contact(bodies: Sequence, depth: float | None, *, where: str = "templat
     A shorter seat leaves the distal thigh unsupported, so its skin leaves the
     importance map (the pressure is solved without it): neither the template,
     the refiners nor the flat patch it is compared with are guided by a load
-    the seat does not carry.
+    the seat does not carry. So does the shank skin ahead of the front edge
+    within :data:`KNEE_CLEARANCE` of the knee joint (the back of the knee and
+    the top of the calf, which the front edge clears).
 
     Raises
     ------
@@ -389,18 +406,26 @@ def seat_contact(bodies: Sequence, depth: float | None, *, where: str = "templat
             raise RecipeError(f"{where}: {depth:g} m {why}; in this pose the seat depth is from {least:.3f} to {most:.3f} m")
         s, back = seat_axis(body)
         v = np.asarray(body.vertices, dtype=np.float64)
-        ahead = np.isin(segment_of_vertex(body), thighs) & ((v - back) @ s > depth)
+        segment = segment_of_vertex(body)
+        beyond = (v - back) @ s > depth
+        ahead = np.isin(segment, thighs) & beyond
+        j = np.asarray(body.joints, dtype=np.float64)
+        for shank in ("RightLeg", "LeftLeg"):  # the back of the knee and the top of the calf, which the front edge clears
+            k = SEGMENT_INDEX[shank]
+            ahead |= (segment == k) & beyond & (np.linalg.norm(v - j[k], axis=1) < KNEE_CLEARANCE)
         out.append(~ahead)
     return out
 
 
 def place_front_edge(V: np.ndarray, ground: np.ndarray, edge: dict, axes: Sequence, depth: float, *, limit=None) -> tuple[np.ndarray, float]:
-    """``V`` (a grid's (R+1, C+1, 3) vertices) with its front-edge row moved along the thigh faces so that each inner front-edge vertex's limit point is ``depth`` from the back of its person's buttocks (a straight front edge); and the largest miss, m.
+    """``V`` (a grid's (R+1, C+1, 3) vertices) with its front-edge row moved along the seat so that each inner front-edge vertex's limit point is ``depth`` from the back of its person's buttocks (a straight front edge); and the largest miss, m.
 
-    Each vertex of the row (the border's with the nearest inner one) moves
-    towards the row behind it (shorter) or away from it (deeper); the row
-    keeps :data:`MIN_THIGH_ROW`. The limit points are linear in the
-    vertices: a fixed-point iteration on them.
+    Each inner vertex of the row moves along its person's seat axis
+    (:func:`seat_axis`: back for a shorter seat, forward for a deeper one, at
+    most :data:`MAX_DEEPER`; the row stays :data:`MIN_THIGH_ROW` ahead of the
+    row behind it), the border's vertices with the nearest inner one, so the
+    surface's heights under the thighs stay. The limit points are linear in
+    the vertices: a fixed-point iteration on them.
     """
     from seatkit.subdivision import Cage, build_operators
     from seatkit.template.grid import grid_quads
@@ -408,35 +433,32 @@ def place_front_edge(V: np.ndarray, ground: np.ndarray, edge: dict, axes: Sequen
     V = np.asarray(V, dtype=np.float64)
     C = V.shape[1] - 1
     b = edge["row"]
-    direction = V[b + 1] - V[b]  # towards the row behind, along the thigh faces
-    length = np.linalg.norm(direction, axis=1)
-    direction = direction / np.maximum(length, 1e-12)[:, None]
-    room = np.maximum(length - MIN_THIGH_ROW, 0.0)
     free = ~np.asarray(ground[b], bool)
+    cols = np.array([v - b * (C + 1) for v in edge["vertices"]])
+    nearest = np.array([cols[int(np.argmin(np.abs(cols - k)))] for k in range(C + 1)])
+    s_of = {c: axes[p][0] for c, p in zip(cols, edge["person"])}
+    direction = np.array([-s_of[int(k)] for k in nearest])  # back along the seat
+    room = np.maximum(np.einsum("ij,ij->i", V[b] - V[b + 1], -direction) - MIN_THIGH_ROW, 0.0)  # the row behind stays behind
     if limit is None:
         limit = build_operators(Cage(V.reshape(-1, 3), grid_quads((V.shape[0] - 1, C))), 0).limit
-    cols = np.array([v - b * (C + 1) for v in edge["vertices"]])
     s = np.array([axes[p][0] for p in edge["person"]])
     back = np.array([axes[p][1] for p in edge["person"]])
     rows = limit[edge["vertices"]]
-    nearest = np.array([cols[int(np.argmin(np.abs(cols - k)))] for k in range(C + 1)])
 
     def moved(t):
         W = V.copy()
-        W[b] += (t * free)[:, None] * direction
+        W[b] += (t[nearest] * free)[:, None] * direction  # the border's vertices as their nearest inner one
         return W
 
     def depths(t):
         return np.einsum("ij,ij->i", rows @ moved(t).reshape(-1, 3) - back, s)
 
     t = np.zeros(C + 1)
-    along = np.maximum(-np.einsum("ij,ij->i", direction[cols], s), 0.1)  # how much shorter the seat gets per metre the front edge moves back along the thigh face
     for _ in range(80):
         miss = depths(t) - depth
         if np.abs(miss).max() <= 1e-4:
             break
-        t[cols] = np.clip(t[cols] + 1.5 * miss / along, -MAX_DEEPER, room[cols])  # the limit point follows about 2/3 of its row's move
-        t = t[nearest]
+        t[cols] = np.clip(t[cols] + 1.5 * miss, -MAX_DEEPER, room[cols])  # the limit point follows about 2/3 of its row's move
     return moved(t), float(np.abs(depths(t) - depth).max())
 
 
@@ -503,8 +525,6 @@ def seat_design(recipe: Mapping, registry, bodies: Sequence, initial, mesh, *, d
 
     options = _seat_options(recipe, registry)
     level = int(recipe.get("surface_level", 3))
-    if options and options.get("depth") is not None:
-        mesh = _depth_design(mesh, bodies, float(options["depth"]), depths=lambda m: depths(m, bodies, level), limit=limit)
     if not options or options.get("height") is None:
         return list(bodies), initial, mesh, 0.0
     height = float(options["height"])
@@ -529,36 +549,49 @@ def seat_design(recipe: Mapping, registry, bodies: Sequence, initial, mesh, *, d
     return bodies, initial, mesh, moved
 
 
-def _depth_design(mesh, bodies, depth: float, *, depths, limit: float, where: str = "template_params.steps.seat.depth"):
-    """``mesh`` with its front edge put back at ``depth`` where the refiners' moves of its neighbours shifted it (:func:`place_front_edge`), its depths in the bodies measured again.
+def refined_seat(recipe: Mapping, registry, mesh, bodies, refit=None, *, where: str = "template_params.steps.seat.depth"):
+    """A refined cage with the seat depth the ``seat`` step sets (``mesh`` itself when none is set).
+
+    The front edge of the refined cage is put at the depth
+    (:func:`place_front_edge`) and kept there (its row ``fixed``); ``refit``
+    (the recipe's last refiner, the surface fit) then fits the surface
+    around it. The refit's moves of the front edge's neighbours shift it by
+    millimetres, so it is put at the depth and fitted around once more
+    (:data:`REFITS`); the shift left is checked after the surface is made
+    (:func:`check_design`). Called on every
+    candidate of the design search, so the search's acceptance check (the
+    5 mm limits) judges the cage with its front edge where it was put.
 
     Raises
     ------
     RecipeError
-        The front edge cannot be put there, or the moved design reaches
-        deeper than ``limit`` into a body.
+        The design has no thigh row, or the front edge cannot be put at the
+        depth (the row behind it is in the way).
     """
     from dataclasses import replace
 
+    options = _seat_options(recipe, registry)
+    if not options or options.get("depth") is None:
+        return mesh
+    depth = float(options["depth"])
     edge = (mesh.meta or {}).get("seat_front_edge")
     if not edge:
         raise RecipeError(f"{where}: this design has no seat under the thighs (no thigh row); leave the seat depth out")
     axes = [seat_axis(b) for b in bodies]
     C1 = int(edge["columns"])
-    V = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, C1, 3)
-    if abs(seat_depth_of_grid(V, edge, axes) - depth) <= 1e-4:
-        return mesh
-    W, miss = place_front_edge(V, np.asarray(mesh.ground, bool).reshape(-1, C1), edge, axes, depth)
-    if miss > 1e-3:
-        least, most = depth_range(bodies[0])
-        raise RecipeError(f"{where}: the refined seat's front edge cannot be put back at {depth:g} m from the back of the buttocks (it stays {miss * 1000:.0f} mm from there); in this pose the seat depth is from {least:.3f} to {most:.3f} m")
-    before = max(depths(mesh).values())
-    moved = replace(mesh, vertices=W.reshape(-1, 3))
-    after = depths(moved)
-    if max(after.values()) > max(limit, before + 0.0005):
-        least, most = depth_range(bodies[0])
-        raise RecipeError(f"{where}: at {depth:g} m the seat's front edge reaches {1000 * max(after.values()):.1f} mm into the body (above the {1000 * limit:.0f} mm limit); in this pose the seat depth is from {least:.3f} to {most:.3f} m, try a shorter one")
-    return moved
+    ground = np.asarray(mesh.ground, bool).reshape(-1, C1)
+    for _ in range(REFITS if refit is not None else 1):
+        V = np.asarray(mesh.vertices, dtype=np.float64).reshape(-1, C1, 3)
+        W, miss = place_front_edge(V, ground, edge, axes, depth)
+        if miss > 1e-3:
+            least, most = depth_range(bodies[0])
+            raise RecipeError(f"{where}: this seat's front edge cannot be put {depth:g} m from the back of the buttocks (it stays {miss * 1000:.0f} mm from there); in this pose the seat depth is from {least:.3f} to {most:.3f} m")
+        fixed = np.zeros(ground.shape, bool) if mesh.fixed is None else np.array(mesh.fixed, bool).reshape(ground.shape)
+        fixed[edge["row"]] = True
+        mesh = replace(mesh, vertices=W.reshape(-1, 3), fixed=(fixed & ~ground).ravel())
+        if refit is not None:
+            mesh = refit(mesh)
+    return mesh
 
 
 def _lifted_cage(mesh, dy: float):
