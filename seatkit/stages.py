@@ -69,7 +69,7 @@ def make_bodies(recipe: Mapping, registry) -> list[Body]:
     return place_bodies(recipe, registry)[0]
 
 
-def place_bodies(recipe: Mapping, registry) -> tuple[list[Body], list]:
+def place_bodies(recipe: Mapping, registry, *, recline_offset: float = 0.0) -> tuple[list[Body], list]:
     """Pose every person of the recipe, bring each into the canonical frame, and place them in seat order.
 
     Each posed body is turned to face +Z and centred
@@ -94,14 +94,26 @@ def place_bodies(recipe: Mapping, registry) -> tuple[list[Body], list]:
 
     bodies: list[Body] = []
     frames: list = []
+    recline = _seat_option(recipe, registry, "recline")
     for entry in recipe["bodies"]:
         model = registry.get("body_model", entry["model"])
         rig = model.make_body(params=entry["params"])
         pose = load_pose(entry["pose"], frame=entry.get("frame", 0), rig=rig, dirs=registry.pose_dirs)
+        if recline is not None:  # the trunk reclined until the back is at the recline set (seatkit.template.seat)
+            from seatkit.template.seat import recline_to
+
+            pose, _ = recline_to(lambda p, model=model, rig=rig: pose_canonical(model, rig, p)[0], pose, float(recline) + recline_offset)
         body, frame = pose_canonical(model, rig, pose)
         bodies.append(body)
         frames.append(frame)
     return _placed(recipe, seated_at_height(recipe, bodies, registry)), frames
+
+
+def _seat_option(recipe: Mapping, registry, key: str):
+    """The template's ``seat`` step's option ``key`` as the recipe sets it (None: not set, or no such step)."""
+    template = registry.get("template", recipe["template"])
+    options = template.step_options("seat", recipe.get("template_params")) if hasattr(template, "step_options") else None
+    return None if not options else options.get(key)
 
 
 def seated_at_height(recipe: Mapping, bodies: list[Body], registry) -> list[Body]:

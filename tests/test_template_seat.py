@@ -164,3 +164,30 @@ def test_a_seat_depth_the_pose_cannot_take_is_refused_on_one_line():
     assert out.exit_code != 0
     lines = [line for line in out.output.splitlines() if line.strip()]
     assert len(lines) == 1 and "seat.depth" in lines[0] and f"from {least:.3f} to {most:.3f} m" in lines[0], out.output
+
+
+@pytest.mark.parametrize(("body", "pose", "recline"), [("default-female", "upright-sitting", 15.0), ("default-male", "reclined-sitting", 20.0)])
+def test_a_set_recline_is_the_built_backrests(body, pose, recline):
+    from seatkit.template.seat import RECLINE_TOLERANCE_DEG, built_recline
+
+    own = build(_recipe(body, pose), write=False, processes=False)
+    assert abs(built_recline(own.surface, own.bodies) - recline) > 5.0  # the pose's own backrest is elsewhere
+    recipe = _recipe(body, pose)
+    recipe["template_params"] = {"steps": {"seat": {"recline": recline}}}
+    result = build(recipe, write=False, processes=False)
+    assert abs(built_recline(result.surface, result.bodies) - recline) <= RECLINE_TOLERANCE_DEG  # the built backrest at that angle, within 2 deg
+    ours = result.metrics["ours"][0]
+    assert ours["max_penetration_m"] <= GUARANTEE and ours["max_body_depth_m"] <= GUARANTEE  # the 5 mm guarantee holds
+    assert result.metrics["dimensions"][0]["back_height_m"] > 0.3  # the reclined back is carried
+    assert abs(seat_point(result.bodies[0])[1] - seat_point(own.bodies[0])[1]) < 0.05  # the sitter still sits: the trunk turned about the hips
+
+
+def test_a_recline_of_a_pose_without_a_back_to_recline_is_refused_on_one_line():
+    recipe = _recipe("default-female", "lying-supine")
+    recipe["template_params"] = {"steps": {"seat": {"recline": 15}}}
+    with pytest.raises(RecipeError) as e:
+        build(recipe, write=False, processes=False)
+    message = str(e.value)
+    assert "\n" not in message and message.startswith("template_params.steps.seat.recline:") and "leave the recline out" in message
+    out = CliRunner().invoke(app, ["build", "--template", "chair", "--pose", "upright-sitting", "--option", "seat.recline=80", "-q"])
+    assert out.exit_code != 0 and "template_params.steps.seat.recline" in out.output and "-10 to 50" in out.output, out.output

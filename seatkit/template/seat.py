@@ -46,7 +46,7 @@ from seatkit.errors import RecipeError
 from seatkit.skeleton import SEGMENT_INDEX
 from seatkit.template.options import Option
 
-__all__ = ["SeatStep", "seat_point", "seat_bodies", "seat_design", "set_backrest_height", "check_design", "surface_below", "seat_axis", "seat_contact", "seat_depth_of", "front_edge", "recline_of", "depth_range", "place_front_edge", "refined_seat", "SEAT_BAND", "FLOOR_TOLERANCE", "BACKREST_TOLERANCE"]
+__all__ = ["SeatStep", "seat_point", "seat_bodies", "seat_design", "set_backrest_height", "check_design", "surface_below", "seat_axis", "seat_contact", "seat_depth_of", "front_edge", "recline_of", "depth_range", "place_front_edge", "refined_seat", "reclined_pose", "recline_to", "back_recline", "built_recline", "SEAT_BAND", "FLOOR_TOLERANCE", "BACKREST_TOLERANCE"]
 
 #: Pelvis skin within this of its lowest point makes up the seat point (its mean x and z), m.
 SEAT_BAND = 0.01
@@ -84,8 +84,14 @@ MAX_DEEPER = 0.2
 #: How far the built backrest's recline may end from the recline set, deg.
 RECLINE_TOLERANCE_DEG = 2.0
 
+#: Most builds a recline set may take: each one after the first with the back reclined by the last built backrest's miss.
+RECLINE_BUILDS = 3
+
+#: How near the back's recline the trunk's search stops, deg (the built backrest is held to :data:`RECLINE_TOLERANCE_DEG`).
+RECLINE_SEARCH_DEG = 0.25
+
 #: Heights above the seat point between which the backrest's recline is measured, m.
-RECLINE_BAND = (0.10, 0.35)
+RECLINE_BAND = (0.15, 0.40)
 
 #: Half-width of the strip about the seat point's x in which the recline is measured, m.
 RECLINE_STRIP = 0.08
@@ -162,6 +168,63 @@ def recline_of(points: np.ndarray, seat: np.ndarray, *, skin: bool) -> float | N
     return float(np.degrees(np.arctan(-slope)))
 
 
+def reclined_pose(pose, degrees: float):
+    """``pose`` with the trunk reclined ``degrees`` further back about the pelvis's own lateral axis and the thighs kept where they were (their rotations take the difference), as the web app's trunk-recline slider does."""
+    from dataclasses import replace
+
+    from scipy.spatial.transform import Rotation
+
+    tilt = Rotation.from_rotvec([-np.radians(degrees), 0.0, 0.0])  # about the pelvis's x (its right-to-left axis): back
+    rot = np.array(pose.rotations, dtype=np.float64)
+    rot[0] = (Rotation.from_rotvec(rot[0]) * tilt).as_rotvec()
+    for thigh in ("RightUpLeg", "LeftUpLeg"):
+        k = SEGMENT_INDEX[thigh]
+        rot[k] = (tilt.inv() * Rotation.from_rotvec(rot[k])).as_rotvec()
+    return replace(pose, rotations=rot)
+
+
+def back_recline(body) -> float | None:
+    """The recline of ``body``'s back (:func:`recline_of` on its skin), degrees; None when it cannot be measured."""
+    return recline_of(np.asarray(body.vertices), seat_point(body), skin=True)
+
+
+def recline_to(pose_body, pose, target: float, *, where: str = "template_params.steps.seat.recline"):
+    """``pose`` with the trunk reclined so that the back's recline (:func:`back_recline` of ``pose_body(pose)``) is ``target`` degrees, and that body.
+
+    A secant search on the trunk's angle (:func:`reclined_pose`); the back's
+    line turns about as the trunk does.
+
+    Raises
+    ------
+    RecipeError
+        The back cannot be measured (lying, or no back above the seat
+        point), or no trunk angle within 60 deg of the pose's gives it.
+    """
+    body = pose_body(pose)
+    r0 = back_recline(body)
+    if r0 is None:
+        raise RecipeError(f"{where}: this pose has no back above the seat to recline (lying, or leaning forward); leave the recline out")
+    d0, f0 = 0.0, r0 - target
+    best = (abs(f0), 0.0, body)
+    d1 = -f0
+    for _ in range(10):
+        if abs(f0) <= RECLINE_SEARCH_DEG or abs(d1) > 60.0:
+            break
+        body = pose_body(reclined_pose(pose, d1))
+        r1 = back_recline(body)
+        if r1 is None:
+            d1 = 0.5 * (d0 + d1)  # no back there (turned past lying): a smaller step
+            continue
+        f1 = r1 - target
+        best = min(best, (abs(f1), d1, body), key=lambda b: b[0])
+        if f1 == f0:
+            break
+        d0, f0, d1 = d1, f1, d1 - f1 * (d1 - d0) / (f1 - f0)
+    if best[0] <= 2 * RECLINE_SEARCH_DEG:
+        return reclined_pose(pose, best[1]), best[2]
+    raise RecipeError(f"{where}: no recline of this pose's trunk gives a back at {target:g} deg (it is at {r0:.1f} deg as posed); allowed: -10 to 50 deg, near the pose's own")
+
+
 def seat_bodies(bodies: Sequence, height: float | None, *, where: str = "template_params.steps.seat.height") -> list:
     """``bodies`` lifted so that each one's seat point is ``height`` above the floor (as they are for None).
 
@@ -213,6 +276,14 @@ class SeatStep:
             "m",
             0.1,
             1.5,
+        ),
+        "recline": Option(
+            "number",
+            "backrest recline: its angle behind vertical, in the side view: the least-squares line through the backrest's surface 15-40 cm above the seat point, in the middle 16 cm; default: as the pose has it. Set, the sitter's trunk reclines about the hips, the thighs kept (as the web app's trunk-recline slider), until the built backrest meets it within 2 deg; a pose without a backrest, or one whose built backrest cannot meet it, is refused",
+            None,
+            "deg",
+            -10.0,
+            50.0,
         ),
         "depth": Option(
             "number",
@@ -603,6 +674,29 @@ def _lifted_cage(mesh, dy: float):
     return replace(mesh, vertices=v)
 
 
+def built_recline(surface, bodies) -> float | None:
+    """The recline of a built design's backrest (:func:`recline_of` on its surface, from the highest person's seat point), degrees; None when it has none there."""
+    point = max((seat_point(b) for b in bodies), key=lambda p: p[1])
+    return recline_of(np.asarray(surface.vertices), point, skin=False)
+
+
+def recline_miss(recipe: Mapping, registry, bodies, surface, *, where: str = "template_params.steps.seat.recline") -> tuple[float, float] | None:
+    """The built backrest's recline (:func:`built_recline`) and the ``seat`` step's ``recline``, degrees (None when none is set).
+
+    Raises
+    ------
+    RecipeError
+        The built design has no backrest where the recline is measured.
+    """
+    options = _seat_options(recipe, registry)
+    if not options or options.get("recline") is None:
+        return None
+    got = built_recline(surface, bodies)
+    if got is None:
+        raise RecipeError(f"{where}: this design has no backrest 15-40 cm above the seat (the body leans forward, or lies); leave the recline out")
+    return got, float(options["recline"])
+
+
 def check_design(recipe: Mapping, registry, bodies, surface, mesh=None) -> None:
     """Refuse a built design whose seat depth or backrest top is not where the ``seat`` step's ``depth`` and ``backrest_height`` put them (a refiner or a repair moved them), within :data:`DEPTH_TOLERANCE` and :data:`BACKREST_TOLERANCE`."""
     options = _seat_options(recipe, registry)
@@ -614,7 +708,7 @@ def check_design(recipe: Mapping, registry, bodies, surface, mesh=None) -> None:
         far = max((g for g in got if np.isfinite(g)), key=lambda g: abs(g - want), default=float("nan"))
         if not abs(far - want) <= DEPTH_TOLERANCE:
             least, most = depth_range(bodies[0])
-            raise RecipeError(f"template_params.steps.seat.depth: the design's seat is {far:.3f} m deep, not {want:g} m (a repair moved its front edge); in this pose the seat depth is from {least:.3f} to {most:.3f} m, try another")
+            raise RecipeError(f"template_params.steps.seat.depth: the design's seat is {far:.3f} m deep, not {want:g} m (fitting the surface around its front edge moved it more than {1000 * DEPTH_TOLERANCE:.0f} mm); in this pose the seat depth is from {least:.3f} to {most:.3f} m, try another")
     if options.get("backrest_height") is None:
         return
     seat_y, seat_z = seat_height_of(bodies)
