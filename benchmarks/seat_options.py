@@ -14,7 +14,10 @@ figures (for the
 depth also the largest contact pressure on the thigh more than 1 cm ahead of
 the front edge), or the refusal and its one line; then the counts.
 
-    python benchmarks/seat_options.py seat|backrest|depth|recline [--bodies default-female ...]
+    python benchmarks/seat_options.py seat|backrest|depth|recline [--bodies default-female ...] [--poses upright-sitting ...] [--images DIR]
+
+``--images DIR`` draws each built design (its cage, surface and body from
+the front, the side and three-quarter) to ``DIR/OPTION-BODY-POSE.png``.
 """
 
 from __future__ import annotations
@@ -31,6 +34,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("option", choices=["seat", "backrest", "depth", "recline"])
     ap.add_argument("--bodies", nargs="+", default=BODIES, help="preset bodies (default: six)")
+    ap.add_argument("--poses", nargs="+", default=None, help="library poses (default: every supported one)")
+    ap.add_argument("--images", default=None, help="draw each built design into this folder")
     args = ap.parse_args()
     from seatkit.body import list_poses
     from seatkit.errors import SeatkitError
@@ -41,7 +46,7 @@ def main() -> None:
     from seatkit.template.seat import backrest_top, built_recline, depth_range, seat_axis, seat_depth_of, seat_height_of, seat_point, surface_below
 
     registry = get_plugin_manager().registry
-    poses = [p.name for p in list_poses() if p.supported]
+    poses = args.poses or [p.name for p in list_poses() if p.supported]
     outcome: Counter = Counter()
     for body in args.bodies:
         for pose in poses:
@@ -77,6 +82,14 @@ def main() -> None:
                 tolerance = 2.0 if args.option == "recline" else 0.005
                 within = abs(got - value) <= tolerance and max(ours["max_penetration_m"], ours["max_body_depth_m"]) <= 0.005
                 outcome["within tolerance, the 5 mm limits kept" if within else "built, not within tolerance"] += 1
+                if args.images:
+                    from pathlib import Path
+
+                    from seatkit.template.render import render_cage
+
+                    Path(args.images).mkdir(parents=True, exist_ok=True)
+                    unit = "deg" if args.option == "recline" else "m"
+                    render_cage(result.control_mesh, result.bodies, Path(args.images) / f"{args.option}-{body}-{pose}.png", title=f"chair: {pose}, {body}, {args.option} {value:g} {unit} (built {got:.3g})")
                 row.update(set=value, got=round(got, 4), penetration_mm=round(1000 * ours["max_penetration_m"], 1), body_depth_mm=round(1000 * ours["max_body_depth_m"], 1), back_height_m=result.metrics["dimensions"][0]["back_height_m"])
             except SeatkitError as e:
                 outcome[f"refused ({type(e).__name__})"] += 1

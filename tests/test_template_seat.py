@@ -34,6 +34,16 @@ def _recipe(body: str, pose: str, height: float | None = None) -> dict:
     return recipe
 
 
+def _refused_on_one_line(recipe: dict, option: str, *words: str) -> str:
+    """The message of building ``recipe``: one line naming ``template_params.steps.seat.OPTION`` and saying each of ``words``."""
+    with pytest.raises(RecipeError) as e:
+        build(recipe, write=False, processes=False)
+    message = str(e.value)
+    assert "\n" not in message and message.startswith(f"template_params.steps.seat.{option}:"), message
+    assert all(w in message for w in words), message
+    return message
+
+
 def _surface_below(surface, point) -> float:
     """Height of the highest point of ``surface`` straight below (or at most 5 cm above) ``point``, within 10 cm."""
     y = surface_below(surface.vertices, surface.faces, point, reach=0.1)
@@ -108,10 +118,7 @@ def test_a_set_backrest_height_is_the_built_designs(body, pose, backrest):
 def test_a_backrest_lower_than_its_last_row_allows_is_refused_on_one_line():
     recipe = _recipe("default-female", "upright-sitting")
     recipe["template_params"] = {"steps": {"seat": {"backrest_height": 0.2}}}
-    with pytest.raises(RecipeError) as e:
-        build(recipe, write=False, processes=False)
-    message = str(e.value)
-    assert "\n" not in message and message.startswith("template_params.steps.seat.backrest_height:") and "at least" in message
+    _refused_on_one_line(recipe, "backrest_height", "at least")
 
 
 def _thigh_pressure_ahead(result, depth: float) -> float:
@@ -155,11 +162,7 @@ def test_a_seat_depth_the_pose_cannot_take_is_refused_on_one_line():
     for depth, why in ((round(most + 0.05, 3), "past the back of"), (round(least - 0.03, 3), "does not carry")):
         recipe = _recipe("default-female", "upright-sitting")
         recipe["template_params"] = {"steps": {"seat": {"depth": depth}}}
-        with pytest.raises(RecipeError) as e:
-            build(recipe, write=False, processes=False)
-        message = str(e.value)
-        assert "\n" not in message and message.startswith("template_params.steps.seat.depth:") and why in message
-        assert f"from {least:.3f} to {most:.3f} m" in message  # the range this body in this pose allows
+        _refused_on_one_line(recipe, "depth", why, f"from {least:.3f} to {most:.3f} m")  # the range this body in this pose allows
     out = CliRunner().invoke(app, ["build", "--template", "chair", "--pose", "upright-sitting", "--body", "default-female", "--option", f"seat.depth={most + 0.05:.3f}", "-q"])
     assert out.exit_code != 0
     lines = [line for line in out.output.splitlines() if line.strip()]
@@ -185,9 +188,6 @@ def test_a_set_recline_is_the_built_backrests(body, pose, recline):
 def test_a_recline_of_a_pose_without_a_back_to_recline_is_refused_on_one_line():
     recipe = _recipe("default-female", "lying-supine")
     recipe["template_params"] = {"steps": {"seat": {"recline": 15}}}
-    with pytest.raises(RecipeError) as e:
-        build(recipe, write=False, processes=False)
-    message = str(e.value)
-    assert "\n" not in message and message.startswith("template_params.steps.seat.recline:") and "leave the recline out" in message
+    _refused_on_one_line(recipe, "recline", "leave the recline out")
     out = CliRunner().invoke(app, ["build", "--template", "chair", "--pose", "upright-sitting", "--option", "seat.recline=80", "-q"])
     assert out.exit_code != 0 and "template_params.steps.seat.recline" in out.output and "-10 to 50" in out.output, out.output

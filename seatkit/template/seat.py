@@ -87,6 +87,9 @@ RECLINE_TOLERANCE_DEG = 2.0
 #: Most builds a recline set may take: each one after the first with the back reclined by the last built backrest's miss.
 RECLINE_BUILDS = 3
 
+#: A trunk further than this from vertical (lying) has no back above the seat to recline, deg.
+MAX_TRUNK_DEG = 60.0
+
 #: How near the back's recline the trunk's search stops, deg (the built backrest is held to :data:`RECLINE_TOLERANCE_DEG`).
 RECLINE_SEARCH_DEG = 0.25
 
@@ -202,7 +205,9 @@ def recline_to(pose_body, pose, target: float, *, where: str = "template_params.
     """
     body = pose_body(pose)
     r0 = back_recline(body)
-    if r0 is None:
+    j = np.asarray(body.joints, dtype=np.float64)
+    trunk = np.asarray(body.tips, dtype=np.float64)[SEGMENT_INDEX["Spine3"]] - j[SEGMENT_INDEX["Hips"]]
+    if r0 is None or trunk[1] < np.cos(np.radians(MAX_TRUNK_DEG)) * np.linalg.norm(trunk):
         raise RecipeError(f"{where}: this pose has no back above the seat to recline (lying, or leaning forward); leave the recline out")
     d0, f0 = 0.0, r0 - target
     best = (abs(f0), 0.0, body)
