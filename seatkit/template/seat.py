@@ -262,7 +262,7 @@ class SeatStep:
     """The seat's height above the floor (applied when the bodies are placed; see the module doc)."""
 
     name = "seat"
-    description = "the seat height a designer sets: the body and its design lifted so that the seat is that high, the feet on a footrest (lower than the pose allows is refused)"
+    description = "a designer's dimensions: the seat height (the body and its design lifted, the feet on a footrest), the backrest height, the seat depth (the front edge moved back along the thighs) and the backrest recline (the trunk reclined about the hips); a value this body in this pose cannot take is refused"
     stage = "grid"  # records only; listed last, so that no other step's index moves
     requires = ()
     options = {
