@@ -169,10 +169,18 @@ def _helper(stack: ExitStack, what: str, exporters: list, wanted: bool, context=
     return stack.enter_context(Helper(what, exporters, context))
 
 
-def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper) -> BuildResult:
-    """The stages from the bodies to the evaluation: the build's result, nothing written."""
+def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper, recline_offset: float = 0.0, recline_builds: int = 1) -> BuildResult:
+    """The stages from the bodies to the evaluation: the build's result, nothing written.
+
+    With a backrest recline set (the ``seat`` step's ``recline``), a built
+    backrest more than :data:`~seatkit.template.seat.RECLINE_TOLERANCE_DEG`
+    from it is built again with the back reclined by the difference (the
+    backrest follows the back within a few degrees, not exactly), at most
+    :data:`~seatkit.template.seat.RECLINE_BUILDS` builds, and refused if it
+    still misses.
+    """
     with timer.stage("bodies"):
-        bodies, frames = place_bodies(recipe, registry)
+        bodies, frames = place_bodies(recipe, registry, recline_offset=recline_offset)
 
     with timer.stage("pressure"):
         pressures = solve_importance(recipe, bodies, registry)
@@ -210,7 +218,15 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     refiners = [(r["name"], registry.guarded("refiner", r["name"], template=template), r["params"]) for r in recipe["refiners"]]
     sources = bind_search(template, bodies, pressures, params=recipe["template_params"], seed=recipe["seed"], first=itertools.chain([initial], cages))
     fit_last = bool(refiners) and refiners[-1][0] == "catmull-clark-fit"
-    outcome = search(sources, lambda cage: refine(cage, refiners, bodies, pressures, timer), bodies, fit_last=fit_last, stage=timer.stage)
+    from seatkit.template.seat import refined_seat
+
+    def refit(cage):  # the surface fit again, around what a designer set (the seat depth's front edge)
+        return refine(cage, refiners[-1:], bodies, pressures, timer)
+
+    def refined(cage):  # a candidate refined, with the seat depth set put on it (seatkit.template.seat)
+        return refined_seat(recipe, registry, refine(cage, refiners, bodies, pressures, timer), bodies, refit if fit_last else None)
+
+    outcome = search(sources, refined, bodies, fit_last=fit_last, stage=timer.stage)
     initial, mesh = outcome.design()
     from seatkit.refine.ccfit import final_depths
     from seatkit.template.seat import check_design, seat_design
@@ -225,7 +241,18 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         from seatkit.subdivision import limit_surface
 
         surface = limit_surface(mesh, level=recipe["surface_level"])
-    check_design(recipe, registry, bodies, surface)  # a dimension the designer set is the built design's
+    check_design(recipe, registry, bodies, surface, mesh)  # a dimension the designer set is the built design's
+    from seatkit.template.seat import RECLINE_BUILDS, RECLINE_TOLERANCE_DEG, recline_miss
+
+    recline = recline_miss(recipe, registry, bodies, surface)
+    if recline is not None and abs(recline[0] - recline[1]) > RECLINE_TOLERANCE_DEG:
+        got, want = recline
+        if recline_builds < RECLINE_BUILDS:
+            again = recline_offset + want - got
+            return _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, recline_offset=again, recline_builds=recline_builds + 1)
+        from seatkit.errors import RecipeError
+
+        raise RecipeError(f"template_params.steps.seat.recline: the built backrest reclines {got:.1f} deg, not {want:g} deg (within {RECLINE_TOLERANCE_DEG:g} deg), after the trunk was reclined to meet it; allowed: -10 to 50 deg, try one nearer the pose's own")
 
     result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
     if recipe["evaluate"]["enabled"]:

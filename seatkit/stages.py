@@ -69,7 +69,7 @@ def make_bodies(recipe: Mapping, registry) -> list[Body]:
     return place_bodies(recipe, registry)[0]
 
 
-def place_bodies(recipe: Mapping, registry) -> tuple[list[Body], list]:
+def place_bodies(recipe: Mapping, registry, *, recline_offset: float = 0.0) -> tuple[list[Body], list]:
     """Pose every person of the recipe, bring each into the canonical frame, and place them in seat order.
 
     Each posed body is turned to face +Z and centred
@@ -94,14 +94,26 @@ def place_bodies(recipe: Mapping, registry) -> tuple[list[Body], list]:
 
     bodies: list[Body] = []
     frames: list = []
+    recline = _seat_option(recipe, registry, "recline")
     for entry in recipe["bodies"]:
         model = registry.get("body_model", entry["model"])
         rig = model.make_body(params=entry["params"])
         pose = load_pose(entry["pose"], frame=entry.get("frame", 0), rig=rig, dirs=registry.pose_dirs)
+        if recline is not None:  # the trunk reclined until the back is at the recline set (seatkit.template.seat)
+            from seatkit.template.seat import recline_to
+
+            pose, _ = recline_to(lambda p, model=model, rig=rig: pose_canonical(model, rig, p)[0], pose, float(recline) + recline_offset)
         body, frame = pose_canonical(model, rig, pose)
         bodies.append(body)
         frames.append(frame)
     return _placed(recipe, seated_at_height(recipe, bodies, registry)), frames
+
+
+def _seat_option(recipe: Mapping, registry, key: str):
+    """The template's ``seat`` step's option ``key`` as the recipe sets it (None: not set, or no such step)."""
+    template = registry.get("template", recipe["template"])
+    options = template.step_options("seat", recipe.get("template_params")) if hasattr(template, "step_options") else None
+    return None if not options else options.get(key)
 
 
 def seated_at_height(recipe: Mapping, bodies: list[Body], registry) -> list[Body]:
@@ -177,10 +189,24 @@ def solve_importance(recipe: Mapping, bodies, registry) -> list:
     """Each person's pressure "supported everywhere" (the importance map), with the recipe's settings."""
     p = recipe["pressure"]
     solver = registry.get("pressure_solver", p["solver"])
+    contacts = seat_contacts(recipe, bodies, registry)
     return [
         solver.solve(body, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
-        for body in bodies
+        if contact is None
+        else solver.solve(body, contact=contact, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
+        for body, contact in zip(bodies, contacts)
     ]
+
+
+def seat_contacts(recipe: Mapping, bodies, registry) -> list:
+    """Per body, the vertices the seat the template's ``seat`` step sets may carry (None: every vertex); a shorter seat leaves the thigh ahead of its front edge out (:func:`seatkit.template.seat.seat_contact`)."""
+    template = registry.get("template", recipe["template"])
+    options = template.step_options("seat", recipe.get("template_params")) if hasattr(template, "step_options") else None
+    if not options or options.get("depth") is None:
+        return [None] * len(bodies)
+    from seatkit.template.seat import seat_contact
+
+    return seat_contact(bodies, float(options["depth"]))
 
 
 def refine(mesh, refiners, bodies, pressures, timer: StageTimer | None = None):

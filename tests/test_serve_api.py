@@ -581,6 +581,14 @@ def test_seat_height_is_a_designer_control_and_moves_the_seat(client, designer):
     assert not seat["advanced"] and seat["default"] is None and seat["placeholder"] == "from the pose"
     assert (seat["unit"], seat["minimum"], seat["maximum"]) == ("m", declared.minimum, declared.maximum)
     assert not by_key["steps.seat.backrest_height"]["advanced"] and by_key["steps.seat.backrest_height"]["placeholder"] == "from the fit"
+    depth = by_key["steps.seat.depth"]  # the seat depth: a designer's control with the declared unit and range
+    declared_depth = designer.registry.get("template_step", "seat").options["depth"]
+    assert not depth["advanced"] and depth["default"] is None and depth["placeholder"] == "to the knee"
+    assert (depth["unit"], depth["minimum"], depth["maximum"]) == ("m", declared_depth.minimum, declared_depth.maximum)
+    recline = by_key["steps.seat.recline"]  # the backrest's recline: degrees, as a person types them
+    declared_recline = designer.registry.get("template_step", "seat").options["recline"]
+    assert not recline["advanced"] and recline["placeholder"] == "from the pose"
+    assert (recline["unit"], recline["minimum"], recline["maximum"]) == ("deg", declared_recline.minimum, declared_recline.maximum)
     assert by_key["steps.armrests.min_load_fraction"]["advanced"] and by_key["steps.no-backrest.min_load_fraction"]["advanced"]
     base = client.post(FAST, json={}).json()
     h0 = float(seat_point(designer.get(base["id"]).result.bodies[0])[1])

@@ -946,6 +946,8 @@ def _body_params(model) -> list[dict]:
 DESIGNER_OPTIONS: tuple[tuple[str, str, str, bool], ...] = (
     ("seat", "height", "seat height (under the ischia, above the floor)", False),
     ("seat", "backrest_height", "backrest height (its top above the seat)", False),
+    ("seat", "depth", "seat depth (back of the buttocks to the front edge)", False),
+    ("seat", "recline", "backrest recline (behind vertical)", False),
     ("outer-columns", "margin", "seat and back: width beyond the body", False),
     ("border", "width", "seat edge: surface beyond the body", False),
     ("border", "margin", "base: margin of the ground rectangle", False),
@@ -956,7 +958,7 @@ DESIGNER_OPTIONS: tuple[tuple[str, str, str, bool], ...] = (
 """The template options the page offers (step, option, label, behind the *advanced* fold): a designer's dimensions first, the algorithm's thresholds folded away."""
 
 #: What a blank designer option means (the field's placeholder).
-BLANK_MEANS = {("seat", "height"): "from the pose", ("seat", "backrest_height"): "from the fit"}
+BLANK_MEANS = {("seat", "height"): "from the pose", ("seat", "backrest_height"): "from the fit", ("seat", "depth"): "to the knee", ("seat", "recline"): "from the pose"}
 
 
 def _designer_options(spec, registry) -> list[dict]:
