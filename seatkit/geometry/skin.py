@@ -173,8 +173,8 @@ class SkinDistance:
         gap, candidates = self.tree.query(points, k=self.CANDIDATE_VERTICES, workers=1)
         gap, candidates = gap.reshape(len(points), -1), self._used[candidates.reshape(len(points), -1)]
         near = candidates[:, 0]
-        closest = self.vertices[near].copy()
-        normal = self.vertex_normals[near].copy()
+        closest = np.take(self.vertices, near, axis=0)
+        normal = np.take(self.vertex_normals, near, axis=0)
         depth = -np.einsum("ij,ij->i", normal, points - closest)
         # the exact query where it matters: near the skin, or where the
         # nearest vertex alone would call the point inside or nearly so
@@ -204,11 +204,9 @@ class SkinDistance:
         number is 0 (it changes only across the skin). Built on first use.
         """
         origin, h, open_space, _ = self._open_space()
-        cells = np.floor((points - origin) / h).astype(int)
-        within = np.all((cells >= 0) & (cells < open_space.shape), axis=1)
-        out = ~within
-        c = cells[within]
-        out[within] = open_space[c[:, 0], c[:, 1], c[:, 2]]
+        within, cell = self._cells(points, origin, h, open_space.shape)
+        out = np.ones(len(points), bool)
+        out[within] = np.take(open_space, cell)
         return out
 
     def clear_of(self, points: np.ndarray) -> np.ndarray:
@@ -227,13 +225,27 @@ class SkinDistance:
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         origin, h, _, clear = self._open_space()
-        cells = np.floor((points - origin) / h).astype(int)
-        within = np.all((cells >= 0) & (cells < clear.shape), axis=1)
         lo, hi = self.bounds
-        out = np.linalg.norm(np.maximum(lo - points, 0.0) + np.maximum(points - hi, 0.0), axis=1)
-        c = cells[within]
-        out[within] = np.maximum(out[within], clear[c[:, 0], c[:, 1], c[:, 2]])
+        # the distance to the bounding box, 0 inside it
+        out = np.zeros(len(points))
+        x, y, z = points.T
+        # (column by column: a reduction along the short axis is several times slower)
+        off = np.flatnonzero((x < lo[0]) | (x > hi[0]) | (y < lo[1]) | (y > hi[1]) | (z < lo[2]) | (z > hi[2]))
+        if off.size:
+            q = np.take(points, off, axis=0)
+            out[off] = np.linalg.norm(np.maximum(lo - q, 0.0) + np.maximum(q - hi, 0.0), axis=1)
+        within, cell = self._cells(points, origin, h, clear.shape)
+        out[within] = np.maximum(out[within], np.take(clear, cell))
         return out
+
+    @staticmethod
+    def _cells(points: np.ndarray, origin: np.ndarray, h: float, shape: tuple) -> tuple[np.ndarray, np.ndarray]:
+        """The points in a grid of ``shape`` cells of ``h`` from ``origin`` (indices), and their cells (flat indices)."""
+        # a negative index is a large unsigned one: one comparison per axis
+        i, j, k = np.floor((points - origin) / h).astype(np.int64).view(np.uint64).T
+        within = np.flatnonzero((i < shape[0]) & (j < shape[1]) & (k < shape[2]))
+        i, j, k = (np.take(c, within).astype(np.int64) for c in (i, j, k))
+        return within, (i * shape[1] + j) * shape[2] + k
 
     def _open_space(self):
         """(origin, cell, open-space mask, clearance per cell) of the open-space grid, built on first use."""
@@ -266,8 +278,9 @@ class SkinDistance:
         cand = self.rings[near].reshape(len(points), -1)
         valid = cand >= 0
         tri_i = np.where(valid, cand, 0)
-        ap = points[:, None, :] - self._a[tri_i]
-        ab, ac = self._ab[tri_i], self._ac[tri_i]
+        # (np.take gathers rows several times faster than indexing does)
+        ap = points[:, None, :] - np.take(self._a, tri_i, axis=0)
+        ab, ac = np.take(self._ab, tri_i, axis=0), np.take(self._ac, tri_i, axis=0)
         d00, d01, d11 = self._d00[tri_i], self._d01[tri_i], self._d11[tri_i]
         d1 = np.einsum("kci,kci->kc", ab, ap)
         d2 = np.einsum("kci,kci->kc", ac, ap)
@@ -279,12 +292,12 @@ class SkinDistance:
         best = np.argmin(d2sq, axis=1)
         rows = np.arange(len(points))
         t = tri_i[rows, best]
-        tri = self.faces[t]
+        tri = np.take(self.faces, t, axis=0)
         w = np.stack([x[rows, best] for x in bary], axis=1)
-        qb = self._a[t] + w[:, 1:2] * self._ab[t] + w[:, 2:3] * self._ac[t]
+        qb = np.take(self._a, t, axis=0) + w[:, 1:2] * np.take(self._ab, t, axis=0) + w[:, 2:3] * np.take(self._ac, t, axis=0)
         zero = w <= 0.0
         nz = zero.sum(axis=1)
-        normal = self.face_normals[t].copy()
+        normal = np.take(self.face_normals, t, axis=0)
         on_edge = np.flatnonzero(nz == 1)
         if on_edge.size:
             k = np.argmax(zero[on_edge], axis=1)  # the edge opposite the zero corner
