@@ -94,6 +94,7 @@ import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
 from seatkit.errors import SolverError
+from seatkit.geometry.closest import row_norms
 from seatkit.geometry.normals import vertex_normals
 from seatkit.geometry.skin import SkinDistance
 from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, inside_furniture, surface_depth_in_body
@@ -580,7 +581,7 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
             X, N = ops.limit_points(P), ops.limit_normals(P)
             Y = probes @ P
             NY = spots @ N
-            NY /= np.maximum(np.linalg.norm(NY, axis=1, keepdims=True), 1e-300)
+            NY /= np.maximum(row_norms(NY)[:, None], 1e-300)
             surface = Surface(X, N, ops.faces, lv)
             need = np.zeros(len(Y))
             # body vertices inside the furniture: their closest sample goes back past them
@@ -733,7 +734,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
             inside = np.flatnonzero((depth > 0.5 * p["clearance"]) & ~below)
             if inside.size:
                 Yn = probe_normals @ N
-                Yn /= np.maximum(np.linalg.norm(Yn, axis=1, keepdims=True), 1e-300)
+                Yn /= np.maximum(row_norms(Yn)[:, None], 1e-300)
                 back = -Yn[inside]
                 # the way out, sampled along the ray at up to 2 depth + 2 cm
                 # (one batched query), the exit between the last sample inside
@@ -787,7 +788,10 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
         P_m = P[cols]
         used = np.flatnonzero(w > 0)
         c = closest[used]
-        samples, inverse = np.unique(c, return_inverse=True)
+        # the samples used, sorted, and which one each target uses (np.unique's answer, without its sort)
+        count = np.bincount(c, minlength=len(N))
+        samples = np.flatnonzero(count)
+        inverse = (np.cumsum(count > 0) - 1)[c]
         W = np.bincount(inverse, weights=w[used] / w_sum)
         WB = np.stack([np.bincount(inverse, weights=w[used] / w_sum * b[used, d]) for d in range(3)], axis=1)
         n_s = np.take(N, samples, axis=0)

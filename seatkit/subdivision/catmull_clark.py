@@ -306,7 +306,8 @@ class SubdivisionOperators:
         P = np.asarray(points, dtype=np.float64)
         X = self.limit @ P if limit_points is None else limit_points
         n = np.cross(self.du @ P, self.dv @ P)
-        length = np.linalg.norm(n, axis=1)
+        # np.linalg.norm(n, axis=1) to the bit, several times faster (no reduction along the short axis)
+        length = np.sqrt(n[:, 0] * n[:, 0] + n[:, 1] * n[:, 1] + n[:, 2] * n[:, 2])
         scale = np.maximum(np.abs(X).max(), 1.0)
         bad = length <= 1e-12 * scale * scale
         if bad.any():
