@@ -119,12 +119,14 @@ def compare(a_path: str, b_path: str, tolerance: float, limit: float) -> int:
     a, b = np.load(a_path), np.load(b_path)
     names = sorted({k.split("|")[0] for k in a.files} | {k.split("|")[0] for k in b.files})
     bad, ta, tb, ca, cb = 0, 0.0, 0.0, 0.0, 0.0
+    ratios = []  # CPU time a / b per fit
     print(f"{'fit':50s} {'cage':>8s} {'surface':>8s}  {'time a':>7s} {'time b':>7s}  {'depth a':>7s} {'depth b':>7s}  it a/b")
     for name in names:
         ta += float(a[f"{name}|seconds"])
         tb += float(b[f"{name}|seconds"])
         ca += float(a[f"{name}|cpu"])
         cb += float(b[f"{name}|cpu"])
+        ratios.append(float(a[f"{name}|cpu"]) / max(float(b[f"{name}|cpu"]), 1e-9))
         ea, eb = f"{name}|error" in a.files, f"{name}|error" in b.files
         if ea or eb:
             same = ea and eb
@@ -141,6 +143,9 @@ def compare(a_path: str, b_path: str, tolerance: float, limit: float) -> int:
             f"{da * 1000:5.2f}mm {db * 1000:5.2f}mm  {int(a[name + '|iterations'])}/{int(b[name + '|iterations'])}{'  <--' if flag else ''}"
         )
     print(f"total fit time: a {ta:.2f} s, b {tb:.2f} s ({ta / max(tb, 1e-9):.2f}x); CPU time a {ca:.2f} s, b {cb:.2f} s ({ca / max(cb, 1e-9):.2f}x); {bad} fit(s) off")
+    if ratios:
+        q = np.percentile(ratios, [0, 50, 100])
+        print(f"CPU time a / b per fit: median {q[1]:.2f}x (from {q[0]:.2f}x to {q[2]:.2f}x)")
     return 1 if bad else 0
 
 
