@@ -133,6 +133,8 @@ class SkinDistance:
         self._d00 = np.einsum("ij,ij->i", self._ab, self._ab)
         self._d01 = np.einsum("ij,ij->i", self._ab, self._ac)
         self._d11 = np.einsum("ij,ij->i", self._ac, self._ac)
+        # the same, one row per triangle (a, ab, ac, d00, d01, d11): one gather for all of them
+        self._table = np.concatenate([self._a, self._ab, self._ac, self._d00[:, None], self._d01[:, None], self._d11[:, None]], axis=1)
         self._open = None  # (origin, cell, open-space mask, clearance per cell), built on first use
 
     @classmethod
@@ -183,7 +185,7 @@ class SkinDistance:
         # nearest vertex alone would call the point inside or nearly so
         exact = np.flatnonzero((gap[:, 0] < self.EXACT_WITHIN) | (depth > -self.EXACT_WITHIN))
         if exact.size:
-            d, q, n = self._exact(points[exact], candidates[exact])
+            d, q, n = self._exact(np.take(points, exact, axis=0), np.take(candidates, exact, axis=0))
             depth[exact], closest[exact], normal[exact] = d, q, n
         # the nearest feature's side is wrong where it is buried skin (a
         # thigh's skin inside the crossed other thigh faces that thigh): a
@@ -281,10 +283,11 @@ class SkinDistance:
         cand = np.take(self.rings, near, axis=0).reshape(len(points), -1)
         valid = cand >= 0
         tri_i = np.where(valid, cand, 0)
-        # (np.take gathers rows several times faster than indexing does)
-        ap = points[:, None, :] - np.take(self._a, tri_i, axis=0)
-        ab, ac = np.take(self._ab, tri_i, axis=0), np.take(self._ac, tri_i, axis=0)
-        d00, d01, d11 = self._d00[tri_i], self._d01[tri_i], self._d11[tri_i]
+        # each candidate's triangle in one gather (np.take: several times faster than indexing)
+        g = np.take(self._table, tri_i, axis=0)
+        ap = points[:, None, :] - g[..., 0:3]
+        ab, ac = g[..., 3:6], g[..., 6:9]
+        d00, d01, d11 = g[..., 9], g[..., 10], g[..., 11]
         d1 = np.einsum("kci,kci->kc", ab, ap)
         d2 = np.einsum("kci,kci->kc", ac, ap)
         bary = closest_barycentric(d1, d2, d00, d01, d11)
@@ -297,7 +300,8 @@ class SkinDistance:
         t = tri_i[rows, best]
         tri = np.take(self.faces, t, axis=0)
         w = np.stack([x[rows, best] for x in bary], axis=1)
-        qb = np.take(self._a, t, axis=0) + w[:, 1:2] * np.take(self._ab, t, axis=0) + w[:, 2:3] * np.take(self._ac, t, axis=0)
+        g = np.take(self._table, t, axis=0)
+        qb = g[:, 0:3] + w[:, 1:2] * g[:, 3:6] + w[:, 2:3] * g[:, 6:9]
         zero = w <= 0.0
         nz = zero.sum(axis=1)
         normal = np.take(self.face_normals, t, axis=0)

@@ -50,8 +50,10 @@ class SurfaceQuery:
         # Every point of a triangle lies within its second-longest edge of the
         # corner opposite its longest edge (the triangle is the convex hull of
         # its corners), so no surface point is farther than this from a vertex.
+        corners = np.take(v, tris, axis=0)  # (T, 3, 3)
+        #: (T, 9): each triangle's corners, gathered at once by a query
+        self._corners = corners.reshape(len(tris), 9)
         if len(tris):
-            corners = np.take(v, tris, axis=0)
             edges = row_norms(corners - np.roll(corners, -1, axis=1))
             self.reach = float(np.sort(edges, axis=1)[:, 1].max())
         else:
@@ -118,15 +120,16 @@ class SurfaceQuery:
         # (np.take gathers rows several times faster than indexing does)
         cand = np.take(self.rings, near, axis=0).reshape(len(points), -1)  # (k, c)
         valid = cand >= 0
-        tri = np.take(self.triangles, np.where(valid, cand, 0), axis=0)  # (k, c, 3)
-        a, b, c = (np.take(self.vertices, tri[..., i], axis=0) for i in range(3))
+        tri_i = np.where(valid, cand, 0)
+        g = np.take(self._corners, tri_i, axis=0)  # (k, c, 9)
+        a, b, c = g[..., 0:3], g[..., 3:6], g[..., 6:9]
         closest, bary = closest_point_on_triangles(points[:, None, :], a, b, c)
         d2 = np.where(valid, np.einsum("kci,kci->kc", closest - points[:, None, :], closest - points[:, None, :]), np.inf)
         best = np.argmin(d2, axis=1)
         rows = np.arange(len(points))
         q = closest[rows, best]
         w = bary[rows, best]
-        t = tri[rows, best]
+        t = np.take(self.triangles, tri_i[rows, best], axis=0)
         n = np.einsum("kj,kji->ki", w, np.take(self.normals, t, axis=0))
         n /= row_norms(n)[:, None] + 1e-300
         distance = np.sqrt(d2[rows, best])
