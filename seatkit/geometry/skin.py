@@ -235,7 +235,7 @@ class SkinDistance:
         out = np.zeros(len(points))
         x, y, z = points.T
         # (column by column: a reduction along the short axis is several times slower)
-        off = np.flatnonzero((x < lo[0]) | (x > hi[0]) | (y < lo[1]) | (y > hi[1]) | (z < lo[2]) | (z > hi[2]))
+        off = np.flatnonzero(~((x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1]) & (z >= lo[2]) & (z <= hi[2])))
         if off.size:
             q = np.take(points, off, axis=0)
             out[off] = np.linalg.norm(np.maximum(lo - q, 0.0) + np.maximum(q - hi, 0.0), axis=1)
