@@ -14,7 +14,8 @@ bodies:
 baseline's. ``run`` fits each of them ``--repeat`` times and keeps the best
 time, the fitted control points and the final depths (the 5 mm guarantee).
 ``compare`` prints, per fit, the largest control-point and limit-surface
-distance between the two results and both versions' times and depths; it
+distance between the two results and both versions' times and depths, then
+the CPU-time ratio per fit and how many fits are the same to the bit; it
 exits 1 when a limit-surface vertex moved more than ``--tolerance`` (m) or a
 depth exceeds the 5 mm limit.
 """
@@ -119,18 +120,22 @@ def compare(a_path: str, b_path: str, tolerance: float, limit: float) -> int:
     a, b = np.load(a_path), np.load(b_path)
     names = sorted({k.split("|")[0] for k in a.files} | {k.split("|")[0] for k in b.files})
     bad, ta, tb, ca, cb = 0, 0.0, 0.0, 0.0, 0.0
+    ratios = []  # CPU time a / b per fit
+    same = 0  # fits whose every kept result is the same to the bit
     print(f"{'fit':50s} {'cage':>8s} {'surface':>8s}  {'time a':>7s} {'time b':>7s}  {'depth a':>7s} {'depth b':>7s}  it a/b")
     for name in names:
         ta += float(a[f"{name}|seconds"])
         tb += float(b[f"{name}|seconds"])
         ca += float(a[f"{name}|cpu"])
         cb += float(b[f"{name}|cpu"])
+        ratios.append(float(a[f"{name}|cpu"]) / max(float(b[f"{name}|cpu"]), 1e-9))
         ea, eb = f"{name}|error" in a.files, f"{name}|error" in b.files
         if ea or eb:
             same = ea and eb
             bad += not same
             print(f"{name:50s} refused in {'both' if same else ('a' if ea else 'b')}")
             continue
+        same += all(np.array_equal(a[f"{name}|{k}"], b[f"{name}|{k}"], equal_nan=True) for k in ("cage", "surface", "depth", "iterations", "mean"))
         dc = np.linalg.norm(a[f"{name}|cage"] - b[f"{name}|cage"], axis=1).max()
         ds = np.linalg.norm(a[f"{name}|surface"] - b[f"{name}|surface"], axis=1).max()
         da, db = a[f"{name}|depth"].max(), b[f"{name}|depth"].max()
@@ -141,6 +146,10 @@ def compare(a_path: str, b_path: str, tolerance: float, limit: float) -> int:
             f"{da * 1000:5.2f}mm {db * 1000:5.2f}mm  {int(a[name + '|iterations'])}/{int(b[name + '|iterations'])}{'  <--' if flag else ''}"
         )
     print(f"total fit time: a {ta:.2f} s, b {tb:.2f} s ({ta / max(tb, 1e-9):.2f}x); CPU time a {ca:.2f} s, b {cb:.2f} s ({ca / max(cb, 1e-9):.2f}x); {bad} fit(s) off")
+    if ratios:
+        q = np.percentile(ratios, [0, 50, 100])
+        print(f"CPU time a / b per fit: median {q[1]:.2f}x (from {q[0]:.2f}x to {q[2]:.2f}x)")
+    print(f"{same} of {len(ratios)} fitted fits the same to the bit (cage, limit surface, depths, iterations, mean distance)")
     return 1 if bad else 0
 
 

@@ -201,3 +201,15 @@ def test_clear_of_is_a_lower_bound_on_the_distance_outside():
     assert np.array_equal(d_wide, d_all)
     # max_depth skips the points in open space and answers as before
     assert skin.max_depth(points) == pytest.approx(float(np.max(np.where(inside, truth, 0.0))), abs=1e-9)
+
+
+def test_row_norms_is_numpys_norm_to_the_bit():
+    # the queries' fast row lengths must not change a single answer: the same
+    # values as np.linalg.norm along the last axis, whatever the layout
+    from seatkit.geometry.closest import row_norms
+
+    rng = np.random.default_rng(7)
+    for n in (1, 3, 8, 17, 1000):
+        a = rng.normal(size=(n, 3)) * rng.choice([1e-9, 1.0, 1e4], size=(n, 1))
+        for x in (a, np.asfortranarray(a), rng.normal(size=(n, 6))[:, ::2], rng.normal(size=(n, 4, 3))):
+            assert np.array_equal(row_norms(x), np.linalg.norm(x, axis=-1))

@@ -46,7 +46,7 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from seatkit.cache import IdentityCache
-from seatkit.geometry.closest import closest_barycentric, vertex_triangle_rings
+from seatkit.geometry.closest import closest_barycentric, row_norms, vertex_triangle_rings
 
 __all__ = ["SkinDistance"]
 
@@ -80,26 +80,29 @@ class SkinDistance:
         # triangles without area (two corners coincide, or all three in a
         # line) add no surface: their edges belong to their neighbours, and
         # closest points on them would be ill-defined
-        cross = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])
+        # (np.take gathers rows several times faster than indexing does)
+        corner = [np.take(v, f[:, c], axis=0) for c in range(3)]
+        ab, ac = corner[1] - corner[0], corner[2] - corner[0]
+        cross = np.cross(ab, ac)
         area2 = np.einsum("ij,ij->i", cross, cross)
-        scale = np.einsum("ij,ij->i", v[f[:, 1]] - v[f[:, 0]], v[f[:, 1]] - v[f[:, 0]]) + np.einsum(
-            "ij,ij->i", v[f[:, 2]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]]
-        )
+        scale = np.einsum("ij,ij->i", ab, ab) + np.einsum("ij,ij->i", ac, ac)
         keep = area2 > 1e-18 * scale**2
-        f, cross = f[keep], cross[keep]
+        if not keep.all():
+            f, cross = f[keep], cross[keep]
+            corner = [x[keep] for x in corner]
         self.vertices, self.faces = v, f
         #: (lo, hi): the skin's axis-aligned bounding box, m
         self.bounds = (v.min(axis=0), v.max(axis=0))
-        fn = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-300)
+        fn = cross / np.maximum(row_norms(cross)[:, None], 1e-300)
         self.face_normals = fn
         # angle-weighted vertex pseudo-normals
         vn = np.zeros_like(v)
         for c in range(3):
-            a = v[f[:, (c + 1) % 3]] - v[f[:, c]]
-            b = v[f[:, (c + 2) % 3]] - v[f[:, c]]
-            cosang = np.einsum("ij,ij->i", a, b) / np.maximum(np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1), 1e-300)
+            a = corner[(c + 1) % 3] - corner[c]
+            b = corner[(c + 2) % 3] - corner[c]
+            cosang = np.einsum("ij,ij->i", a, b) / np.maximum(row_norms(a) * row_norms(b), 1e-300)
             np.add.at(vn, f[:, c], fn * np.arccos(np.clip(cosang, -1.0, 1.0))[:, None])
-        self.vertex_normals = vn / np.maximum(np.linalg.norm(vn, axis=1, keepdims=True), 1e-300)
+        self.vertex_normals = vn / np.maximum(row_norms(vn)[:, None], 1e-300)
         # edge pseudo-normals, per triangle and edge (edge k is opposite corner k)
         m = len(f)
         a_idx = np.stack([f[:, 1], f[:, 2], f[:, 0]], axis=1)  # edge k joins these two corners
@@ -109,10 +112,10 @@ class SkinDistance:
         order = np.argsort(flat, kind="stable")
         sorted_keys = flat[order]
         owner = order // 3
-        edge_n = fn[owner].copy()
+        edge_n = np.take(fn, owner, axis=0)
         same_next = np.flatnonzero(sorted_keys[1:] == sorted_keys[:-1])
         # manifold edges: two triangles share the key; sum both face normals
-        pair_sum = fn[owner[same_next]] + fn[owner[same_next + 1]]
+        pair_sum = np.take(edge_n, same_next, axis=0) + np.take(edge_n, same_next + 1, axis=0)
         edge_n[same_next] = pair_sum
         edge_n[same_next + 1] = pair_sum
         per_tri = np.empty((m * 3, 3))
@@ -121,15 +124,17 @@ class SkinDistance:
         self.rings = vertex_triangle_rings(f, len(v))  # vertex -> incident triangles, padded with -1
         # only vertices some face uses (a stray vertex would offer no triangles)
         self._used = np.unique(f)
-        self.tree = cKDTree(v[self._used], balanced_tree=False, compact_nodes=False)
+        self.tree = cKDTree(np.take(v, self._used, axis=0), balanced_tree=False, compact_nodes=False)
         # per triangle: corner a, edges ab and ac and their dot products, for
         # the closest-point regions with two dot products per query
-        self._a = v[f[:, 0]]
-        self._ab = v[f[:, 1]] - self._a
-        self._ac = v[f[:, 2]] - self._a
+        self._a = corner[0]
+        self._ab = corner[1] - self._a
+        self._ac = corner[2] - self._a
         self._d00 = np.einsum("ij,ij->i", self._ab, self._ab)
         self._d01 = np.einsum("ij,ij->i", self._ab, self._ac)
         self._d11 = np.einsum("ij,ij->i", self._ac, self._ac)
+        # the same, one row per triangle (a, ab, ac, d00, d01, d11): one gather for all of them
+        self._table = np.concatenate([self._a, self._ab, self._ac, self._d00[:, None], self._d01[:, None], self._d11[:, None]], axis=1)
         self._open = None  # (origin, cell, open-space mask, clearance per cell), built on first use
 
     @classmethod
@@ -173,14 +178,14 @@ class SkinDistance:
         gap, candidates = self.tree.query(points, k=self.CANDIDATE_VERTICES, workers=1)
         gap, candidates = gap.reshape(len(points), -1), self._used[candidates.reshape(len(points), -1)]
         near = candidates[:, 0]
-        closest = self.vertices[near].copy()
-        normal = self.vertex_normals[near].copy()
+        closest = np.take(self.vertices, near, axis=0)
+        normal = np.take(self.vertex_normals, near, axis=0)
         depth = -np.einsum("ij,ij->i", normal, points - closest)
         # the exact query where it matters: near the skin, or where the
         # nearest vertex alone would call the point inside or nearly so
         exact = np.flatnonzero((gap[:, 0] < self.EXACT_WITHIN) | (depth > -self.EXACT_WITHIN))
         if exact.size:
-            d, q, n = self._exact(points[exact], candidates[exact])
+            d, q, n = self._exact(np.take(points, exact, axis=0), np.take(candidates, exact, axis=0))
             depth[exact], closest[exact], normal[exact] = d, q, n
         # the nearest feature's side is wrong where it is buried skin (a
         # thigh's skin inside the crossed other thigh faces that thigh): a
@@ -204,11 +209,9 @@ class SkinDistance:
         number is 0 (it changes only across the skin). Built on first use.
         """
         origin, h, open_space, _ = self._open_space()
-        cells = np.floor((points - origin) / h).astype(int)
-        within = np.all((cells >= 0) & (cells < open_space.shape), axis=1)
-        out = ~within
-        c = cells[within]
-        out[within] = open_space[c[:, 0], c[:, 1], c[:, 2]]
+        within, cell = self._cells(points, origin, h, open_space.shape)
+        out = np.ones(len(points), bool)
+        out[within] = np.take(open_space, cell)
         return out
 
     def clear_of(self, points: np.ndarray) -> np.ndarray:
@@ -227,13 +230,27 @@ class SkinDistance:
         """
         points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
         origin, h, _, clear = self._open_space()
-        cells = np.floor((points - origin) / h).astype(int)
-        within = np.all((cells >= 0) & (cells < clear.shape), axis=1)
         lo, hi = self.bounds
-        out = np.linalg.norm(np.maximum(lo - points, 0.0) + np.maximum(points - hi, 0.0), axis=1)
-        c = cells[within]
-        out[within] = np.maximum(out[within], clear[c[:, 0], c[:, 1], c[:, 2]])
+        # the distance to the bounding box, 0 inside it
+        out = np.zeros(len(points))
+        x, y, z = points.T
+        # (column by column: a reduction along the short axis is several times slower)
+        off = np.flatnonzero(~((x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1]) & (z >= lo[2]) & (z <= hi[2])))
+        if off.size:
+            q = np.take(points, off, axis=0)
+            out[off] = np.linalg.norm(np.maximum(lo - q, 0.0) + np.maximum(q - hi, 0.0), axis=1)
+        within, cell = self._cells(points, origin, h, clear.shape)
+        out[within] = np.maximum(out[within], np.take(clear, cell))
         return out
+
+    @staticmethod
+    def _cells(points: np.ndarray, origin: np.ndarray, h: float, shape: tuple) -> tuple[np.ndarray, np.ndarray]:
+        """The points in a grid of ``shape`` cells of ``h`` from ``origin`` (indices), and their cells (flat indices)."""
+        # a negative index is a large unsigned one: one comparison per axis
+        i, j, k = np.floor((points - origin) / h).astype(np.int64).view(np.uint64).T
+        within = np.flatnonzero((i < shape[0]) & (j < shape[1]) & (k < shape[2]))
+        i, j, k = (np.take(c, within).astype(np.int64) for c in (i, j, k))
+        return within, (i * shape[1] + j) * shape[2] + k
 
     def _open_space(self):
         """(origin, cell, open-space mask, clearance per cell) of the open-space grid, built on first use."""
@@ -242,8 +259,8 @@ class SkinDistance:
             v, f = self.vertices, self.faces
             origin = self.bounds[0] - 2.0 * h
             shape = np.ceil((self.bounds[1] - origin) / h).astype(int) + 3
-            corners = v[f]  # (m, 3, 3)
-            longest = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2).max(axis=1)
+            corners = np.take(v, f, axis=0)  # (m, 3, 3)
+            longest = row_norms(corners - np.roll(corners, 1, axis=1)).max(axis=1)
             steps = np.maximum(np.ceil(longest / h).astype(int), 1)
             marked = np.zeros(shape, bool)
             for n in np.unique(steps):
@@ -263,12 +280,14 @@ class SkinDistance:
         return self._open
 
     def _exact(self, points: np.ndarray, near: np.ndarray):
-        cand = self.rings[near].reshape(len(points), -1)
+        cand = np.take(self.rings, near, axis=0).reshape(len(points), -1)
         valid = cand >= 0
         tri_i = np.where(valid, cand, 0)
-        ap = points[:, None, :] - self._a[tri_i]
-        ab, ac = self._ab[tri_i], self._ac[tri_i]
-        d00, d01, d11 = self._d00[tri_i], self._d01[tri_i], self._d11[tri_i]
+        # each candidate's triangle in one gather (np.take: several times faster than indexing)
+        g = np.take(self._table, tri_i, axis=0)
+        ap = points[:, None, :] - g[..., 0:3]
+        ab, ac = g[..., 3:6], g[..., 6:9]
+        d00, d01, d11 = g[..., 9], g[..., 10], g[..., 11]
         d1 = np.einsum("kci,kci->kc", ab, ap)
         d2 = np.einsum("kci,kci->kc", ac, ap)
         bary = closest_barycentric(d1, d2, d00, d01, d11)
@@ -279,12 +298,13 @@ class SkinDistance:
         best = np.argmin(d2sq, axis=1)
         rows = np.arange(len(points))
         t = tri_i[rows, best]
-        tri = self.faces[t]
+        tri = np.take(self.faces, t, axis=0)
         w = np.stack([x[rows, best] for x in bary], axis=1)
-        qb = self._a[t] + w[:, 1:2] * self._ab[t] + w[:, 2:3] * self._ac[t]
+        g = np.take(self._table, t, axis=0)
+        qb = g[:, 0:3] + w[:, 1:2] * g[:, 3:6] + w[:, 2:3] * g[:, 6:9]
         zero = w <= 0.0
         nz = zero.sum(axis=1)
-        normal = self.face_normals[t].copy()
+        normal = np.take(self.face_normals, t, axis=0)
         on_edge = np.flatnonzero(nz == 1)
         if on_edge.size:
             k = np.argmax(zero[on_edge], axis=1)  # the edge opposite the zero corner
@@ -293,8 +313,8 @@ class SkinDistance:
         if at_vertex.size:
             k = np.argmax(w[at_vertex], axis=1)
             normal[at_vertex] = self.vertex_normals[tri[at_vertex, k]]
-        normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), 1e-300)
-        dist = np.linalg.norm(points - qb, axis=1)
+        normal /= np.maximum(row_norms(normal)[:, None], 1e-300)
+        dist = row_norms(points - qb)
         side = np.einsum("ij,ij->i", points - qb, normal)
         inside = side < 0
         depth = np.where(inside, dist, -dist)
@@ -322,7 +342,7 @@ class SkinDistance:
         for s in range(0, len(points), batch):
             r = tri[None, :, :, :] - points[s : s + batch, None, None, :]  # (b, m, 3, 3)
             a, b, c = r[..., 0, :], r[..., 1, :], r[..., 2, :]
-            la, lb, lc = (np.linalg.norm(x, axis=-1) for x in (a, b, c))
+            la, lb, lc = (row_norms(x) for x in (a, b, c))
             num = np.einsum("bmi,bmi->bm", a, np.cross(b, c))
             den = (
                 la * lb * lc

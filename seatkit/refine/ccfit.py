@@ -94,6 +94,7 @@ import scipy.sparse.linalg as spla
 from scipy.spatial import cKDTree
 
 from seatkit.errors import SolverError
+from seatkit.geometry.closest import row_norms
 from seatkit.geometry.normals import vertex_normals
 from seatkit.geometry.skin import SkinDistance
 from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, inside_furniture, surface_depth_in_body
@@ -274,11 +275,12 @@ def skin_depth(skins: Sequence[SkinDistance], points: np.ndarray):
     out = np.zeros_like(foot)
     out[:, 1] = 1.0
     for skin in skins:
-        lo, hi = skin.bounds
-        near = np.flatnonzero(np.all((points > lo - _FAR) & (points < hi + _FAR), axis=1))
+        lo, hi = skin.bounds[0] - _FAR, skin.bounds[1] + _FAR
+        x, y, z = points.T  # (column by column: a reduction along the short axis is several times slower)
+        near = np.flatnonzero((x > lo[0]) & (x < hi[0]) & (y > lo[1]) & (y < hi[1]) & (z > lo[2]) & (z < hi[2]))
         if not near.size:
             continue
-        d, q, g = skin.query(points[near])
+        d, q, g = skin.query(np.take(points, near, axis=0))
         deeper = d > depth[near]
         k = near[deeper]
         depth[k], foot[k], out[k] = d[deeper], q[deeper], g[deeper]
@@ -337,11 +339,15 @@ def _depths_to_exit(skins: Sequence[SkinDistance], ray: np.ndarray) -> np.ndarra
 def _boundary_samples(ops) -> np.ndarray:
     """(p,) bool: refined vertices on the boundary of the refined mesh."""
     q = ops.faces
-    pairs = np.stack([q, np.roll(q, -1, axis=1)], axis=-1).reshape(-1, 2)
-    pairs.sort(axis=1)
-    uniq, count = np.unique(pairs, axis=0, return_counts=True)
-    out = np.zeros(ops.n_points, bool)
-    out[uniq[count == 1].ravel()] = True
+    a, b = q.ravel(), np.roll(q, -1, axis=1).ravel()
+    n = ops.n_points
+    # an edge as one integer key (one row each way round the quads)
+    key = np.minimum(a, b).astype(np.int64) * n + np.maximum(a, b)
+    uniq, count = np.unique(key, return_counts=True)
+    once = uniq[count == 1]
+    out = np.zeros(n, bool)
+    out[once // n] = True
+    out[once % n] = True
     return out
 
 
@@ -373,7 +379,8 @@ def surface_distances(
     """
     tree = cKDTree(samples, balanced_tree=False, compact_nodes=False)  # much faster queries here
     distance, closest = tree.query(points, workers=1)
-    signed = np.einsum("kc,kc->k", normals[closest], points - samples[closest])
+    # (np.take gathers rows several times faster than indexing does)
+    signed = np.einsum("kc,kc->k", np.take(normals, closest, axis=0), points - np.take(samples, closest, axis=0))
     if boundary is not None:
         # beyond the boundary the side is undefined: never count it as inside
         signed = np.where(boundary[closest], np.abs(signed), signed)
@@ -574,7 +581,7 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
             X, N = ops.limit_points(P), ops.limit_normals(P)
             Y = probes @ P
             NY = spots @ N
-            NY /= np.maximum(np.linalg.norm(NY, axis=1, keepdims=True), 1e-300)
+            NY /= np.maximum(row_norms(NY)[:, None], 1e-300)
             surface = Surface(X, N, ops.faces, lv)
             need = np.zeros(len(Y))
             # body vertices inside the furniture: their closest sample goes back past them
@@ -702,10 +709,10 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
 
     def _measure(P):
         X = limit @ P
-        N = ops.limit_normals(P)
+        N = ops.limit_normals(P, X)
         # the correspondences, beside the probes' depths where a side thread runs (seatkit.side)
         correspondences = beside(surface_distances, X, N, b, boundary=on_boundary)
-        Y = probe @ P
+        Y = X if probe is limit else probe @ P
         # depth > 0: probe inside a body. Only probes that can be nearer the
         # skin than the clearance are asked: the others take no part in the
         # step (and the query would put them at least that far out too)
@@ -727,7 +734,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
             inside = np.flatnonzero((depth > 0.5 * p["clearance"]) & ~below)
             if inside.size:
                 Yn = probe_normals @ N
-                Yn /= np.maximum(np.linalg.norm(Yn, axis=1, keepdims=True), 1e-300)
+                Yn /= np.maximum(row_norms(Yn)[:, None], 1e-300)
                 back = -Yn[inside]
                 # the way out, sampled along the ray at up to 2 depth + 2 cm
                 # (one batched query), the exit between the last sample inside
@@ -781,16 +788,19 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
         P_m = P[cols]
         used = np.flatnonzero(w > 0)
         c = closest[used]
-        samples, inverse = np.unique(c, return_inverse=True)
+        # the samples used, sorted, and which one each target uses (np.unique's answer, without its sort)
+        count = np.bincount(c, minlength=len(N))
+        samples = np.flatnonzero(count)
+        inverse = (np.cumsum(count > 0) - 1)[c]
         W = np.bincount(inverse, weights=w[used] / w_sum)
         WB = np.stack([np.bincount(inverse, weights=w[used] / w_sum * b[used, d]) for d in range(3)], axis=1)
-        n_s = N[samples]
-        target = WB - W[:, None] * fixed_X[samples]  # sum of w (b - fixed) per sample
+        n_s = np.take(N, samples, axis=0)
+        target = WB - W[:, None] * np.take(fixed_X, samples, axis=0)  # sum of w (b - fixed) per sample
         rhs_plane = np.einsum("sc,sc->s", n_s, target)
         idx, g, foot_a, gap_a, wp2 = pen
         goal = np.einsum("kc,kc->k", g, foot_a - probe_fixed[phase][idx]) + gap_a
         if dense_step:
-            Ls = limit_rows[samples]
+            Ls = np.take(limit_rows, samples, axis=0)
             R = np.sqrt(W)[:, None] * Ls
             RR = np.hstack([n_s[:, d : d + 1] * R for d in range(3)])
             A = RR.T @ RR + np.kron(np.eye(3), mu * (R.T @ R)) + base
@@ -798,7 +808,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
             if idx.size:
                 if probe_rows[phase] is None:
                     probe_rows[phase] = phases[phase][1].toarray()
-                Q = np.sqrt(wp2)[:, None] * probe_rows[phase][idx]
+                Q = np.sqrt(wp2)[:, None] * np.take(probe_rows[phase], idx, axis=0)
                 QQ = np.hstack([g[:, d : d + 1] * Q for d in range(3)])
                 A += QQ.T @ QQ
                 rhs += QQ.T @ (np.sqrt(wp2) * goal)
@@ -847,7 +857,8 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
             # normal does not oppose the surface normal (the front of a shin
             # matched to a seat below the knee) would wrap the surface around
             # the limb, so it is left out
-            facing = np.einsum("kc,kc->k", target_n, N[closest]) < -p["min_facing"]
+            N_c = np.take(N, closest, axis=0)
+            facing = np.einsum("kc,kc->k", target_n, N_c) < -p["min_facing"]
             use = (dist <= p["max_distance"]) & facing
             w = w_base * use
             # a supported skin vertex behind the surface (a crease the
@@ -856,8 +867,8 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
             # furniture; a sole on the floor under a surface a few mm above
             # it, its target held at y = 0) is pulled out as firmly as a
             # probe inside the body
-            X_c = X[closest]
-            behind = use & (np.einsum("kc,kc->k", N[closest], targets.points - X_c) < 0)
+            X_c = np.take(X, closest, axis=0)
+            behind = use & (np.einsum("kc,kc->k", N_c, targets.points - X_c) < 0)
             w = np.where(behind, np.maximum(w, w_pen), w)
             foot, out, below = near
             # probes under the floor are lifted to it (no clearance: the
@@ -966,7 +977,8 @@ def _final_depths(mesh: ControlMesh, bodies: Sequence[Body], level: int) -> dict
     surfaces = []
     for lv in sorted({level, 4}):
         ops = build_operators(cage, lv)
-        surfaces.append(Surface(ops.limit_points(mesh.vertices), ops.limit_normals(mesh.vertices), ops.faces, lv))
+        X = ops.limit_points(mesh.vertices)
+        surfaces.append(Surface(X, ops.limit_normals(mesh.vertices, X), ops.faces, lv))
     # the surface in the body: the probes of surface_depth_in_body (every
     # tessellation vertex and quad centre) of both tessellations in one
     # query per body; a coarser level's vertices are the first limit points

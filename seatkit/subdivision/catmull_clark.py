@@ -295,20 +295,22 @@ class SubdivisionOperators:
         """(p, 3) float64 limit positions for control points (v, 3)."""
         return self.limit @ np.asarray(points, dtype=np.float64)
 
-    def limit_normals(self, points) -> np.ndarray:
+    def limit_normals(self, points, limit_points=None) -> np.ndarray:
         """(p, 3) float64 unit limit normals for control points (v, 3).
 
         Where the two tangents are parallel (degenerate geometry) the normal
         is the area-weighted mean of the normals of the limit quads around
-        the vertex.
+        the vertex. ``limit_points``, when given, are :meth:`limit_points`
+        of the same control points (not computed again).
         """
         P = np.asarray(points, dtype=np.float64)
+        X = self.limit @ P if limit_points is None else limit_points
         n = np.cross(self.du @ P, self.dv @ P)
-        length = np.linalg.norm(n, axis=1)
-        scale = np.maximum(np.abs(self.limit @ P).max(), 1.0)
+        # np.linalg.norm(n, axis=1) to the bit, several times faster (no reduction along the short axis)
+        length = np.sqrt(n[:, 0] * n[:, 0] + n[:, 1] * n[:, 1] + n[:, 2] * n[:, 2])
+        scale = np.maximum(np.abs(X).max(), 1.0)
         bad = length <= 1e-12 * scale * scale
         if bad.any():
-            X = self.limit @ P
             q = self.faces
             fn = np.cross(X[q[:, 2]] - X[q[:, 0]], X[q[:, 3]] - X[q[:, 1]])
             acc = np.zeros_like(X)
@@ -419,9 +421,10 @@ def limit_surface(control_mesh, level: int = 3, *, boundary: str = "edge-and-cor
     cage = control_mesh if isinstance(control_mesh, Cage) else Cage.from_control_mesh(control_mesh, boundary=boundary)
     ops = build_operators(cage, level)
     P = cage.vertices
+    X = ops.limit_points(P)
     return Surface(
-        vertices=ops.limit_points(P),
-        normals=ops.limit_normals(P),
+        vertices=X,
+        normals=ops.limit_normals(P, X),
         faces=ops.faces.copy(),
         level=int(level),
     )
