@@ -577,13 +577,14 @@ def keep_back_behind(grid: GridMesh, bodies=(), *, width: float, margin: float, 
     column; the lift then moves vertices off the bodies along their
     normals, and where it pushes a backrest's top rows back past the ring
     (a tilted back lifted off an arm behind it), the wall from the ring
-    down to the ground would pass through them: a fold. Each column of
-    the first ring (its corners too) whose back vertex lies less far back
-    than a vertex above the ground in front of it (by more than
-    ``tolerance``) gets it again as the border first makes it, from the
-    moved column: its last vertex continued by ``width`` along its last
-    edge, moved back behind every vertex of the column and its wall
-    outside the bodies. The ground rectangle's back edge then moves back
+    down to the ground passes through them: a fold. Each column of the
+    first ring (its corners too) with a vertex above the ground behind
+    that wall (by more than ``tolerance``, at the vertex's height) gets
+    its ring vertex again as the border first makes it, from the moved
+    column: its last vertex continued by ``width`` along its last edge,
+    moved back behind every vertex of the column, its wall outside the
+    bodies. A vertex behind the ring but in front of its wall (the wall
+    slopes back to the ground rectangle) is no fold and is left alone. The ground rectangle's back edge then moves back
     to ``margin`` behind the ring where it is closer. ``grid`` is a grid
     :func:`add_border` made, ``width``, ``margin`` and ``gap`` (its
     ``body_clearance``) as it was made with. Returns how many ring
@@ -596,9 +597,13 @@ def keep_back_behind(grid: GridMesh, bodies=(), *, width: float, margin: float, 
     front = np.array([0.0, 0.0, 1.0]) if (inner[0] - inner[-1]).sum(0)[2] >= 0 else np.array([0.0, 0.0, -1.0])
     back = -front
     side = np.array([1.0, 0.0, 0.0])
-    reach = (G[1:-2, 1:-1] @ back).max(0)  # the furthest back of each column, above the ground
-    ring = G[-2, 1:-1]
-    late = np.flatnonzero(reach - ring @ back > tolerance)
+    column = G[1:-2, 1:-1]  # (rows, m, 3): each column of the first ring's back row, above the ground
+    reach = (column @ back).max(0)  # the furthest back of each column
+    ring, foot = G[-2, 1:-1], G[-1, 1:-1]
+    # the wall from each ring vertex down to its ground vertex, at the height of each vertex of its column
+    rb, fb, ry = ring @ back, foot @ back, ring[:, 1]
+    t = np.clip((ry[None] - column[..., 1]) / np.maximum(ry[None], 1e-9), 0.0, 1.0)
+    late = np.flatnonzero((column @ back - (rb[None] + t * (fb - rb)[None])).max(0) > tolerance)
     if len(late) == 0:
         return 0
     line = ring.copy()
