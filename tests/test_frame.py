@@ -185,3 +185,18 @@ def test_the_rule_refuses_a_capture_with_a_leg_reaching_back(rig, degrees):
     for name in ("lying-supine", "upright-sitting", "leaning-forward", "standing-leaning-back"):
         held = assess_pose(pose_rig(rig, load_pose(name)))
         assert held.supportable, (name, held.reasons)
+
+
+@pytest.mark.slow
+def test_a_half_lying_capture_gets_a_chair_that_holds_it(tmp_path):
+    """CMU 114_11 #1 (half-lying on the floor, the trunk 45 deg back and 21 deg to the side), the default female body,
+    turned to face sideways: the rule accepts it and the build gives a design that holds the person, within 5 mm both ways."""
+    from seatkit.pipeline import build
+
+    rig = load_rig("default-female")
+    pose = load_pose(CAPTURE.parent / "cmu-114_11.bvh", frame=1, rig=rig)
+    path = write_bvh(tmp_path / "half-lying.bvh", _turned(pose, 90.0), rig, "cmu")
+    r = build({"template": "chair", "seed": 0, "bodies": [{"model": "default-female", "pose": str(path)}]}, write=False, processes=False)
+    ours = r.metrics["ours"][0]
+    assert ours["supported"]  # the contact pressure holds the person in equilibrium
+    assert ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005

@@ -132,3 +132,52 @@ def test_a_long_bad_step_option_is_quoted_short():
     assert problem.startswith("expected a number from 0 to 1, got 'aaa")
     assert len(problem) < 200
     assert _check_value(option, 2.5, {})[1] == "expected a number from 0 to 1, got 2.5"
+
+
+def _seat_and_back(C: int = 3) -> "GridMesh":
+    """A bare chair grid (no border): two seat rows at 0.45 m, then four backrest rows leaning back 30 deg to 0.95 m; the body faces +Z."""
+    from seatkit.template.grid import GridMesh
+
+    z = [0.25, 0.05, -0.15]
+    y = [0.45, 0.45, 0.45]
+    for _ in range(4):  # up the backrest, 30 deg behind vertical
+        z.append(z[-1] - 0.125 * np.tan(np.radians(30.0)))
+        y.append(y[-1] + 0.125)
+    xs = np.linspace(-0.22, 0.22, C + 1)
+    V = np.stack(np.broadcast_arrays(xs[None, :], np.array(y)[:, None], np.array(z)[:, None]), -1).astype(np.float64)
+    R = len(z) - 1
+    return GridMesh(
+        V, np.zeros((R, C), np.int64), np.zeros((R, C), np.int64), np.full((R, C), "face", object),
+        np.full((R, C, 3), np.nan), np.full((R, C, 3), np.nan), np.ones((R, C)), np.zeros((R + 1, C + 1), bool),
+    )
+
+
+def test_the_back_ring_stays_behind_back_rows_a_lift_pushed_back():
+    """A lift that pushes the backrest's top row back past the first ring: the ring goes behind it again, and the cage does not fold."""
+    from seatkit.template.border import add_border, keep_back_behind
+    from seatkit.template.checks import self_intersecting_faces
+    from seatkit.template.grid import grid_quads
+
+    meta = {}
+    grid = add_border(_seat_and_back(), width=0.05, margin=0.05, min_spacing=0.02, meta=meta)
+    G = grid.vertices
+    back = -np.array([0.0, 0.0, 1.0])
+    # as built: the first ring's back row lies behind every vertex above the ground in its column
+    assert np.all(G[-2, 1:-1] @ back >= (G[1:-2, 1:-1] @ back).max(0) - 1e-12)
+    assert keep_back_behind(grid, width=0.05, margin=0.05, gap=0.02) == 0  # nothing to do: the cage is unchanged
+    np.testing.assert_array_equal(grid.vertices, G)
+    quads = grid_quads(grid.label.shape)
+    assert len(self_intersecting_faces(G.reshape(-1, 3), quads)) == 0
+    # the lift pushes the top row of the back 15 cm back and 20 cm down (lifted off an arm in front of it)
+    lifted = G.copy()
+    lifted[-3, 2:-2] += [0.0, -0.20, -0.15]
+    assert len(self_intersecting_faces(lifted.reshape(-1, 3), quads)) > 0  # the wall from the ring folds over it
+    grid.vertices = lifted
+    moved = keep_back_behind(grid, width=0.05, margin=0.05, gap=0.02)
+    V = grid.vertices
+    assert moved == G.shape[1] - 4  # one ring vertex behind each column the lift pushed back
+    assert np.all(V[-2, 1:-1] @ back >= (V[1:-2, 1:-1] @ back).max(0) - 1e-12)
+    assert np.all(V[-1] @ back >= (V[-2] @ back).max() + 0.05 - 1e-12)  # the ground's back edge margin behind the ring
+    assert np.all(V[-1, :, 1] == 0.0) and np.all(V[:-1, 1:-1, 1] >= 0.0)
+    assert len(self_intersecting_faces(V.reshape(-1, 3), quads)) == 0
+    np.testing.assert_array_equal(V[:-2], lifted[:-2])  # nothing in front of the back ring moves

@@ -28,7 +28,7 @@ from scipy.optimize import linprog
 from seatkit.template.grid import NOT_HELD, GridMesh, segment_of_vertex
 from seatkit.template.planes import unit
 
-__all__ = ["add_border", "place_ground_side"]
+__all__ = ["add_border", "keep_back_behind", "place_ground_side"]
 
 _FLAT = 0.03  # m: a wall face lower than this is checked from above
 
@@ -568,3 +568,58 @@ def add_border(
         weight,
         ground,
     )
+
+
+def keep_back_behind(grid: GridMesh, bodies=(), *, width: float, margin: float, gap: float, tolerance: float = 1e-3) -> int:
+    """Put the back ring behind the back rows again after the grid's vertices moved (the clearance lift), in place.
+
+    :func:`add_border` builds the first ring behind every vertex of its
+    column; the lift then moves vertices off the bodies along their
+    normals, and where it pushes a backrest's top rows back past the ring
+    (a tilted back lifted off an arm behind it), the wall from the ring
+    down to the ground passes through them: a fold. Each column of the
+    first ring (its corners too) with a vertex above the ground behind
+    that wall (by more than ``tolerance``, at the vertex's height) gets
+    its ring vertex again as the border first makes it, from the moved
+    column: its last vertex continued by ``width`` along its last edge,
+    moved back behind every vertex of the column, its wall outside the
+    bodies. A vertex behind the ring but in front of its wall (the wall
+    slopes back to the ground rectangle) is no fold and is left alone. The ground rectangle's back edge then moves back
+    to ``margin`` behind the ring where it is closer. ``grid`` is a grid
+    :func:`add_border` made, ``width``, ``margin`` and ``gap`` (its
+    ``body_clearance``) as it was made with. Returns how many ring
+    vertices moved.
+    """
+    G = grid.vertices
+    if G.shape[0] < 5 or G.shape[1] < 5 or not grid.ground[-1].all():
+        return 0
+    inner = G[2:-2, 2:-2]
+    front = np.array([0.0, 0.0, 1.0]) if (inner[0] - inner[-1]).sum(0)[2] >= 0 else np.array([0.0, 0.0, -1.0])
+    back = -front
+    side = np.array([1.0, 0.0, 0.0])
+    column = G[1:-2, 1:-1]  # (rows, m, 3): each column of the first ring's back row, above the ground
+    reach = (column @ back).max(0)  # the furthest back of each column
+    ring, foot = G[-2, 1:-1], G[-1, 1:-1]
+    # the wall from each ring vertex down to its ground vertex, at the height of each vertex of its column
+    rb, fb, ry = ring @ back, foot @ back, ring[:, 1]
+    t = np.clip((ry[None] - column[..., 1]) / np.maximum(ry[None], 1e-9), 0.0, 1.0)
+    late = np.flatnonzero((column @ back - (rb[None] + t * (fb - rb)[None])).max(0) > tolerance)
+    if len(late) == 0:
+        return 0
+    line = ring.copy()
+    for j in late:
+        k = j + 1
+        p, q = G[-3, k], G[-4, k]
+        line[j] = p + width * unit(p - q)
+        line[j] += max(float(reach[j] - line[j] @ back), 0.0) * back
+        line[j, 1] = max(line[j, 1], 0.0)
+    pts = np.concatenate([np.asarray(b.vertices, dtype=np.float64) for b in bodies]) if len(bodies) else np.zeros((0, 3))
+    cleared = line.copy()
+    _clear_bodies(cleared, back, side, pts, gap)
+    ring[late] = cleared[late]
+    # the ground's back edge stays margin behind the ring
+    f0 = float((G[-1, 0] @ front))
+    want = float((ring @ front).min()) - margin
+    if want < f0:
+        G[-1] += np.outer(np.full(G.shape[1], want - f0), front)
+    return int(len(late))

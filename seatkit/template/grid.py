@@ -409,6 +409,10 @@ class FitState:
         under the seat that were found inside the furniture (the clearance
         step's ``repair_enclosure``; docs/templates.md, "Walls inside the
         hands").
+    keep_border : callable or None
+        Set by the ``border`` step: ``keep_border(grid)`` puts the border's
+        back ring behind the back rows again after a lift moved them
+        (:func:`seatkit.template.border.keep_back_behind`).
     last_resort : bool
         This fit is one of the template's last-resort cages
         (:meth:`seatkit.template.YamlTemplate.last_resort_fits`, asked for
@@ -424,6 +428,7 @@ class FitState:
     meta: dict = field(default_factory=dict)
     rebuild_border: object = None
     rebuild_walls: object = None
+    keep_border: object = None
     last_resort: bool = False
 
     def supported_segments(self) -> list[int]:

@@ -19,7 +19,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from seatkit.errors import RecipeError
-from seatkit.template.border import add_border
+from seatkit.template.border import add_border, keep_back_behind
 from seatkit.template.checks import check_supportability, crossing_faces, enclosed_vertices, free_segments, held_segments, self_intersecting_faces
 from seatkit.template.clearance import lift_off_bodies
 from seatkit.template.grid import FitState, GridMesh, grid_quads
@@ -458,6 +458,14 @@ class BorderStep:
             body_clearance=options.get("body_clearance"),
         )
         state.grid = border(meta=state.meta)
+        # every lift keeps the back ring behind the back rows it moves (lift_grid)
+        state.keep_border = functools.partial(
+            keep_back_behind,
+            bodies=[b.body for b in state.blocks],
+            width=float(options.get("width", 0.05)),
+            margin=float(options.get("margin", 0.05)),
+            gap=float(options.get("min_spacing", 0.02) if options.get("body_clearance") is None else options["body_clearance"]),
+        )
         # the clearance step's repair may rebuild it with the side rings lowered beside a hanging hand
         state.rebuild_border = lambda **kw: border(meta=state.meta, drop_beside=True, **kw)
         # ... or with its side walls inside the hands the cage encloses (the clearance step's repair_enclosure)
@@ -520,6 +528,7 @@ def lift_grid(state: FitState, options: Mapping[str, Any], *, faces=None) -> dic
         rounds=int(options.get("rounds", 2)),
     )
     grid.vertices = res.vertices.reshape(grid.vertices.shape)
+    kept = state.keep_border(grid) if state.keep_border is not None else 0
     report = {
         "moved_vertices": int((res.moves > 1e-6).sum()),
         "max_move": float(res.moves.max()),
@@ -527,6 +536,8 @@ def lift_grid(state: FitState, options: Mapping[str, Any], *, faces=None) -> dic
         "rounds": res.rounds,
         "feasible": res.feasible,
     }
+    if kept:
+        report["back_ring_moved"] = kept
     if faces is None:
         state.meta["clearance"] = report
     else:

@@ -1,0 +1,77 @@
+"""Every template start a build runs, and what became of it: the cost of the starts that give no valid cage.
+
+For each drawn pose (``FAMILY-INDEX@BODY``, draw seed 2026, as the
+generalisation benchmark draws them) it runs the full default build (seed
+0) and logs every start the chair template runs, the search's ordinary
+starts and its last-resort ones: whether it gave a valid cage, the
+template's refusal, and its CPU time. Prints one line per case and, with
+``--results``, writes every start as JSON lines. docs/templates.md, "What a
+rejected candidate costs", gives what it measured:
+
+    python benchmarks/bench_starts.py seated-104@default-male reclined-025@default-female
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("cases", nargs="+", help="FAMILY-INDEX@BODY, e.g. seated-104@default-male")
+    ap.add_argument("--results", type=Path, help="append one JSON line per case here")
+    args = ap.parse_args()
+
+    from seatkit.body.generator import draw_pose, pose_yaml
+    from seatkit.errors import SeatkitError, UnsupportedPoseError
+    from seatkit.pipeline import build
+    from seatkit.template import engine
+
+    log: list = []
+    attempt = engine.YamlTemplate._attempt
+
+    def logged(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset(), last_resort=False):
+        start = time.process_time()
+        try:
+            out = attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort)
+        except UnsupportedPoseError as e:
+            log.append({"last_resort": last_resort, "valid": False, "reason": str(e), "cpu_s": time.process_time() - start})
+            raise
+        log.append({"last_resort": last_resort, "valid": True, "cpu_s": time.process_time() - start})
+        return out
+
+    engine.YamlTemplate._attempt = logged
+    with tempfile.TemporaryDirectory() as tmp:
+        for case in args.cases:
+            name, body = case.split("@")
+            family, index = name.rsplit("-", 1)
+            path = Path(tmp) / f"{name}.yaml"
+            path.write_text(pose_yaml(draw_pose(np.random.default_rng([2026, int(index)]), family, name)))
+            log.clear()
+            start = time.process_time()
+            try:
+                r = build({"template": "chair", "seed": 0, "bodies": [{"model": body, "pose": str(path)}]}, write=False, processes=False)
+                row = {"built": True, "search": r.control_mesh.meta["search"]["winner"]}
+            except SeatkitError as e:
+                row = {"built": False, "reason": str(e)}
+            row.update(case=case, cpu_s=time.process_time() - start, starts=list(log))
+            refused = [s for s in log if s["last_resort"] and not s["valid"]]
+            print(
+                f"{case}: built {row['built']}, {row.get('search')}, build {row['cpu_s']:.1f} s CPU; "
+                f"{sum(not s['last_resort'] for s in log)} starts, {sum(s['last_resort'] for s in log)} last-resort starts "
+                f"of which {len(refused)} gave no valid cage ({sum(s['cpu_s'] for s in refused):.1f} s)",
+                flush=True,
+            )
+            if args.results:
+                with args.results.open("a") as fh:
+                    fh.write(json.dumps(row) + "\n")
+
+
+if __name__ == "__main__":
+    main()
