@@ -81,7 +81,9 @@ __all__ = [
     "align_sitters",
     "expand_population",
     "lifted_importance",
+    "MAX_KNEE_EXTENSION",
     "seat_reference",
+    "sitter_posers",
     "shared_importance",
     "shared_sitter",
     "sharing_metrics",
@@ -102,6 +104,11 @@ _HIPS = SEGMENT_INDEX["Hips"]
 
 #: Importance above which a pelvis vertex counts as loaded by the seat (:func:`seat_reference`): the surface fit's threshold.
 LOADED = 0.02
+
+#: The most a lowered sitter's knees extend to keep their feet on the floor (rad): a larger drop raises the seat instead.
+MAX_KNEE_EXTENSION = float(np.radians(60.0))
+#: Knee extensions scanned from 0 to :data:`MAX_KNEE_EXTENSION` for the first that brings the feet down.
+KNEE_STEPS = 31
 
 
 def expand_population(spec: Mapping[str, Any], default_pose: str = "upright-sitting") -> list[dict]:
@@ -163,21 +170,89 @@ def seat_reference(body: Body, pressure: PressureField) -> np.ndarray:
     return np.array([height, depth])
 
 
-def align_sitters(bodies: Sequence[Body], pressures: Sequence[PressureField]) -> tuple[list[Body], list[np.ndarray]]:
-    """The sitters moved to sit on one seat pan (see the module doc), and each move (3,), m.
+def _foot_heights(poser, knee: float) -> np.ndarray:
+    """(2,) the lowest vertex height of each foot with the knees extended by ``knee`` (rad), the ankles turned back alike (m)."""
+    theta = np.zeros(8)
+    theta[5] = -knee  # the pose's knee flexion, negative: the feet go forward
+    return np.array([poser.points(theta, sub)[:, 1].min() for sub in poser.foot_subsets])
+
+
+def _legs(poser, floor_distance: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The knee extensions scanned up to :data:`MAX_KNEE_EXTENSION` and how far each lifts the lower foot (m), or None when the feet do not both rest on the floor."""
+    feet = _foot_heights(poser, 0.0)
+    if feet.max() > floor_distance:  # a foot in the air (legs crossed, tucked): nothing to keep on the floor
+        return None
+    angles = np.linspace(0.0, MAX_KNEE_EXTENSION, KNEE_STEPS)
+    rise = np.array([_foot_heights(poser, a).min() for a in angles]) - feet.min()
+    return angles, rise
+
+
+def _knee_for(poser, legs, drop: float) -> float:
+    """The smallest knee extension (rad) that lifts the lower foot by ``drop`` (m) above where it stood."""
+    from scipy.optimize import brentq
+
+    angles, rise = legs
+    k = int(np.argmax(rise >= drop))
+    if k == 0:
+        return 0.0
+    base = _foot_heights(poser, 0.0).min()
+    return float(brentq(lambda a: _foot_heights(poser, a).min() - base - drop, angles[k - 1], angles[k], xtol=1e-6))
+
+
+def align_sitters(bodies: Sequence[Body], pressures: Sequence[PressureField], posers: Sequence | None = None, *, floor_distance: float = 0.0) -> tuple[list[Body], list[np.ndarray], list[float]]:
+    """The sitters moved to sit on one seat pan (see the module doc), each move (3,), m, and each knee extension, rad.
 
     Every sitter's :func:`seat_reference` is moved to one point: the
-    highest sitter's seat height (nobody goes below the floor) and the
-    sitters' mean load depth. The pressure fields stay valid: the
-    importance does not depend on where the body is.
+    sitters' mean load depth, and the lowest seat height every sitter's
+    feet can reach the floor from. A sitter whose own seat height is higher
+    is lowered to it and their legs re-posed by the body model (``posers``:
+    :class:`seatkit.trial._Poser` of each sitter as the build posed them):
+    both knees extend by the smallest angle that keeps the lower foot on the
+    floor, each ankle turned back by the same angle so that the soles stay
+    level. A sitter whose feet do not both rest on the floor (within
+    ``floor_distance``), or who would need more than
+    :data:`MAX_KNEE_EXTENSION`, raises the seat instead to as low as they
+    can reach; a sitter whose own seat height is lower than the common one
+    is lifted and their feet hang (:func:`lifted_importance`). Without
+    ``posers`` no legs are re-posed: the seat is the highest sitter's.
     """
     bodies = list(bodies)
     if len(bodies) <= 1:
-        return bodies, [np.zeros(3) for _ in bodies]
+        return bodies, [np.zeros(3) for _ in bodies], [0.0 for _ in bodies]
     refs = np.array([seat_reference(b, p) for b, p in zip(bodies, pressures)])
-    height, depth = refs[:, 0].max(), refs[:, 1].mean()
-    moves = [np.array([0.0, height - y, depth - z]) for y, z in refs]
-    return [b.translated(m) for b, m in zip(bodies, moves)], moves
+    legs = [_legs(p, floor_distance) if p is not None else None for p in (posers or [None] * len(bodies))]
+    reach = np.array([0.0 if lg is None else float(lg[1].max()) for lg in legs])  # how far each sitter's seat can be lowered, m
+    height = max(refs[:, 0].min(), (refs[:, 0] - reach).max())
+    depth = refs[:, 1].mean()
+    out, moves, knees = [], [], []
+    for body, (y, z), poser, lg in zip(bodies, refs, posers or [None] * len(bodies), legs):
+        move = np.array([0.0, height - y, depth - z])
+        knee = _knee_for(poser, lg, y - height) if lg is not None and y > height else 0.0
+        if knee > 0.0:
+            theta = np.zeros(8)
+            theta[:3], theta[5] = move, -knee
+            body = poser.body(theta)
+        else:
+            body = body.translated(move)
+        out.append(body)
+        moves.append(move)
+        knees.append(knee)
+    return out, moves, knees
+
+
+def sitter_posers(recipe, registry) -> list:
+    """Each sitter of ``recipe`` as the build poses them (:class:`seatkit.trial._Poser`: the canonical pose, joint changes on top)."""
+    from seatkit.body import load_pose
+    from seatkit.trial import _Poser
+
+    posers = []
+    for entry in recipe["bodies"]:
+        model = registry.get("body_model", entry["model"])
+        rig = model.make_body(params=entry["params"])
+        poser = _Poser(model, rig, load_pose(entry["pose"], frame=entry.get("frame", 0), rig=rig, dirs=registry.pose_dirs))
+        poser.foot_subsets = [poser.subset(f) for f in poser.feet]
+        posers.append(poser)
+    return posers
 
 
 def lifted_importance(bodies: Sequence[Body], pressures: Sequence[PressureField], solve: Callable, *, floor_distance: float) -> list[PressureField]:
@@ -309,11 +384,15 @@ class SharedTemplate:
             yield _shared_cage(cage, len(bodies))
 
 
-def sharing_metrics(shared: Sequence[Mapping], own: Sequence[Mapping], names: Sequence[str], moves: Sequence[np.ndarray]) -> list[dict]:
-    """``metrics.sharing``: per sitter, the move onto the shared seat (m, after the canonical frame), the figures on the shared design, on their own design, and the cost (shared minus own)."""
+def sharing_metrics(shared: Sequence[Mapping], own: Sequence[Mapping], names: Sequence[str], moves: Sequence[np.ndarray], knees: Sequence[float] | None = None) -> list[dict]:
+    """``metrics.sharing``: per sitter, the move onto the shared seat (m, after the canonical frame), the knee extension that keeps a lowered sitter's feet on the floor (degrees), the figures on the shared design, on their own design, and the cost (shared minus own)."""
     rows = []
-    for name, ours, alone, move in zip(names, shared, own, moves):
-        row: dict[str, Any] = {"sitter": name, "seat_move_m": [float(x) for x in move], "shared": {k: ours.get(k) for k in SHARING_FIGURES if k in ours}}
+    knees = [0.0] * len(names) if knees is None else knees
+    for name, ours, alone, move, knee in zip(names, shared, own, moves, knees):
+        row: dict[str, Any] = {
+            "sitter": name, "seat_move_m": [float(x) for x in move], "knee_extension_deg": float(np.degrees(knee)),
+            "shared": {k: ours.get(k) for k in SHARING_FIGURES if k in ours},
+        }
         if "ours" in alone:
             row["own"] = {k: alone["ours"].get(k) for k in SHARING_FIGURES if k in alone["ours"]}
             a, b = ours.get("avg_distance_m"), alone["ours"].get("avg_distance_m")
