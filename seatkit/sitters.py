@@ -11,20 +11,35 @@ side by side (that is a bench); each is brought into the template's frame
   pelvis (the lowest vertex of the ``Hips`` segment) at one height, and the
   centre of the pelvis's load (the importance-weighted mean depth of its
   loaded vertices: the ischial tuberosities upright, towards the sacrum
-  reclined) at one depth. The common height is the highest sitter's, so
-  nobody is moved below the floor; the common depth is their mean. The
-  canonical frame alone keeps each body on the floor with its hip joints
-  above the origin, which puts a 5th-percentile woman's buttocks 15 cm
-  below a 95th-percentile man's: no seat could hold both. Seated people
-  share a seat pan, not a floor position (the seat reference point of
-  seating standards). The depth was chosen over the rearmost pelvis vertex
-  (the pelvis against one backrest line) by the rate over drawn triples of
-  presets and poses (docs/sitters.md).
-- **lifted off the floor** (:func:`lifted_importance`): a sitter raised
-  to the common seat height has feet that no longer reach the floor; their
-  importance is solved again without the parts that rested on it, so the
-  seat and back carry what the feet carried (and the evaluation does not
-  ask the seat to reach feet that hang in the air).
+  reclined) at one depth, the sitters' mean. The canonical frame alone
+  keeps each body on the floor with its hip joints above the origin, which
+  puts a 5th-percentile woman's buttocks 15 cm below a 95th-percentile
+  man's: no seat could hold both. Seated people share a seat pan, not a
+  floor position (the seat reference point of seating standards). The
+  depth was chosen over the rearmost pelvis vertex (the pelvis against one
+  backrest line) by the rate over drawn triples of presets and poses
+  (docs/sitters.md).
+- **the seat for the shortest legs, the others' legs forward**: as
+  seating standards size a fixed seat, the common height is the lowest
+  sitter's, so that every sitter's feet can reach the floor. A sitter whose
+  own seat is higher is lowered to it and their legs are re-posed through
+  the body model (skin, joints and segment masses move together; the
+  trial's joint changes, :class:`seatkit.trial._Poser`): both knees extend
+  by the smallest angle that brings the lower foot back to the floor (for
+  a shank of knee-to-sole height ``L`` hanging straight down, ``L (1 - cos
+  theta)`` = the drop), each ankle turned back by the same angle so that
+  the soles stay level. A sitter who cannot follow raises the seat instead,
+  to the lowest height they can reach: one whose feet do not both rest on
+  the floor (legs crossed, feet tucked back: nothing to keep on the floor,
+  or a knee that extending lowers the foot) or who would need more than
+  :data:`MAX_KNEE_EXTENSION`. The sitters' importance is solved again on
+  the re-posed bodies (the feet rest on the floor).
+- **lifted off the floor** (:func:`lifted_importance`): a sitter whose own
+  seat is lower than the common one (only when another sitter raised it)
+  has feet that no longer reach the floor; their importance is solved
+  again without the parts that rested on it, so the seat and back carry
+  what the feet carried (and the evaluation does not ask the seat to reach
+  feet that hang in the air).
 - **importance** (:func:`shared_sitter`): each sitter's importance map is
   normalised to its own peak (so a 50 kg sitter counts as much as a 110 kg
   one) and the template is fitted to one *virtual sitter* whose skin is the
@@ -50,7 +65,7 @@ side by side (that is a bench); each is brought into the template's frame
   sitter on its own.
 
 One sitter is exactly the single-person design: the virtual sitter is that
-body and its importance, and its placement moves nothing.
+body and its importance, and its placement moves and re-poses nothing.
 
 The cost of sharing: a build with sitters also designs each sitter alone
 (same template, refiners and seed; :func:`seatkit.pipeline.own_designs`) and report.json's
@@ -258,8 +273,9 @@ def sitter_posers(recipe, registry) -> list:
 def lifted_importance(bodies: Sequence[Body], pressures: Sequence[PressureField], solve: Callable, *, floor_distance: float) -> list[PressureField]:
     """Each seated sitter's importance: a sitter lifted off the floor cannot push on it.
 
-    A sitter whose seat contact is lower than the highest sitter's is lifted
-    by :func:`align_sitters` (a small woman on a tall man's seat height):
+    A sitter whose seat contact is lower than the common one is lifted by
+    :func:`align_sitters` (a small woman on the seat of a large man who
+    cannot bring his feet down to hers):
     their lowest point is then above the floor, and the parts that rested on
     it (within ``floor_distance`` of that lowest point: the feet) hang in the
     air. That sitter's importance is solved again (``solve(body, contact)``)
