@@ -46,7 +46,7 @@ def run(sitters: list[dict]) -> dict:
     return {
         "sitters": sitters, "built": True, "held": held, "ahead": ahead,
         "avg_distance_m": [o["avg_distance_m"] for o in ours], "flat_avg_distance_m": [b["avg_distance_m"] for b in flat],
-        "seat_move_m": [r["seat_move_m"][1] for r in sharing], "knee_extension_deg": [r["knee_extension_deg"] for r in sharing],
+        "seat_move_m": [r["seat_move_m"][1] for r in sharing], "knee_extension_deg": [r.get("knee_extension_deg", 0.0) for r in sharing],
     }
 
 
