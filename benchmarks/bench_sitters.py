@@ -47,6 +47,7 @@ def run(sitters: list[dict]) -> dict:
         "sitters": sitters, "built": True, "held": held, "ahead": ahead,
         "avg_distance_m": [o["avg_distance_m"] for o in ours], "flat_avg_distance_m": [b["avg_distance_m"] for b in flat],
         "seat_move_m": [r["seat_move_m"][1] for r in sharing], "knee_extension_deg": [r.get("knee_extension_deg", 0.0) for r in sharing],
+        "hip_flexion_deg": [r.get("hip_flexion_deg", 0.0) for r in sharing],
     }
 
 
@@ -67,7 +68,8 @@ def main() -> None:
             continue
         dist = "  ".join(f"{a * 100:.2f}/{b * 100:.2f} cm" for a, b in zip(row["avg_distance_m"], row["flat_avg_distance_m"]))
         knees = " ".join(f"{k:.0f}" for k in row["knee_extension_deg"])
-        print(f"{'held' if all(row['held']) else 'not held':8} {who}: ours/flat {dist}; knees {knees} deg", flush=True)
+        hips = " ".join(f"{h:.0f}" for h in row["hip_flexion_deg"])
+        print(f"{'held' if all(row['held']) else 'not held':8} {who}: ours/flat {dist}; knees extended {knees}, hips flexed {hips} deg", flush=True)
     built = [r for r in rows if r["built"]]
     held = [r for r in built if all(r["held"])]
     print(
