@@ -262,7 +262,7 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
                 from seatkit.sitters import sharing_metrics
 
                 own = own_designs(recipe, registry)
-                result.metrics["sharing"] = sharing_metrics(result.metrics["ours"], own, [b.name for b in bodies], moves)
+                result.metrics["sharing"] = sharing_metrics(result.metrics["ours"], own, [b.name for b in bodies], [m for m, _, _ in moves], [k for _, k, _ in moves], [h for _, _, h in moves])
     if recipe.get("structure", {}).get("enabled"):
         with timer.stage("structure"):
             from seatkit.structure.build import run_structure
@@ -272,11 +272,16 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
 
 def _seat_sitters(recipe, bodies, pressures, registry) -> tuple[list, list, list]:
-    """The sitters on one seat pan, with the importance of those lifted off the floor solved again, and each sitter's move (:mod:`seatkit.sitters`)."""
-    from seatkit.sitters import align_sitters
+    """The sitters on one seat pan (those lowered with their legs re-posed, their importance solved again on the new pose; those lifted off the floor solved again without it), and each sitter's move, knee extension and hip flexion (:mod:`seatkit.sitters`)."""
+    from seatkit.sitters import align_sitters, sitter_posers
 
-    seated, moves = align_sitters(bodies, pressures)
-    return seated, seated_importance(recipe, seated, pressures, registry), moves
+    posers = sitter_posers(recipe, registry) if len(bodies) > 1 else None
+    seated, moves, knees, hips = align_sitters(bodies, pressures, posers, floor_distance=recipe["evaluate"]["support_distance"])
+    reposed = [k > 0.0 or h > 0.0 for k, h in zip(knees, hips)]
+    if any(reposed):
+        fresh = iter(solve_importance(recipe, [b for b, r in zip(seated, reposed) if r], registry))
+        pressures = [next(fresh) if r else p for p, r in zip(pressures, reposed)]
+    return seated, seated_importance(recipe, seated, pressures, registry), list(zip(moves, knees, hips))
 
 
 def seated_importance(recipe, bodies, pressures, registry) -> list:

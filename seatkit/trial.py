@@ -134,9 +134,19 @@ MAX_NEAR = 1200
 LIFT_RANGE = 0.16
 LIFT_STEP = 0.01
 LIFT_STRIDE = 4
-#: Bounds of the unknowns: translation (m), heading and joint changes (rad).
+#: ... and the start's move forward or back over +-DEPTH_RANGE in DEPTH_STEP steps, m.
+DEPTH_RANGE = 0.09
+DEPTH_STEP = 0.03
+#: The most a person's knees extend to keep their feet on the floor on a seat lower than their own (rad), and the
+#: extensions scanned up to it (:meth:`_Poser.knee_rises`).
+MAX_KNEE_EXTENSION = float(np.radians(60.0))
+KNEE_STEPS = 31
+#: Hip flexions (the knees raised) a start lowered onto the seat is tried with, rad.
+HIP_STARTS = np.radians([0.0, 8.0, 16.0])
+#: Bounds of the unknowns: translation (m), heading and joint changes (rad); the knee extends up to
+#: :data:`MAX_KNEE_EXTENSION` and 0.2 rad beyond the extension that keeps the feet on the floor.
 BOUNDS = (
-    np.array([-0.3, -0.3, -0.3, -0.35, -0.6, -0.6, -0.6, -0.35]),
+    np.array([-0.3, -0.3, -0.3, -0.35, -0.6, -MAX_KNEE_EXTENSION - 0.2, -0.6, -0.35]),
     np.array([0.3, 0.3, 0.3, 0.35, 0.6, 0.6, 0.6, 0.35]),
 )
 #: Names of the unknowns after the translation.
@@ -232,6 +242,58 @@ class _Poser:
         self.offset = self.body0.vertices[0] - raw.vertices[0]  # grounding and centring of the build
         self.feet = [np.flatnonzero(np.argmax(rig.weights, axis=1) == S[f"{side}Foot"]) for side in _LEGS]
         self._skinned: dict = {}  # (subset, joint changes) -> skinned vertices (:meth:`turned`)
+        self._foot_subsets: list | None = None
+
+    def foot_heights(self, knee: float, hip: float = 0.0) -> np.ndarray:
+        """(2,) the lowest vertex height of each foot with both knees extended by ``knee`` and the hips flexed by ``hip`` (rad), m.
+
+        The pose's knee flexion changes by ``-knee`` (the feet go forward),
+        its hip flexion by ``hip`` (the knees rise); :meth:`pose` turns each
+        foot back by both, so the soles keep their tilt.
+        """
+        if self._foot_subsets is None:
+            self._foot_subsets = [self.subset(f) for f in self.feet]
+        theta = np.zeros(8)
+        theta[4], theta[5] = hip, -knee
+        return np.array([self.points(theta, sub)[:, 1].min() for sub in self._foot_subsets])
+
+    def knee_rises(self, floor_distance: float, most: float = MAX_KNEE_EXTENSION, hip: float = 0.0) -> tuple[np.ndarray, np.ndarray] | None:
+        """Knee extensions from 0 to ``most`` (rad, :data:`KNEE_STEPS`) and how far each lifts the lower foot (m), the hips flexed by ``hip``.
+
+        None when the feet do not both rest on the floor in the pose
+        (within ``floor_distance``: legs crossed, a foot tucked back): there
+        is no foot to keep on the floor. The rise is counted from the lower
+        foot in the pose and made monotone (the most reached so far): a
+        larger extension is never chosen to lift less.
+        """
+        feet = self.foot_heights(0.0)
+        if feet.max() > floor_distance:
+            return None
+        angles = np.linspace(0.0, most, KNEE_STEPS)
+        rise = np.array([self.foot_heights(a, hip).min() for a in angles]) - feet.min()
+        return angles, np.maximum.accumulate(rise)
+
+    def knee_for(self, rises: tuple[np.ndarray, np.ndarray], drop: float, hip: float = 0.0) -> float:
+        """The smallest knee extension (rad) that keeps the lower foot on the floor when the body comes down by ``drop`` (m).
+
+        ``rises`` is :meth:`knee_rises` with the same ``hip``; a drop beyond
+        the largest rise gets the largest extension scanned, a drop the
+        hips' flexion alone makes up none.
+        """
+        from scipy.optimize import brentq
+
+        angles, rise = rises
+        if drop <= rise[0]:
+            return 0.0
+        if rise[-1] < drop:
+            return float(angles[-1])
+        k = int(np.argmax(rise >= drop))
+        base = self.foot_heights(0.0).min()
+        f = lambda a: self.foot_heights(a, hip).min() - base - drop  # noqa: E731
+        lo, hi = angles[k - 1], angles[k]
+        if f(lo) * f(hi) > 0:  # the scan's monotone envelope, not the rise itself, crossed here
+            return float(hi)
+        return float(brentq(f, lo, hi, xtol=1e-6))
 
     def pose(self, theta: np.ndarray) -> Pose:
         from scipy.spatial.transform import Rotation
@@ -345,6 +407,18 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
     y0 = body0.vertices[:, 1]
     sole = np.array([np.sort(y0[f])[:SOLE].mean() - y0[f].min() for f in poser.feet])
 
+    # on a seat lower than their own, a person comes down with the knees extended so that the feet stay on the
+    # floor, and the knees raised where the seat's front meets the thighs (none when the feet do not both rest
+    # on the floor): each raise's knee extension for a drop
+    resting = poser.knee_rises(design.support_distance) is not None
+    rises = [poser.knee_rises(design.support_distance, hip=a) for a in HIP_STARTS] if resting else []
+    ref = np.zeros(5)  # the posture the joint changes are counted from: the start's
+
+    def legs_for(drop: float, i: int) -> tuple[float, float]:
+        """The hip flexion ``HIP_STARTS[i]`` and the knee change that keeps the feet on the floor when the body comes down by ``drop``."""
+        angles, rise = rises[i]
+        return HIP_STARTS[i], -float(np.interp(drop, rise, angles)) if drop > rise[0] else 0.0
+
     every = poser.subset(np.arange(len(body0.vertices)))
     # the start's lift is searched with every LIFT_STRIDE-th vertex (and every supported one)
     coarse = np.union1d(np.arange(0, len(body0.vertices), LIFT_STRIDE), support)
@@ -426,7 +500,7 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
             "floor": np.sqrt(k["floor"]) * np.minimum(0.0, y),  # the feet are what reaches the floor
         }
         r["feet"] = np.sqrt(k["feet"]) * (np.array([np.sort(y[:n_feet])[:SOLE].mean(), np.sort(y[n_feet:])[:SOLE].mean()]) - sole)
-        r["joints"] = np.sqrt(k["joint"]) * theta[3:]
+        r["joints"] = np.sqrt(k["joint"]) * (theta[3:] - ref)
         r["seat"] = np.sqrt(k["seat"]) * theta[[0, 2]]
         return r
 
@@ -436,16 +510,36 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
         parts = split(theta, c)
         return float(sum(np.sum(r**2) for r in parts.values())), parts
 
-    # a start clear of the seat: the vertical lift with the least exact objective, coarse then fine
-    lifted = lambda h: np.r_[0.0, h, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]  # noqa: E731
-    tried = {0.0: exact(lifted(0.0), thin=True)[0]}
+    # a start clear of the seat: the move with the least exact objective, found one direction at a time:
+    # the depth (a larger person's back clear of a backrest made for a smaller one), then the height
+    # coarse and fine (a move down is tried as it is and with the knees extended to keep the feet on
+    # the floor)
+    def lifted(h, z, legs):
+        theta = np.r_[0.0, h, z, 0.0, 0.0, 0.0, 0.0, 0.0]
+        if legs is not None:
+            theta[4], theta[5] = legs_for(-h, legs)
+        return theta
+
+    def lift(h, z):
+        for legs in (None, *range(len(rises))) if h < 0.0 else (None,):
+            key = (round(float(h), 6), round(float(z), 6), legs)
+            theta = lifted(*key)
+            ref[:] = theta[3:]
+            tried.setdefault(key, exact(theta, thin=True)[0])
+
+    tried: dict = {}
+    for z in (0.0, *np.arange(-DEPTH_RANGE, DEPTH_RANGE + 1e-9, DEPTH_STEP)):
+        lift(0.0, z)
+    depth = min(tried, key=tried.get)[1]
     for h in np.arange(-LIFT_RANGE, LIFT_RANGE + 1e-9, 4 * LIFT_STEP):
-        tried.setdefault(round(float(h), 6), exact(lifted(h), thin=True)[0])
-    centre = min(tried, key=tried.get)
+        lift(h, depth)
+    centre = min(tried, key=tried.get)[0]
     for h in (centre - 2 * LIFT_STEP, centre - LIFT_STEP, centre + LIFT_STEP, centre + 2 * LIFT_STEP):
-        tried.setdefault(round(float(h), 6), exact(lifted(h), thin=True)[0])
-    base_cost = exact(lifted(0.0))[0]
-    theta = lifted(min(tried, key=tried.get))
+        lift(h, depth)
+    ref[:] = 0.0
+    base_cost = exact(lifted(0.0, 0.0, None))[0]
+    theta = lifted(*min(tried, key=tried.get))
+    ref[:] = theta[3:]
     best, best_cost = theta, exact(theta)[0]
     evaluations = len(tried)
     scale = np.array([0.01, 0.01, 0.01, 0.05, 0.05, 0.05, 0.05, 0.05])

@@ -11,7 +11,9 @@ from seatkit.errors import RecipeError, SeatkitError
 from seatkit.pipeline import build
 from seatkit.plugins import get_plugin_manager
 from seatkit.recipe import apply_overrides, check_recipe, load_recipe
-from seatkit.sitters import align_sitters, expand_population, seat_reference, shared_sitter
+from seatkit import sitters as sitters_module
+from seatkit.sitters import align_sitters, expand_population, seat_reference, shared_sitter, sitter_posers
+from seatkit.skeleton import SEGMENT_INDEX
 from seatkit.stages import place_bodies, solve_importance
 
 #: The issue's chair: a small woman and a large man upright, a median man reclined.
@@ -21,6 +23,8 @@ THREE = [
     {"model": "p50-male", "pose": "reclined-sitting"},
 ]
 LIMIT = 0.005
+#: How close to the floor a foot that rests on it is kept, m.
+FLOOR = 0.003
 
 
 @pytest.fixture(scope="module")
@@ -28,16 +32,30 @@ def registry():
     return get_plugin_manager().registry
 
 
-def _placed(registry, sitters):
+def _seated(registry, sitters):
+    """The sitters in the canonical frame, their importance, and the same sitters seated on one seat pan (bodies, moves, knee extensions)."""
     recipe = check_recipe(load_recipe({"template": "chair", "sitters": sitters})[0], registry)
     bodies, _ = place_bodies(recipe, registry)
     pressures = solve_importance(recipe, bodies, registry)
-    return recipe, align_sitters(bodies, pressures)[0], pressures
+    seated = align_sitters(bodies, pressures, sitter_posers(recipe, registry), floor_distance=recipe["evaluate"]["support_distance"])
+    return bodies, pressures, seated
 
 
 @pytest.fixture(scope="module")
-def three(registry):
-    return _placed(registry, THREE)
+def seated_three(registry):
+    return _seated(registry, THREE)
+
+
+@pytest.fixture(scope="module")
+def three(seated_three):
+    _, pressures, (bodies, _, _, _) = seated_three
+    return None, bodies, pressures
+
+
+def _feet(body):
+    """The lowest vertex height of each foot, m."""
+    part = np.argmax(body.weights, axis=1)
+    return np.array([body.vertices[part == SEGMENT_INDEX[f"{side}Foot"], 1].min() for side in ("Right", "Left")])
 
 
 def test_the_combination_keeps_every_sitters_own_importance(three):
@@ -67,15 +85,56 @@ def test_one_sitter_is_the_body_itself(three):
     assert body is bodies[0] and pressure is pressures[0]
 
 
-def test_sitters_share_one_seat_pan_and_stay_above_the_floor(three):
-    _, bodies, pressures = three
+def test_sitters_share_the_lowest_sitters_seat_with_their_feet_on_the_floor(seated_three):
+    before, pressures, (bodies, moves, knees, hips) = seated_three
+    own = np.array([seat_reference(b, p) for b, p in zip(before, pressures)])
     refs = np.array([seat_reference(b, p) for b, p in zip(bodies, pressures)])
-    assert np.ptp(refs[:, 0]) < 1e-9  # one seat height
-    assert np.ptp(refs[:, 1]) < 1e-9  # the pelvis's load at one depth
-    lowest = [b.vertices[:, 1].min() for b in bodies]
-    assert min(lowest) >= -1e-9 and min(lowest) == pytest.approx(0.0, abs=1e-9)  # the tallest seat contact's sitter stays on the floor
-    for b in bodies:  # still centred left to right, facing +Z
-        assert abs(b.joints[0][0]) < 1e-9
+    # one seat height (a lowered sitter's raised knees lift the lowest pelvis skin, blended with the thighs', a few mm)
+    assert np.ptp(refs[:, 0]) < 0.01
+    assert np.ptp(refs[:, 1]) < 0.005  # the pelvis's load at one depth (within a few mm, as the height)
+    # the seat is the lowest sitter's: the small woman keeps her own seat height, the others come down to it
+    assert refs[0, 0] == pytest.approx(own[:, 0].min(), abs=1e-9)
+    assert own[1, 0] - refs[1, 0] > 0.1  # the large man comes down more than 10 cm
+    for body, move, knee, hip, own_height in zip(bodies, moves, knees, hips, own[:, 0]):
+        # every sitter's feet rest on the floor: the lowered ones by their knees' extension, within its limit
+        assert np.all(np.abs(_feet(body)) <= FLOOR), body.name
+        assert body.vertices[:, 1].min() >= -FLOOR
+        assert (knee > 0) == (own_height > refs[0, 0] + 1e-6)
+        assert knee <= sitters_module.MAX_KNEE_EXTENSION + 1e-9
+        assert 0.0 <= hip <= sitters_module.MAX_HIP_FLEXION + 1e-9
+        assert abs(body.joints[0][0]) < 1e-9  # still centred left to right, facing +Z
+    # the legs move, the rest of the body does not change shape: the skin the legs do not move, and the hip
+    # joints, moved rigidly
+    for b0, b, move in zip(before, bodies, moves):
+        legs = [SEGMENT_INDEX[f"{side}{part}"] for side in ("Right", "Left") for part in ("UpLeg", "Leg", "Foot")]
+        rest = b.weights[:, legs].sum(axis=1) == 0.0
+        assert rest.sum() > 1000 and np.allclose(b.vertices[rest], b0.vertices[rest] + move, atol=1e-6)
+        hips = [SEGMENT_INDEX["Hips"], SEGMENT_INDEX["RightUpLeg"], SEGMENT_INDEX["LeftUpLeg"]]
+        assert np.allclose(b.joints[hips], b0.joints[hips] + move, atol=1e-6)
+    part = np.argmax(bodies[1].weights, axis=1) == SEGMENT_INDEX["RightFoot"]
+    assert bodies[1].vertices[part, 2].mean() > before[1].vertices[part, 2].mean() + 0.1  # the large man's feet forward
+    # the large man's flatter thighs are raised (his knees rise) to the small woman's at the seat's front, no higher
+    front = sitters_module.seat_front(bodies) - sitters_module.FRONT_BAND
+    band = [b.vertices[sitters_module._thigh_band(b, front), 1].min() for b in bodies]
+    assert hips[1] > np.radians(3.0) and band[1] == pytest.approx(band[0], abs=1e-3)
+
+
+def test_a_sitter_who_cannot_bring_the_feet_down_raises_the_seat(registry, monkeypatch):
+    pair = [THREE[0], THREE[1]]
+    # knees that may extend only 10 degrees: the large man comes down as far as that lets him, the small woman's feet hang
+    monkeypatch.setattr(sitters_module, "MAX_KNEE_EXTENSION", float(np.radians(10.0)))
+    before, pressures, (bodies, moves, knees, hips) = _seated(registry, pair)
+    assert knees[1] <= np.radians(10.0) + 1e-6 and knees[1] + hips[1] > 0.0 and knees[0] == hips[0] == 0.0
+    assert moves[1][1] < 0.0 and moves[0][1] > 0.1  # he came down a little, she went up most of the way
+    assert np.all(np.abs(_feet(bodies[1])) <= FLOOR)
+    assert _feet(bodies[0]).min() > 0.05  # lifted: her feet hang
+    monkeypatch.undo()
+    # feet that do not both rest on the floor (legs crossed at the knees) are not re-posed: the seat is that sitter's
+    crossed = [THREE[0], {"model": "p95-male", "pose": "crossed-legs-knees"}]
+    before, pressures, (bodies, moves, knees, hips) = _seated(registry, crossed)
+    assert knees == [0.0, 0.0] and hips == [0.0, 0.0]
+    assert moves[1][1] == 0.0 and moves[0][1] > 0.05
+    assert np.allclose(bodies[1].vertices, before[1].vertices + moves[1])
 
 
 def test_one_sitter_gives_exactly_the_single_person_design():
@@ -95,15 +154,25 @@ def test_a_chair_for_a_small_woman_a_large_man_and_a_reclined_man_holds_all_thre
     for mine, flat, row in zip(ours, base, sharing):
         assert mine["supported"]
         assert mine["max_penetration_m"] <= LIMIT and mine["max_body_depth_m"] <= LIMIT
-        assert mine["avg_distance_m"] < flat["avg_distance_m"]  # ahead of the flat patch for each sitter
         # the cost of sharing: each sitter's own design is there, within the guarantee too
         assert row["own"]["max_penetration_m"] <= LIMIT and row["own"]["max_body_depth_m"] <= LIMIT
         assert row["avg_distance_cost_m"] == pytest.approx(mine["avg_distance_m"] - row["own"]["avg_distance_m"])
+        assert mine["avg_distance_m"] < flat["avg_distance_m"]  # ahead of the flat patch for each sitter
+    # the seat sized for the shortest legs, as the standards size a fixed seat: the small woman's feet on the floor
+    # (the seat's front 88 to 100 % of her popliteal height with shoes) and its front edge clear of her knees
+    fit = result.metrics["person_fit"][0]
+    assert 0.88 <= fit["seat_height_m"] / fit["seat_height_for_shoes_m"] <= 1.0
+    assert fit["seat_depth_m"] < fit["buttock_popliteal_length_m"]
     # one seat: every sitter in the same place, the cage's faces every sitter's
     assert set(np.unique(result.control_mesh.face_person)) == {-1}
     report = json.loads((out / "report.json").read_text())
     assert [r["sitter"] for r in report["metrics"]["sharing"]] == [f"{s['model']}:{s['pose']}" for s in THREE]
-    assert min(r["seat_move_m"][1] for r in report["metrics"]["sharing"]) == 0.0  # the highest seat contact stays on the floor
+    rows = report["metrics"]["sharing"]
+    assert max(r["seat_move_m"][1] for r in rows) == 0.0  # the lowest seat contact stays where it was: the small woman's feet reach the floor
+    assert [r["knee_extension_deg"] > 0 for r in rows] == [False, True, True]  # the others come down with their legs stretched forward
+    assert [r["hip_flexion_deg"] > 0 for r in rows] == [False, True, True]  # and their knees raised to her thighs at the front
+    for body in result.bodies:  # every sitter's feet on the floor
+        assert np.all(np.abs(_feet(body)) <= FLOOR), body.name
     page = (out / "report.html").read_text()
     assert "own design" in page
     for s in THREE:
@@ -216,11 +285,12 @@ def test_a_sitter_lifted_off_the_floor_hangs_the_feet_and_the_seat_carries_the_w
     from seatkit.constants import GRAVITY
     from seatkit.pipeline import _seat_sitters
 
-    recipe = check_recipe(load_recipe({"template": "chair", "sitters": THREE[:2]})[0], registry)
+    # a large man with his legs crossed (one foot in the air) cannot come down to the small woman's seat: she goes up to his
+    recipe = check_recipe(load_recipe({"template": "chair", "sitters": [THREE[0], {"model": "p95-male", "pose": "crossed-legs-knees"}]})[0], registry)
     bodies, _ = place_bodies(recipe, registry)
     first = solve_importance(recipe, bodies, registry)
     seated, pressures, moves = _seat_sitters(recipe, bodies, first, registry)
-    assert moves[1][1] == 0.0 and moves[0][1] > 0.1
+    assert moves[1][0][1] == 0.0 and moves[0][0][1] > 0.1 and moves[0][1] == moves[1][1] == 0.0
     woman, man = 0, 1
     lift = seated[woman].vertices[:, 1] - bodies[woman].vertices[:, 1]
     assert lift.min() > 0.1  # the small woman sits on the large man's seat height
@@ -229,4 +299,35 @@ def test_a_sitter_lifted_off_the_floor_hangs_the_feet_and_the_seat_carries_the_w
     assert np.abs(pressures[woman].force[on_floor]).max() == 0.0  # nothing under the hanging feet
     # the rest of her body still holds all her weight
     assert pressures[woman].force[:, 1].sum() == pytest.approx(bodies[woman].mass * GRAVITY, rel=1e-3)
-    assert pressures[man] is first[man]  # the highest seat contact is not lifted: his first solve stands
+    # the highest seat contact is not lifted; his thighs reach past the seat's front (her knees) and carry nothing there
+    ahead = np.isin(np.argmax(seated[man].weights, axis=1), sitters_module._LEG_SEGMENTS) & (seated[man].vertices[:, 2] > sitters_module.seat_front(seated))
+    assert ahead.sum() > 100 and np.abs(pressures[man].force[ahead]).max() == 0.0
+    assert pressures[man].force[:, 1].sum() == pytest.approx(bodies[man].mass * GRAVITY, rel=1e-3)
+
+
+def test_a_lowered_sitters_importance_is_solved_on_the_new_pose_with_the_feet_on_the_floor(registry):
+    from seatkit.constants import GRAVITY
+    from seatkit.pipeline import _seat_sitters
+
+    recipe = check_recipe(load_recipe({"template": "chair", "sitters": THREE[:2]})[0], registry)
+    bodies, _ = place_bodies(recipe, registry)
+    first = solve_importance(recipe, bodies, registry)
+    seated, pressures, moves = _seat_sitters(recipe, bodies, first, registry)
+    woman, man = 0, 1
+    assert moves[woman][0][1] == 0.0 and moves[woman][1] == moves[woman][2] == 0.0  # the lowest seat: she is not moved nor re-posed
+    assert moves[man][0][1] < -0.1 and moves[man][1] > 0.0
+    feet = np.isin(np.argmax(seated[man].weights, axis=1), [SEGMENT_INDEX["RightFoot"], SEGMENT_INDEX["LeftFoot"]])
+    # the feet still carry some of his weight, on the floor where they now rest, and all of it is carried
+    assert pressures[man].force[feet, 1].sum() > 0.01 * bodies[man].mass * GRAVITY
+    assert pressures[man].force[:, 1].sum() == pytest.approx(bodies[man].mass * GRAVITY, rel=1e-3)
+    assert not np.array_equal(pressures[man].importance, first[man].importance)
+    # the legs ahead of the seat's front (her knees) carry nothing: the seat ends there; his thighs reach past it
+    front = sitters_module.seat_front(seated)
+    for who in (woman, man):
+        legs = np.isin(np.argmax(seated[who].weights, axis=1), sitters_module._LEG_SEGMENTS)
+        ahead = legs & (seated[who].vertices[:, 2] > front)
+        assert np.abs(pressures[who].force[ahead]).max() == 0.0
+        assert pressures[who].force[legs & ~ahead, 1].sum() > 0.0
+        assert pressures[who].force[:, 1].sum() == pytest.approx(bodies[who].mass * GRAVITY, rel=1e-3)
+    thighs = np.isin(np.argmax(seated[man].weights, axis=1), sitters_module._THIGHS)
+    assert (thighs & (seated[man].vertices[:, 2] > front)).sum() > 100

@@ -126,3 +126,49 @@ def test_the_posed_points_the_placement_measures_are_those_of_a_fresh_pose(regis
     theta = np.array([0.01, 0.02, -0.01, 0.1, 0.15, -0.1, 0.05, 0.08])
     whole = poser.points(theta, poser.subset(np.arange(n)))
     np.testing.assert_allclose(whole, poser.body(theta).vertices[:n], atol=1e-6)
+
+
+@pytest.fixture(scope="module")
+def small_design(tmp_path_factory):
+    """A p5-female upright chair: a seat lower than most people's own."""
+    from seatkit import build
+
+    out = tmp_path_factory.mktemp("design") / "p5f"
+    build({
+        "template": "chair", "bodies": [{"model": "p5-female", "pose": "upright-sitting"}], "output": str(out),
+        "exporters": ["design", "report-json"], "evaluate": {"baseline": None},
+    }, processes=False)
+    return out
+
+
+def test_a_person_whose_own_seat_is_higher_comes_down_onto_the_seat_with_the_feet_on_the_floor(small_design, registry):
+    from seatkit.body import load_pose
+    from seatkit.constants import GRAVITY
+    from seatkit.skeleton import SEGMENT_INDEX as S
+    from seatkit.trial import _Poser, load_trial_design, run_trial
+
+    design = load_trial_design(small_design)
+    model = registry.get("body_model", "p50-male")
+    rig = model.make_body(params={})
+    posed = _Poser(model, rig, load_pose("upright-sitting", rig=rig, dirs=registry.pose_dirs)).body0
+
+    def pelvis_bottom(body):
+        return body.vertices[np.argmax(body.weights, axis=1) == S["Hips"], 1].min()
+
+    # posed as a build poses him (feet on the floor), his pelvis is 8 to 12 cm above this seat's sitter's
+    assert 0.08 <= pelvis_bottom(posed) - pelvis_bottom(design.bodies[0]) <= 0.12
+    person = run_trial(design, registry, "p50-male", {}, "upright-sitting")
+    m = person.metrics
+    assert m["supported"]
+    assert m["max_penetration_m"] <= 0.005 and m["max_body_depth_m"] <= 0.005  # nothing cut
+    part = np.argmax(person.body.weights, axis=1)
+    # he came down onto the seat (more than 5 cm; a wider pelvis rests higher in a seat shaped for a narrower one)
+    # and the seat carries him on his pelvis and thighs
+    assert pelvis_bottom(person.body) < pelvis_bottom(posed) - 0.05
+    seated = np.isin(part, [S["Hips"], S["RightUpLeg"], S["LeftUpLeg"]])
+    assert person.field.force[seated, 1].sum() > 0.5 * person.body.mass * GRAVITY
+    # his feet stay on the floor (the lower legs forward), they neither hang nor go through it
+    for side in ("Right", "Left"):
+        foot = person.body.vertices[part == S[f"{side}Foot"], 1]
+        assert -0.002 <= foot.min() <= design.support_distance
+    assert person.fit["seat_height_difference_m"] < -0.05  # a seat lower than his popliteal height with shoes
