@@ -4,8 +4,8 @@ Poses a draw of ``seatkit.body.generator`` (draw seed 2026, as the
 generalisation benchmark), runs the stages of a build up to the design
 search (``seatkit.search``) and draws, side by side, the first rejected
 candidate's fitted surface and the design the search accepted, each with
-the body: orange where the limit surface lies more than ``--limit`` (5 mm)
-inside the body, red where a body vertex lies more than 5 mm inside the
+the body: an orange dot where the limit surface lies more than ``--limit`` (5 mm)
+inside the body, a red dot where a body vertex lies more than 5 mm inside the
 furniture (the solid the surface closes with the floor). The title of each
 panel gives the candidate's origin, its template start and the two depths.
 Prints every candidate's verdict, in order.
@@ -29,6 +29,8 @@ import numpy as np
 BODY, SURFACE, SURFACE_DEEP, BODY_DEEP = (0.86, 0.72, 0.60), (0.55, 0.62, 0.72), (1.0, 0.55, 0.0), (0.85, 0.05, 0.05)
 #: Opacities: both translucent, so that a spot of one inside the other shows through.
 BODY_ALPHA, SURFACE_ALPHA = 0.7, 0.6
+#: Radius of the dots on the spots over the limit, pixels.
+DOT = 2.5
 
 
 def drawn_recipe(family: str, index: int, body: str, seed: int, draw_seed: int, folder: Path) -> dict:
@@ -87,22 +89,29 @@ def deep_spots(surface, bodies, limit: float) -> tuple[np.ndarray, list[np.ndarr
 
 
 def panel(surface, bodies, frame, limit: float):
-    """One view: the body and the limit surface, the spots over ``limit`` coloured."""
+    """One view: the body and the limit surface, translucent, and a dot on every spot over ``limit`` (drawn on top: they are inside)."""
+    from PIL import ImageDraw
+
     from seatkit import picture as pic
     from seatkit.geometry.normals import vertex_normals
 
     in_body, in_surface = deep_spots(surface, bodies, limit)
     layers = []
-    for b, deep in zip(bodies, in_surface):
-        colours = np.where(deep[:, None], BODY_DEEP, BODY)
+    for b in bodies:
         r = pic.rasterize(frame, b.vertices, b.faces)
-        layers.append((r, r.shade(pic.light_vertices(colours, vertex_normals(b.vertices, b.faces), frame.rotation)), BODY_ALPHA))
+        layers.append((r, r.shade(pic.light_vertices(np.broadcast_to(BODY, b.vertices.shape), vertex_normals(b.vertices, b.faces), frame.rotation)), BODY_ALPHA))
     quads = np.asarray(surface.faces)
     tris = np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
-    colours = np.where(in_body[:, None], SURFACE_DEEP, SURFACE)
     r = pic.rasterize(frame, surface.vertices, tris)
-    layers.append((r, r.shade(pic.light_vertices(colours, np.asarray(surface.normals), frame.rotation)), SURFACE_ALPHA))
-    return pic.to_pil(pic.composite(pic.BACKGROUND, layers))
+    layers.append((r, r.shade(pic.light_vertices(np.broadcast_to(SURFACE, surface.vertices.shape), np.asarray(surface.normals), frame.rotation)), SURFACE_ALPHA))
+    image = pic.to_pil(pic.composite(pic.BACKGROUND, layers))
+    draw = ImageDraw.Draw(image)
+    spots = [(surface.vertices[in_body], SURFACE_DEEP)] + [(b.vertices[deep], BODY_DEEP) for b, deep in zip(bodies, in_surface)]
+    for points, colour in spots:
+        rgb = tuple(int(round(255 * c)) for c in colour)
+        for x, y in frame.project(points)[0]:
+            draw.ellipse((x - DOT, y - DOT, x + DOT, y + DOT), fill=rgb)
+    return image
 
 
 def main() -> None:
