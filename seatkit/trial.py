@@ -51,7 +51,9 @@ offset in the pose as given. The weights are :data:`WEIGHTS`.
 
 The start is the vertical lift (over +-:data:`LIFT_RANGE`, in steps of 4
 :data:`LIFT_STEP`, then within 2 of the best) with the least objective
-(measured on every :data:`LIFT_STRIDE`-th vertex); then each round takes correspondences on the whole posed body and
+(measured on every :data:`LIFT_STRIDE`-th vertex; a start is measured only when a lower bound of its
+objective, its floor, feet and seat terms and its penetration term on a quarter of those vertices, does
+not exceed the least so far, so the start chosen is the one measuring every start would choose); then each round takes correspondences on the whole posed body and
 measures offsets from the planes of the closest points (point-to-plane, as
 in ICP), each unknown moving at most :data:`TRUST` per round, for at most
 :data:`ROUNDS` rounds; the round with the least objective (correspondences
@@ -155,6 +157,8 @@ BOUNDS = (
 ANGLES = ("heading", "hip_flexion", "knee_flexion", "ankle_dorsiflexion", "back_recline")
 
 _LEGS = ("Right", "Left")
+#: The segments the joint changes turn (:meth:`_Poser.pose`): each leg's thigh, shin and foot, then the lumbar joint.
+_TURNED = tuple(f"{side}{seg}" for side in _LEGS for seg in ("UpLeg", "Leg", "Foot")) + ("Spine",)
 
 
 @dataclass
@@ -217,12 +221,6 @@ class Placement:
         }
 
 
-def _rot_x(angle: float) -> "Any":
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_rotvec([angle, 0.0, 0.0])
-
-
 class _Poser:
     """The body at ``theta``: the canonical pose with the joint changes, moved rigidly.
 
@@ -245,6 +243,7 @@ class _Poser:
         self.feet = [np.flatnonzero(np.argmax(rig.weights, axis=1) == S[f"{side}Foot"]) for side in _LEGS]
         self._skinned: dict = {}  # (subset, joint changes) -> skinned vertices (:meth:`turned`)
         self._foot_subsets: tuple | None = None
+        self._turned = None  # the pose's rotations of the segments :meth:`pose` turns
 
     def foot_heights(self, knee: float, hip: float = 0.0) -> np.ndarray:
         """(2,) the lowest vertex height of each foot with both knees extended by ``knee`` and the hips flexed by ``hip`` (rad), m.
@@ -302,13 +301,13 @@ class _Poser:
         from scipy.spatial.transform import Rotation
 
         hip, knee, ankle, back = theta[4:]
+        turns = np.zeros((len(_TURNED), 3))  # about the body's left-right axis, in the order of _TURNED
+        turns[:, 0] = [-hip, knee, hip - knee - ankle] * len(_LEGS) + [-back]
+        idx = [S[seg] for seg in _TURNED]
         rot = np.array(self.pose0.rotations)
-        for side in _LEGS:
-            for seg, angle in ((f"{side}UpLeg", -hip), (f"{side}Leg", knee), (f"{side}Foot", hip - knee - ankle)):
-                i = S[seg]
-                rot[i] = (_rot_x(angle) * Rotation.from_rotvec(rot[i])).as_rotvec()
-        i = S["Spine"]
-        rot[i] = (_rot_x(-back) * Rotation.from_rotvec(rot[i])).as_rotvec()
+        if self._turned is None:
+            self._turned = Rotation.from_rotvec(rot[idx])
+        rot[idx] = (Rotation.from_rotvec(turns) * self._turned).as_rotvec()
         return Pose(rot, np.zeros(3), self.pose0.name)
 
     def _moved(self, points: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -525,28 +524,35 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
         return theta
 
     # a start is measured only when it can be the best so far: the objective is a sum of squares, so the
-    # terms of some of its residuals bound it from below (:func:`bound`)
-    sparse = poser.subset(np.arange(0, len(body0.vertices), BOUND_STRIDE))
+    # terms of some of its residuals bound it from below (``exceeds``)
+    # every BOUND_STRIDE-th vertex and every BOUND_STRIDE / LIFT_STRIDE-th supported one: as many of the start's
+    # vertices (every LIFT_STRIDE-th and every supported one) as that share of them, near the surface too
+    ratio = BOUND_STRIDE // LIFT_STRIDE
+    sparse = poser.subset(np.union1d(np.arange(0, len(body0.vertices), BOUND_STRIDE), support[::ratio]))
     feet_subset = poser.subset(feet)
 
-    def bound(theta):
-        """A lower bound of ``exact(theta, thin=True)``: its floor, feet and seat terms, and its penetration
-        term over every :data:`BOUND_STRIDE`-th vertex (not when the start's near vertices may be thinned,
-        which would make that term no bound)."""
+    def exceeds(theta, best: float) -> bool:
+        """Whether a lower bound of ``exact(theta, thin=True)`` exceeds ``best``: its floor, feet and seat terms,
+        then its penetration term over a share of its vertices (not when the start's near vertices
+        may be thinned, which would make that term no bound)."""
         from seatkit.geometry.surface import inside_furniture
 
         y = poser.points(theta, feet_subset)[:, 1]
         lower = k["floor"] * np.sum(np.minimum(0.0, y) ** 2) + k["seat"] * (theta[0] ** 2 + theta[2] ** 2)
         lower += k["feet"] * np.sum((np.array([np.sort(y[:n_feet])[:SOLE].mean(), np.sort(y[n_feet:])[:SOLE].mean()]) - sole) ** 2)
+        if lower > best:
+            return True
         v = poser.points(theta, sparse)
         d, side, _ = q.closest_normals(v, within=NEAR)
         side = np.nan_to_num(side)
         along = np.isfinite(d) & (np.abs(side) >= ALONG_NORMAL * d) & (d <= NEAR)
-        if np.count_nonzero(along) * BOUND_STRIDE > MAX_NEAR * LIFT_STRIDE // 2:
-            return lower
+        if np.count_nonzero(along) * ratio > MAX_NEAR * 3 // 4:  # the start's near vertices might be thinned
+            return False
         deep = np.flatnonzero(along & (-side - GUARANTEE_SLACK > 0.0))
-        deep = deep[inside_furniture(design.surface, v[deep])] if deep.size else deep
-        return lower + LIFT_STRIDE * k["penetration"] * np.sum((-side[deep] - GUARANTEE_SLACK) ** 2)
+        depth = lambda i: LIFT_STRIDE * k["penetration"] * np.sum((-side[i] - GUARANTEE_SLACK) ** 2)  # noqa: E731
+        if lower + depth(deep) <= best:  # not even if every point behind the surface were inside the furniture
+            return False
+        return lower + depth(deep[inside_furniture(design.surface, v[deep])]) > best
 
     def lift(h, z):
         for legs in (None, *range(len(rises))) if h < 0.0 else (None,):
@@ -555,7 +561,7 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
                 continue
             theta = lifted(*key)
             ref[:] = theta[3:]
-            if tried and bound(theta) > min(tried.values()):
+            if tried and exceeds(theta, min(tried.values())):
                 tried[key] = np.inf  # it cannot be the least
             else:
                 tried[key] = exact(theta, thin=True)[0]
