@@ -51,7 +51,9 @@ offset in the pose as given. The weights are :data:`WEIGHTS`.
 
 The start is the vertical lift (over +-:data:`LIFT_RANGE`, in steps of 4
 :data:`LIFT_STEP`, then within 2 of the best) with the least objective
-(measured on every :data:`LIFT_STRIDE`-th vertex); then each round takes correspondences on the whole posed body and
+(measured on every :data:`LIFT_STRIDE`-th vertex; a start is measured only when a lower bound of its
+objective, its floor, feet and seat terms and its penetration term on a quarter of those vertices, does
+not exceed the least so far, so the start chosen is the one measuring every start would choose); then each round takes correspondences on the whole posed body and
 measures offsets from the planes of the closest points (point-to-plane, as
 in ICP), each unknown moving at most :data:`TRUST` per round, for at most
 :data:`ROUNDS` rounds; the round with the least objective (correspondences
@@ -134,6 +136,8 @@ MAX_NEAR = 1200
 LIFT_RANGE = 0.16
 LIFT_STEP = 0.01
 LIFT_STRIDE = 4
+#: A start is first bounded from below on every BOUND_STRIDE-th vertex (a multiple of LIFT_STRIDE).
+BOUND_STRIDE = 16
 #: ... and the start's move forward or back over +-DEPTH_RANGE in DEPTH_STEP steps, m.
 DEPTH_RANGE = 0.09
 DEPTH_STEP = 0.03
@@ -153,6 +157,8 @@ BOUNDS = (
 ANGLES = ("heading", "hip_flexion", "knee_flexion", "ankle_dorsiflexion", "back_recline")
 
 _LEGS = ("Right", "Left")
+#: The segments the joint changes turn (:meth:`_Poser.pose`): each leg's thigh, shin and foot, then the lumbar joint.
+_TURNED = tuple(f"{side}{seg}" for side in _LEGS for seg in ("UpLeg", "Leg", "Foot")) + ("Spine",)
 
 
 @dataclass
@@ -215,12 +221,6 @@ class Placement:
         }
 
 
-def _rot_x(angle: float) -> "Any":
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_rotvec([angle, 0.0, 0.0])
-
-
 class _Poser:
     """The body at ``theta``: the canonical pose with the joint changes, moved rigidly.
 
@@ -242,7 +242,8 @@ class _Poser:
         self.offset = self.body0.vertices[0] - raw.vertices[0]  # grounding and centring of the build
         self.feet = [np.flatnonzero(np.argmax(rig.weights, axis=1) == S[f"{side}Foot"]) for side in _LEGS]
         self._skinned: dict = {}  # (subset, joint changes) -> skinned vertices (:meth:`turned`)
-        self._foot_subsets: list | None = None
+        self._foot_subsets: tuple | None = None
+        self._turned = None  # the pose's rotations of the segments :meth:`pose` turns
 
     def foot_heights(self, knee: float, hip: float = 0.0) -> np.ndarray:
         """(2,) the lowest vertex height of each foot with both knees extended by ``knee`` and the hips flexed by ``hip`` (rad), m.
@@ -251,11 +252,12 @@ class _Poser:
         its hip flexion by ``hip`` (the knees rise); :meth:`pose` turns each
         foot back by both, so the soles keep their tilt.
         """
-        if self._foot_subsets is None:
-            self._foot_subsets = [self.subset(f) for f in self.feet]
+        if self._foot_subsets is None:  # both feet skinned at once
+            self._foot_subsets = self.subset(np.concatenate(self.feet))
         theta = np.zeros(8)
         theta[4], theta[5] = hip, -knee
-        return np.array([self.points(theta, sub)[:, 1].min() for sub in self._foot_subsets])
+        y = self.points(theta, self._foot_subsets)[:, 1]
+        return np.array([y[: len(self.feet[0])].min(), y[len(self.feet[0]) :].min()])
 
     def knee_rises(self, floor_distance: float, most: float = MAX_KNEE_EXTENSION, hip: float = 0.0) -> tuple[np.ndarray, np.ndarray] | None:
         """Knee extensions from 0 to ``most`` (rad, :data:`KNEE_STEPS`) and how far each lifts the lower foot (m), the hips flexed by ``hip``.
@@ -299,13 +301,13 @@ class _Poser:
         from scipy.spatial.transform import Rotation
 
         hip, knee, ankle, back = theta[4:]
+        turns = np.zeros((len(_TURNED), 3))  # about the body's left-right axis, in the order of _TURNED
+        turns[:, 0] = [-hip, knee, hip - knee - ankle] * len(_LEGS) + [-back]
+        idx = [S[seg] for seg in _TURNED]
         rot = np.array(self.pose0.rotations)
-        for side in _LEGS:
-            for seg, angle in ((f"{side}UpLeg", -hip), (f"{side}Leg", knee), (f"{side}Foot", hip - knee - ankle)):
-                i = S[seg]
-                rot[i] = (_rot_x(angle) * Rotation.from_rotvec(rot[i])).as_rotvec()
-        i = S["Spine"]
-        rot[i] = (_rot_x(-back) * Rotation.from_rotvec(rot[i])).as_rotvec()
+        if self._turned is None:
+            self._turned = Rotation.from_rotvec(rot[idx])
+        rot[idx] = (Rotation.from_rotvec(turns) * self._turned).as_rotvec()
         return Pose(rot, np.zeros(3), self.pose0.name)
 
     def _moved(self, points: np.ndarray, theta: np.ndarray) -> np.ndarray:
@@ -410,8 +412,9 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
     # on a seat lower than their own, a person comes down with the knees extended so that the feet stay on the
     # floor, and the knees raised where the seat's front meets the thighs (none when the feet do not both rest
     # on the floor): each raise's knee extension for a drop
-    resting = poser.knee_rises(design.support_distance) is not None
-    rises = [poser.knee_rises(design.support_distance, hip=a) for a in HIP_STARTS] if resting else []
+    rises = [poser.knee_rises(design.support_distance, hip=a) for a in HIP_STARTS]
+    if rises[0] is None:  # the feet do not rest on the floor (the same for every raise)
+        rises = []
     ref = np.zeros(5)  # the posture the joint changes are counted from: the start's
 
     def legs_for(drop: float, i: int) -> tuple[float, float]:
@@ -520,12 +523,48 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
             theta[4], theta[5] = legs_for(-h, legs)
         return theta
 
+    # a start is measured only when it can be the best so far: the objective is a sum of squares, so the
+    # terms of some of its residuals bound it from below (``exceeds``)
+    # every BOUND_STRIDE-th vertex and every BOUND_STRIDE / LIFT_STRIDE-th supported one: as many of the start's
+    # vertices (every LIFT_STRIDE-th and every supported one) as that share of them, near the surface too
+    ratio = BOUND_STRIDE // LIFT_STRIDE
+    sparse = poser.subset(np.union1d(np.arange(0, len(body0.vertices), BOUND_STRIDE), support[::ratio]))
+    feet_subset = poser.subset(feet)
+
+    def exceeds(theta, best: float) -> bool:
+        """Whether a lower bound of ``exact(theta, thin=True)`` exceeds ``best``: its floor, feet and seat terms,
+        then its penetration term over a share of its vertices (not when the start's near vertices
+        may be thinned, which would make that term no bound)."""
+        from seatkit.geometry.surface import inside_furniture
+
+        y = poser.points(theta, feet_subset)[:, 1]
+        lower = k["floor"] * np.sum(np.minimum(0.0, y) ** 2) + k["seat"] * (theta[0] ** 2 + theta[2] ** 2)
+        lower += k["feet"] * np.sum((np.array([np.sort(y[:n_feet])[:SOLE].mean(), np.sort(y[n_feet:])[:SOLE].mean()]) - sole) ** 2)
+        if lower > best:
+            return True
+        v = poser.points(theta, sparse)
+        d, side, _ = q.closest_normals(v, within=NEAR)
+        side = np.nan_to_num(side)
+        along = np.isfinite(d) & (np.abs(side) >= ALONG_NORMAL * d) & (d <= NEAR)
+        if np.count_nonzero(along) * ratio > MAX_NEAR * 3 // 4:  # the start's near vertices might be thinned
+            return False
+        deep = np.flatnonzero(along & (-side - GUARANTEE_SLACK > 0.0))
+        depth = lambda i: LIFT_STRIDE * k["penetration"] * np.sum((-side[i] - GUARANTEE_SLACK) ** 2)  # noqa: E731
+        if lower + depth(deep) <= best:  # not even if every point behind the surface were inside the furniture
+            return False
+        return lower + depth(deep[inside_furniture(design.surface, v[deep])]) > best
+
     def lift(h, z):
         for legs in (None, *range(len(rises))) if h < 0.0 else (None,):
             key = (round(float(h), 6), round(float(z), 6), legs)
+            if key in tried:
+                continue
             theta = lifted(*key)
             ref[:] = theta[3:]
-            tried.setdefault(key, exact(theta, thin=True)[0])
+            if tried and exceeds(theta, min(tried.values())):
+                tried[key] = np.inf  # it cannot be the least
+            else:
+                tried[key] = exact(theta, thin=True)[0]
 
     tried: dict = {}
     for z in (0.0, *np.arange(-DEPTH_RANGE, DEPTH_RANGE + 1e-9, DEPTH_STEP)):
@@ -541,7 +580,7 @@ def place(design: TrialDesign, model, rig, pose: Pose, *, seat: int = 0, importa
     theta = lifted(*min(tried, key=tried.get))
     ref[:] = theta[3:]
     best, best_cost = theta, exact(theta)[0]
-    evaluations = len(tried)
+    evaluations = int(np.count_nonzero(np.isfinite(list(tried.values()))))
     scale = np.array([0.01, 0.01, 0.01, 0.05, 0.05, 0.05, 0.05, 0.05])
     for _ in range(ROUNDS):
         c = correspondences(theta)
