@@ -322,7 +322,14 @@ def dask_client(scheduler: str | None = None, workers: int | None = None):
         client = Client(scheduler)
     else:
         n = workers or os.cpu_count() or 1
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
+        import dask
+
+        # Dask's nanny sets MALLOC_TRIM_THRESHOLD_ in its workers; setting it
+        # turns off glibc's dynamic mmap threshold, so every numpy array
+        # over 128 KiB is mapped and unmapped again, and the page faults
+        # took a third of a trial's CPU (system time). Left unset here.
+        with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None)
         client = Client(cluster)
     try:
         yield client
