@@ -747,7 +747,7 @@ def _design_seed(tmp: Path) -> bytes:
 
 
 def _design_target(tmp: Path) -> Target:
-    from seatkit.commands.evaluate import load_checked_design
+    from seatkit.designs import load_checked_design
     from seatkit.export.meshes import MAX_CAGE_COORDINATE
 
     def check(result):

@@ -306,7 +306,7 @@ def _normalise(data: Mapping[str, Any], base_dir: Path | None) -> dict:
         if not isinstance(sitters, Mapping):
             people = sitters
         elif "population" in sitters:  # a population's boundary manikins (seatkit.sitters)
-            from seatkit.sitters import expand_population
+            from seatkit.manikins import expand_population
 
             spec = {k: v for k, v in sitters.items() if k != "shared"}
             recipe["sitters"].update(copy.deepcopy(spec))

@@ -98,6 +98,7 @@ import numpy as np
 
 from seatkit import trial as _trial
 from seatkit.errors import RecipeError
+from seatkit.manikins import POPULATIONS, SEXES, expand_population  # noqa: F401  (re-exported: the recipe key is documented here)
 from seatkit.metrics import TABLE
 from seatkit.model import Body, ControlMesh, PressureField
 from seatkit.skeleton import SEGMENT_INDEX
@@ -118,14 +119,6 @@ __all__ = [
     "sharing_metrics",
 ]
 
-#: Populations whose boundary manikins are preset bodies: name -> (preset name pattern, percentiles, sexes).
-POPULATIONS: dict[str, dict] = {
-    "ansur-ii": {"pattern": "p{percentile}-{sex}", "percentiles": (5, 50, 95), "sexes": ("female", "male")},
-}
-
-#: How a recipe may name a sex: the short and the long form.
-SEXES = {"f": "female", "female": "female", "m": "male", "male": "male"}
-
 #: The figures of each sitter that ``metrics.sharing`` puts side by side: the report's Table 1 and checks, and whether the design holds the sitter.
 SHARING_FIGURES = tuple(m.key for m in TABLE) + ("supported",)
 
@@ -143,45 +136,6 @@ MAX_KNEE_EXTENSION = _trial.MAX_KNEE_EXTENSION
 MAX_HIP_FLEXION = float(np.radians(20.0))
 #: The seat's front carries the thighs this far behind the shortest sitter's knee joints, m.
 FRONT_BAND = 0.04
-
-
-def expand_population(spec: Mapping[str, Any], default_pose: str = "upright-sitting") -> list[dict]:
-    """The recipe body entries of a ``sitters: {population: ...}`` mapping, in sex then percentile order.
-
-    Parameters
-    ----------
-    spec : mapping
-        ``population`` (a key of :data:`POPULATIONS`), ``percentiles``
-        (a subset of the population's), ``sexes`` (``f``/``m`` or
-        ``female``/``male``), ``pose`` (default ``default_pose``) and
-        ``frame``.
-
-    Raises
-    ------
-    RecipeError
-        ``sitters.KEY: ...`` naming what was expected.
-    """
-    name = spec.get("population")
-    if name not in POPULATIONS:
-        raise RecipeError(f"sitters.population: expected one of {', '.join(POPULATIONS)}, got {name!r}")
-    pop = POPULATIONS[name]
-    percentiles = list(spec.get("percentiles", pop["percentiles"]))
-    for k, q in enumerate(percentiles):
-        if isinstance(q, bool) or q not in pop["percentiles"]:
-            raise RecipeError(f"sitters.percentiles[{k}]: {name} has the percentiles {', '.join(map(str, pop['percentiles']))}, got {q!r}")
-    sexes = []
-    for k, s in enumerate(spec.get("sexes", pop["sexes"])):
-        if s not in SEXES:
-            raise RecipeError(f"sitters.sexes[{k}]: expected one of f, m, female, male, got {s!r}")
-        sexes.append(SEXES[s])
-    if not percentiles or not sexes:
-        raise RecipeError("sitters: a population needs at least one percentile and one sex")
-    pose = spec.get("pose", default_pose)
-    out = []
-    for sex in dict.fromkeys(sexes):
-        for q in dict.fromkeys(percentiles):
-            out.append({"model": pop["pattern"].format(percentile=q, sex=sex), "params": {}, "pose": pose, "frame": int(spec.get("frame", 0))})
-    return out
 
 
 def seat_reference(body: Body, pressure: PressureField) -> np.ndarray:

@@ -201,7 +201,7 @@ def load_design(path) -> tuple[dict, list[Body], ControlMesh, ControlMesh | None
         checked (shapes, types, finite values, indices in range, bodies of
         0.3 to 3 m with their joints in them, cages Catmull-Clark can
         refine) before any work. The recipe is a mapping: ``seatkit
-        evaluate`` checks it (:func:`seatkit.commands.evaluate.load_checked_design`).
+        evaluate`` checks it (:func:`seatkit.designs.load_checked_design`).
     """
     from seatkit.io import load_npz
 

@@ -186,7 +186,7 @@ def load_trial_design(directory) -> TrialDesign:
     InputError
         One line when the folder or its design is missing or not a design.
     """
-    from seatkit.commands.evaluate import load_checked_design
+    from seatkit.designs import load_checked_design
     from seatkit.evaluate import design_segments
     from seatkit.geometry.surface import SurfaceQuery
     from seatkit.subdivision import limit_surface

@@ -301,7 +301,7 @@ def test_a_raised_calf_under_the_seats_front_edge_is_repaired_not_refused(rigs, 
         mesh = chair.fit([b], [p], seed=seed)
         repairs = mesh.meta["repairs"]
         assert repairs and all("thigh.left" in r["faces"] for r in repairs)
-        assert 0.0 < max(r["max_move"] for r in repairs) <= 0.3
+        assert 0.0 < max(r["max_move"] for r in repairs) <= 0.3 + 1e-9  # the option's cap, up to the rounding of its sum
     if index != 38:  # crossed-legs-038 needs the armrests dropped too
         assert mesh.meta["fit_attempts"]["attempt"] == 1 and "dropped_steps" not in mesh.meta
     if index == 188:

@@ -7,6 +7,7 @@ import os
 import pickle
 import re
 import signal
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -468,10 +469,16 @@ def test_a_worker_is_a_fork_of_the_build_only_while_no_other_thread_runs():
     def parent_of(pid):
         return _processes()[pid][0]
 
-    with Helper("alone") as work:
-        pid = work.pid()
-        assert parent_of(pid) == os.getpid()
-        assert work.result(work.submit(_square_pid, 3.0))[0] == 9.0
+    # alone: in a fresh interpreter (this test process may run other tests' threads)
+    alone = (
+        "import os\n"
+        "from seatkit.workers import Helper\n"
+        "with Helper('alone') as work:\n"
+        "    print(work.result(work.submit(os.getppid)) == os.getpid(), work.result(work.submit(pow, 3, 2)))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", alone], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["True", "9"]
     stop = threading.Event()
     other = threading.Thread(target=stop.wait, daemon=True)
     other.start()
