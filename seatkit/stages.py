@@ -118,13 +118,12 @@ def _seat_option(recipe: Mapping, registry, key: str):
 
 def seated_at_height(recipe: Mapping, bodies: list[Body], registry) -> list[Body]:
     """``bodies`` lifted to the seat height the template's ``seat`` step sets, if it sets one (:mod:`seatkit.template.seat`)."""
-    template = registry.get("template", recipe["template"])
-    options = template.step_options("seat", recipe.get("template_params")) if hasattr(template, "step_options") else None
-    if not options or options.get("height") is None:
+    height = _seat_option(recipe, registry, "height")
+    if height is None:
         return bodies
     from seatkit.template.seat import seat_bodies
 
-    return seat_bodies(bodies, options["height"])
+    return seat_bodies(bodies, height)
 
 
 def _placed(recipe: Mapping, bodies: list[Body]) -> list[Body]:
@@ -191,22 +190,19 @@ def solve_importance(recipe: Mapping, bodies, registry) -> list:
     solver = registry.get("pressure_solver", p["solver"])
     contacts = seat_contacts(recipe, bodies, registry)
     return [
-        solver.solve(body, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
-        if contact is None
-        else solver.solve(body, contact=contact, lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
+        solver.solve(body, **({} if contact is None else {"contact": contact}), lam=p["lambda"], mu=p["mu"], exclude=p.get("exclude"), options=p.get("options") or {})
         for body, contact in zip(bodies, contacts)
     ]
 
 
 def seat_contacts(recipe: Mapping, bodies, registry) -> list:
     """Per body, the vertices the seat the template's ``seat`` step sets may carry (None: every vertex); a shorter seat leaves the thigh ahead of its front edge out (:func:`seatkit.template.seat.seat_contact`)."""
-    template = registry.get("template", recipe["template"])
-    options = template.step_options("seat", recipe.get("template_params")) if hasattr(template, "step_options") else None
-    if not options or options.get("depth") is None:
+    depth = _seat_option(recipe, registry, "depth")
+    if depth is None:
         return [None] * len(bodies)
     from seatkit.template.seat import seat_contact
 
-    return seat_contact(bodies, float(options["depth"]))
+    return seat_contact(bodies, float(depth))
 
 
 def refine(mesh, refiners, bodies, pressures, timer: StageTimer | None = None):
