@@ -36,14 +36,17 @@ def main() -> None:
     log: list = []
     attempt = engine.YamlTemplate._attempt
 
-    def logged(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset(), last_resort=False):
+    def logged(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset(), last_resort=False, **kw):
         start = time.process_time()
         try:
-            out = attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort)
+            out = attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort, **kw)
         except UnsupportedPoseError as e:
             log.append({"last_resort": last_resort, "valid": False, "reason": str(e), "cpu_s": time.process_time() - start})
             raise
-        log.append({"last_resort": last_resort, "valid": True, "cpu_s": time.process_time() - start})
+        if out is None:  # the same fit as a refused start of its stream, stopped after the optional step it drops
+            log.append({"last_resort": last_resort, "valid": False, "reason": "alike: the same fit as a refused start", "cpu_s": time.process_time() - start})
+        else:
+            log.append({"last_resort": last_resort, "valid": True, "cpu_s": time.process_time() - start})
         return out
 
     engine.YamlTemplate._attempt = logged
@@ -65,7 +68,8 @@ def main() -> None:
             print(
                 f"{case}: built {row['built']}, {row.get('search')}, build {row['cpu_s']:.1f} s CPU; "
                 f"{sum(not s['last_resort'] for s in log)} starts, {sum(s['last_resort'] for s in log)} last-resort starts "
-                f"of which {len(refused)} gave no valid cage ({sum(s['cpu_s'] for s in refused):.1f} s)",
+                f"of which {len(refused)} gave no valid cage ({sum(s['cpu_s'] for s in refused):.1f} s; "
+                f"{sum(s['reason'].startswith('alike') for s in refused)} of them recognised as a refused start again)",
                 flush=True,
             )
             if args.results:
