@@ -290,11 +290,22 @@ class YamlTemplate:
         if attempt >= len(plan):
             return None
         _, rng, dropped = plan[attempt]
+        refused = np.asarray(refused, dtype=np.float64)
+        if not any(isinstance(step, WallsInsideHands) for i, (step, _) in enumerate(bound) if i not in dropped):
+            return None  # no step of this start can put walls inside a hand
+        found = None
+        if not cage.meta["fit_attempts"].get("walls_inside"):
+            # the plain start's cage is ``cage`` (its faces, segments and special cases): what the
+            # refused surface encloses is known before the start is run again, and nothing enclosed
+            # is nothing to wall
+            found = enclosed_parts(dataclasses.replace(cage, vertices=refused), bodies, p["max_penetration"])
+            if not any(f["vertices"] for f in found):
+                return None
         try:
             _, start = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
         except UnsupportedPoseError:
             return None
-        walled = _walls_against(start, np.asarray(refused, dtype=np.float64))
+        walled = _walls_against(start, refused, found)
         if walled is not None:
             # built from the plain start: not the walls inside the hands of a walled first cage
             attempts = {k: v for k, v in cage.meta["fit_attempts"].items() if k != "walls_inside"}
@@ -598,7 +609,7 @@ def _hands_outside(state: FitState, mesh: ControlMesh, bodies, p: dict, fixers: 
     return walled
 
 
-def _walls_against(start: _Start, refused: np.ndarray) -> ControlMesh | None:
+def _walls_against(start: _Start, refused: np.ndarray, found: list | None = None) -> ControlMesh | None:
     """The cage of ``start`` with walls inside the hands that the refused surface ``refused`` encloses; None when it gives no valid cage.
 
     ``refused`` are control points of the cage's topology, the surface a
@@ -612,10 +623,13 @@ def _walls_against(start: _Start, refused: np.ndarray) -> ControlMesh | None:
     need not enclose less than the template's cage: it answers a surface
     the refiners refused, and they judge it. ``meta["enclosed"]`` says
     what the refused surface enclosed and what the walled cage's limit
-    surface encloses.
+    surface encloses. ``found`` is what the refused surface encloses when
+    it was measured already, on a cage with ``mesh``'s faces, segments and
+    special cases (:meth:`YamlTemplate.walls_against`).
     """
     state, mesh, bodies, p, fixers, repairs = start
-    found = enclosed_parts(dataclasses.replace(mesh, vertices=refused), bodies, p["max_penetration"])
+    if found is None:
+        found = enclosed_parts(dataclasses.replace(mesh, vertices=refused), bodies, p["max_penetration"])
     if not any(f["vertices"] for f in found) or not fixers:
         return None
     state.meta = copy.deepcopy(mesh.meta)
