@@ -508,7 +508,7 @@ def test_hands_hanging_under_the_thighs_flank_get_walls_inside_them(rigs, chair,
     np.testing.assert_array_equal(first.vertices, chair.fit([b], [p], seed=0).vertices)
 
 
-def test_walls_against_a_refused_surface_stand_beside_the_backrest(rigs, chair):
+def test_walls_against_a_refused_surface_stand_beside_the_backrest(rigs, chair, monkeypatch):
     """seated-144 (female, draw seed 2026): the left hand hangs beside the hips, behind the seat, 9 cm below it.
 
     Every cage the surface fit was given and their local repairs were
@@ -534,9 +534,14 @@ def test_walls_against_a_refused_surface_stand_beside_the_backrest(rigs, chair):
     assert {5, 6} & set(walled.meta["border"]["walls_inside"]["left"])
     assert walled.meta["enclosed"]["refused"]["depth_m"] > 0.01
     check_cage(walled, [b], tolerance=tolerance)
-    # the start's own cage is unchanged, and a surface that encloses nothing gets no walls
+    # the start's own cage is unchanged, and a surface that encloses nothing gets no walls,
+    # known from the rejected cage itself, without running its start again
     np.testing.assert_array_equal(first.vertices, chair.fit([b], [p], seed=0).vertices)
+    runs = []
+    attempt = chair._attempt
+    monkeypatch.setattr(chair, "_attempt", lambda *a, **k: runs.append(1) or attempt(*a, **k))
     assert chair.walls_against([b], [p], first, first.vertices + np.array([0.0, -2.0, 0.0]), seed=0) is None
+    assert not runs
 
 
 #: Drawn poses (draw seed 2026) whose first cages the refiners left over the 5 mm limit, and the Table 1
