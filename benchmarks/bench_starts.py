@@ -1,10 +1,12 @@
-"""Every template start a build runs, and what became of it: the cost of the starts that give no valid cage.
+"""Every template start a build runs, and what became of it: the cost of the starts that give no valid cage, and of the surface fits.
 
 For each drawn pose (``FAMILY-INDEX@BODY``, draw seed 2026, as the
 generalisation benchmark draws them) it runs the full default build (seed
 0) and logs every start the chair template runs, the search's ordinary
 starts and its last-resort ones: whether it gave a valid cage, the
-template's refusal, and its CPU time. Prints one line per case and, with
+template's refusal, and its CPU time; and every surface fit (the first
+fit and its refits, guarded or not) and push-out, with their CPU time (the
+baseline's fit, the flat patch's, is one of them). Prints one line per case and, with
 ``--results``, writes every start as JSON lines. docs/templates.md, "What a
 rejected candidate costs", gives what it measured:
 
@@ -36,17 +38,39 @@ def main() -> None:
     log: list = []
     attempt = engine.YamlTemplate._attempt
 
-    def logged(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset(), last_resort=False):
+    def logged(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset(), last_resort=False, **kw):
         start = time.process_time()
         try:
-            out = attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort)
+            out = attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort, **kw)
         except UnsupportedPoseError as e:
             log.append({"last_resort": last_resort, "valid": False, "reason": str(e), "cpu_s": time.process_time() - start})
             raise
-        log.append({"last_resort": last_resort, "valid": True, "cpu_s": time.process_time() - start})
+        if out is None:  # the same fit as a refused start of its stream, stopped after the optional step it drops
+            log.append({"last_resort": last_resort, "valid": False, "reason": "alike: the same fit as a refused start", "cpu_s": time.process_time() - start})
+        else:
+            log.append({"last_resort": last_resort, "valid": True, "cpu_s": time.process_time() - start})
         return out
 
     engine.YamlTemplate._attempt = logged
+
+    from seatkit.refine import ccfit
+
+    fits: list = []
+    fit_once, push_out = ccfit._fit_once, ccfit.push_out
+
+    def logged_fit(mesh, bodies, pressures, params, *, guard=False):
+        start = time.process_time()
+        out = fit_once(mesh, bodies, pressures, params, guard=guard)
+        fits.append({"kind": "fit", "guard": guard, "iterations": out.meta["catmull-clark-fit"]["iterations"], "cpu_s": time.process_time() - start})
+        return out
+
+    def logged_push(mesh, bodies):
+        start = time.process_time()
+        out = push_out(mesh, bodies)
+        fits.append({"kind": "push-out", "found": out is not None, "cpu_s": time.process_time() - start})
+        return out
+
+    ccfit._fit_once, ccfit.push_out = logged_fit, logged_push
     with tempfile.TemporaryDirectory() as tmp:
         for case in args.cases:
             name, body = case.split("@")
@@ -54,18 +78,25 @@ def main() -> None:
             path = Path(tmp) / f"{name}.yaml"
             path.write_text(pose_yaml(draw_pose(np.random.default_rng([2026, int(index)]), family, name)))
             log.clear()
+            fits.clear()
             start = time.process_time()
             try:
                 r = build({"template": "chair", "seed": 0, "bodies": [{"model": body, "pose": str(path)}]}, write=False, processes=False)
                 row = {"built": True, "search": r.control_mesh.meta["search"]["winner"]}
             except SeatkitError as e:
                 row = {"built": False, "reason": str(e)}
-            row.update(case=case, cpu_s=time.process_time() - start, starts=list(log))
+            row.update(case=case, cpu_s=time.process_time() - start, starts=list(log), fits=list(fits))
             refused = [s for s in log if s["last_resort"] and not s["valid"]]
+            surface = [f for f in fits if f["kind"] == "fit"]
+            pushes = [f for f in fits if f["kind"] == "push-out"]
             print(
                 f"{case}: built {row['built']}, {row.get('search')}, build {row['cpu_s']:.1f} s CPU; "
                 f"{sum(not s['last_resort'] for s in log)} starts, {sum(s['last_resort'] for s in log)} last-resort starts "
-                f"of which {len(refused)} gave no valid cage ({sum(s['cpu_s'] for s in refused):.1f} s)",
+                f"of which {len(refused)} gave no valid cage ({sum(s['cpu_s'] for s in refused):.1f} s; "
+                f"{sum(s['reason'].startswith('alike') for s in refused)} of them recognised as a refused start again); "
+                f"every start {sum(s['cpu_s'] for s in log):.1f} s; {len(surface)} surface fits ({sum(f['cpu_s'] for f in surface):.1f} s, "
+                f"{sum(f['guard'] for f in surface)} guarded: {sum(f['cpu_s'] for f in surface if f['guard']):.1f} s); "
+                f"{len(pushes)} push-outs ({sum(f['cpu_s'] for f in pushes):.1f} s)",
                 flush=True,
             )
             if args.results:

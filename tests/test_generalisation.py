@@ -202,11 +202,13 @@ class Flaky:
     requires = ()
     options = {}
 
-    def __init__(self, fail, *, optional=False, seed_independent=False):
-        self.fail, self.optional, self.seed_independent, self.calls = fail, optional, seed_independent, 0
+    def __init__(self, fail, *, optional=False, seed_independent=False, draws=False):
+        self.fail, self.optional, self.seed_independent, self.draws, self.calls = fail, optional, seed_independent, draws, 0
 
     def run(self, state, *, options):
         self.calls += 1
+        if self.draws:
+            state.rng.random()  # a random choice that leaves the fit as it is
         if self.calls <= self.fail:
             err = UnsupportedPoseError(f"refused on call {self.calls}")
             if self.seed_independent:
@@ -265,8 +267,56 @@ def test_optional_steps_are_dropped_last_and_rule_refusals_are_final(upright):
     never = Flaky(100)
     with pytest.raises(UnsupportedPoseError, match="refused on call 1") as err:
         load_template(text=STOOL, steps={**BUILTIN_STEPS, "flaky": never}).fit([b], [p], seed=0, params={"fit_attempts": 4})
-    # four starts with every step, four without the stool's crossed-legs
-    assert never.calls == 8 and err.value.diagnostics["fit_attempts"] == 8
+    # four starts with every step, four without the stool's crossed-legs; crossed-legs merges nothing
+    # for an upright body, so the four without it are the same fits, refused alike before the flaky step
+    assert never.calls == 4 and err.value.diagnostics["fit_attempts"] == 8
+
+
+class Marks:
+    """An optional step that changes the fit (a mark on every block) or nothing, drawing from the random stream or not."""
+
+    name = "marks"
+    description = "test step"
+    stage = "blocks"
+    requires = ()
+    options = {}
+    optional = True
+
+    def __init__(self, *, changes=False, draws=False):
+        self.changes, self.draws, self.calls = changes, draws, 0
+
+    def run(self, state, *, options):
+        self.calls += 1
+        if self.draws:
+            state.rng.random()
+        if self.changes:
+            for block in state.blocks:
+                block.cases["marked"] = True
+
+
+@pytest.mark.parametrize(
+    "changes, marks_draw, later_draws, runs",
+    [
+        (False, False, False, 4),  # dropping a step that changed nothing gives the refused starts again
+        (True, False, False, 8),  # a step that changed the fit: the starts without it run
+        (False, True, True, 8),  # it drew from the stream, and the step after it draws: they run
+        (False, True, False, 4),  # it drew, but nothing after it does: the same fits
+    ],
+)
+def test_a_start_that_drops_only_a_step_that_changed_nothing_is_refused_alike_without_running(upright, changes, marks_draw, later_draws, runs):
+    """Three phases of four starts (every step; without ``marks``; without ``marks`` and crossed-legs): the refusing step after them runs only in the starts that fit differently."""
+    b, p = upright
+    text = STOOL.replace("  - step: flaky\n", "  - step: marks\n  - step: flaky\n")
+    never, marks = Flaky(100, draws=later_draws), Marks(changes=changes, draws=marks_draw)
+    with pytest.raises(UnsupportedPoseError, match="refused on call 1") as err:
+        load_template(text=text, steps={**BUILTIN_STEPS, "flaky": never, "marks": marks}).fit([b], [p], seed=0, params={"fit_attempts": 4})
+    assert err.value.diagnostics["fit_attempts"] == 12 and marks.calls == 4
+    assert never.calls == runs
+    if runs == 8:
+        # a start that fits differently runs whole: the first that passes gives its cage
+        ok = Flaky(4, draws=later_draws)
+        mesh = load_template(text=text, steps={**BUILTIN_STEPS, "flaky": ok, "marks": Marks(changes=changes, draws=marks_draw)}).fit([b], [p], seed=0, params={"fit_attempts": 4})
+        assert ok.calls == 5 and mesh.meta["fit_attempts"]["attempt"] == 5 and mesh.meta["dropped_steps"] == ["marks"]
 
 
 def test_fit_attempts_is_bounded_so_a_refusal_cannot_retry_for_hours(chair):
@@ -458,7 +508,7 @@ def test_hands_hanging_under_the_thighs_flank_get_walls_inside_them(rigs, chair,
     np.testing.assert_array_equal(first.vertices, chair.fit([b], [p], seed=0).vertices)
 
 
-def test_walls_against_a_refused_surface_stand_beside_the_backrest(rigs, chair):
+def test_walls_against_a_refused_surface_stand_beside_the_backrest(rigs, chair, monkeypatch):
     """seated-144 (female, draw seed 2026): the left hand hangs beside the hips, behind the seat, 9 cm below it.
 
     Every cage the surface fit was given and their local repairs were
@@ -484,9 +534,14 @@ def test_walls_against_a_refused_surface_stand_beside_the_backrest(rigs, chair):
     assert {5, 6} & set(walled.meta["border"]["walls_inside"]["left"])
     assert walled.meta["enclosed"]["refused"]["depth_m"] > 0.01
     check_cage(walled, [b], tolerance=tolerance)
-    # the start's own cage is unchanged, and a surface that encloses nothing gets no walls
+    # the start's own cage is unchanged, and a surface that encloses nothing gets no walls,
+    # known from the rejected cage itself, without running its start again
     np.testing.assert_array_equal(first.vertices, chair.fit([b], [p], seed=0).vertices)
+    runs = []
+    attempt = chair._attempt
+    monkeypatch.setattr(chair, "_attempt", lambda *a, **k: runs.append(1) or attempt(*a, **k))
     assert chair.walls_against([b], [p], first, first.vertices + np.array([0.0, -2.0, 0.0]), seed=0) is None
+    assert not runs
 
 
 #: Drawn poses (draw seed 2026) whose first cages the refiners left over the 5 mm limit, and the Table 1

@@ -19,6 +19,9 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import hashlib
+import io
+import pickle
 from collections import namedtuple
 from pathlib import Path
 from typing import Any, Iterator, Mapping, Sequence
@@ -31,7 +34,7 @@ from seatkit.template.capabilities import HasFallback, HasLastResort, RepairsFac
 from seatkit.template.checks import check_cage, enclosed_parts
 from seatkit.template.grid import Block, FaceState, FitState, GridMesh, segment_of_vertex
 from seatkit.template.options import check_step_options, did_you_mean
-from seatkit.template.schema import TemplateSpec, read_template, resolve_parameters
+from seatkit.template.schema import FaceSpec, TemplateSpec, read_template, resolve_parameters
 from seatkit.template.steps import BUILTIN_STEPS, join_blocks
 
 __all__ = ["YamlTemplate", "load_template", "grid_to_mesh"]
@@ -212,14 +215,24 @@ class YamlTemplate:
         plan = _starts(p, bound, seed, last_resort)
         first, found = None, False
         offered: list = []
+        # a start that drops an optional step which changed nothing in the
+        # same stream's refused start is that start again: refused alike
+        # without its border, lift and checks (docs/templates.md, "The starts")
+        alike = _AlikeStarts(bound)
         for attempt, (k, rng, dropped) in enumerate(plan):
+            watch = alike.watch(k, rng, dropped)
             try:
-                mesh, start = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort)
+                got = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort, watch=watch)
             except UnsupportedPoseError as e:
                 if getattr(e, "seed_independent", False):
                     raise
                 first = first or e
+                alike.refused(watch)
                 continue
+            if got is None:  # the same fit as a refused start
+                alike.refused(watch)
+                continue
+            mesh, start = got
             if last_resort:
                 if any(v.shape == mesh.vertices.shape and np.array_equal(v, mesh.vertices) for v in offered):
                     continue
@@ -277,11 +290,22 @@ class YamlTemplate:
         if attempt >= len(plan):
             return None
         _, rng, dropped = plan[attempt]
+        refused = np.asarray(refused, dtype=np.float64)
+        if not any(isinstance(step, WallsInsideHands) for i, (step, _) in enumerate(bound) if i not in dropped):
+            return None  # no step of this start can put walls inside a hand
+        found = None
+        if not cage.meta["fit_attempts"].get("walls_inside"):
+            # the plain start's cage is ``cage`` (its faces, segments and special cases): what the
+            # refused surface encloses is known before the start is run again, and nothing enclosed
+            # is nothing to wall
+            found = enclosed_parts(dataclasses.replace(cage, vertices=refused), bodies, p["max_penetration"])
+            if not any(f["vertices"] for f in found):
+                return None
         try:
             _, start = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped)
         except UnsupportedPoseError:
             return None
-        walled = _walls_against(start, np.asarray(refused, dtype=np.float64))
+        walled = _walls_against(start, refused, found)
         if walled is not None:
             # built from the plain start: not the walls inside the hands of a walled first cage
             attempts = {k: v for k, v in cage.meta["fit_attempts"].items() if k != "walls_inside"}
@@ -303,11 +327,13 @@ class YamlTemplate:
         """
         return self.fits(bodies, pressures, params=params, seed=seed, last_resort=True)
 
-    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset(), last_resort=False) -> tuple:
+    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset(), last_resort=False, *, watch=None) -> tuple | None:
         """One run of the bound steps and the final check with one random stream.
 
         Returns the cage and its :class:`_Start` (what
-        :func:`_hands_outside` and :func:`_walls_against` build on).
+        :func:`_hands_outside` and :func:`_walls_against` build on); None
+        when ``watch`` (a :class:`_Watch`) finds, after an optional step,
+        that this start is a refused start again.
         """
         state = FitState(self.spec, p, [self._block(i, b, pr) for i, (b, pr) in enumerate(zip(bodies, pressures))], rng, last_resort=last_resort)
         state.meta["template"] = self.name
@@ -318,8 +344,10 @@ class YamlTemplate:
                 state.meta.setdefault("dropped_steps", []).append(self.spec.steps[i]["step"])
                 if isinstance(step, HasFallback):  # the step says what doing without it means (no-backrest)
                     step.fallback(state, options=dict(per_step.get(i, options)))
-                continue
-            step.run(state, options=dict(per_step.get(i, options)))
+            else:
+                step.run(state, options=dict(per_step.get(i, options)))
+            if watch is not None and watch.after(i, state):
+                return None
         if state.grid is None:
             state.grid = join_blocks(state)
         state.meta["faces"] = _face_report(state)
@@ -423,6 +451,105 @@ def _starts(p: dict, bound: list, seed: int, last_resort: bool = False) -> list:
     return [(k, streams[k](), dropped) for k, dropped in order]
 
 
+class _AlikeStarts:
+    """The refused starts of one :meth:`YamlTemplate.fits`, each fit's state after every optional step.
+
+    The starts of one stream differ only in the optional steps they drop
+    (:func:`_starts`), and the steps before the first of them run alike. A
+    start that drops step ``i`` beside a refused start of its stream that
+    ran it (every other step the same) fits the same cage when its state
+    after ``i`` is the refused start's: the same faces, grid and taken
+    special cases (:func:`_fit_digest`), and the same random stream, or one
+    the refused start drew nothing more from. The optional step changed
+    nothing there (no armrest for an arm that carries no load, legs too far
+    apart to merge): the rest of the start would be the refused start's,
+    its border, lift, checks and repairs, and is not run. The design does
+    not change; only a refusal is recognised (a valid cage runs whole).
+    """
+
+    def __init__(self, bound: list):
+        # (a step that repairs the cage after the steps acts when it is not dropped, whatever it changed)
+        self.optional = frozenset(i for i, (step, _) in enumerate(bound) if getattr(step, "optional", False) and not isinstance(step, (RepairsFaces, WallsInsideHands)))
+        self.runs: dict = {}
+
+    def watch(self, stream: int, rng, dropped) -> "_Watch":
+        """What one start records after each optional step, and the refused start it is compared with there."""
+        return _Watch(self, stream, rng, frozenset(dropped))
+
+    def refused(self, watch: "_Watch") -> None:
+        """``watch``'s start gave no valid cage: keep what it recorded, with its stream's state at the end."""
+        watch.end = _stream_state(watch.rng)
+        self.runs[(watch.stream, watch.dropped)] = watch
+
+
+class _Watch:
+    """One start's fit states after its optional steps (see :class:`_AlikeStarts`)."""
+
+    def __init__(self, alike: _AlikeStarts, stream: int, rng, dropped: frozenset):
+        self.alike, self.stream, self.rng, self.dropped = alike, stream, rng, dropped
+        self.seen: dict = {}  # optional step index: (digest, stream state) after it
+        self.same_as = None  # (step index, the refused _Watch) this start matched there
+        self.end = None
+
+    def after(self, i: int, state: FitState) -> bool:
+        """Record the state after step ``i``; True when this start is, from here on, a refused start of its stream."""
+        if i not in self.alike.optional:
+            return False
+        digest, drawn = _fit_digest(state), _stream_state(self.rng)
+        self.seen[i] = (digest, drawn)
+        if digest is None or i not in self.dropped:
+            return False
+        run = self.alike.runs.get((self.stream, self.dropped - {i}))
+        if run is None or i not in run.seen or run.seen[i][0] != digest:
+            return False
+        if run.seen[i][1] != drawn and not run.quiet_after(i):
+            return False  # another random state, and the rest draws from it
+        self.same_as = (i, run)
+        return True
+
+    def quiet_after(self, i: int) -> bool:
+        """This start drew nothing from its stream after step ``i`` (to its refusal)."""
+        if i not in self.seen:
+            return False
+        if self.same_as is None:
+            return self.end is not None and self.seen[i][1] == self.end
+        j, run = self.same_as
+        return i <= j and self.seen[i][1] == self.seen[j][1] and run.quiet_after(j)
+
+
+def _stream_state(rng) -> object:
+    """The random stream's state (equal states: nothing drawn in between)."""
+    return copy.deepcopy(rng.bit_generator.state)
+
+
+class _Pickler(pickle.Pickler):
+    """Pickles a fit's state with the bodies and the template's face specs by identity (every start shares them)."""
+
+    def persistent_id(self, obj):
+        if isinstance(obj, (Body, FaceSpec, TemplateSpec)):
+            return (type(obj).__name__, id(obj))
+        return None
+
+
+def _fit_digest(state: FitState) -> bytes | None:
+    """A digest of what a fit's later steps read: the blocks' faces, the grid, the border's callbacks and the special cases taken; None when it cannot be taken.
+
+    ``meta`` is the fit's report, and its records of special cases not
+    taken (and of dropped steps) leave the cage as it is; the random stream
+    is compared on its own (:class:`_Watch`).
+    """
+    taken = [case for case in state.meta.get("special_cases", []) if case.get("taken")]
+    # a block's body, importance and forces are the fit's input, the same in every start, and its
+    # members and centroids caches of them: what the steps change are its faces, rows, estimates and cases
+    blocks = [(b.person, b.body, b.faces, b.rows, b.n_columns, b.estimates, b.cases) for b in state.blocks]
+    buf = io.BytesIO()
+    try:
+        _Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL).dump((blocks, state.grid, state.rebuild_border, state.rebuild_walls, state.keep_border, state.last_resort, taken))
+    except (pickle.PicklingError, TypeError, AttributeError):
+        return None  # a step keeps something that cannot be pickled: no start is recognised
+    return hashlib.sha256(buf.getvalue()).digest()
+
+
 #: One start's fit once its cage passed the checks: what a second design of the same start builds on.
 _Start = namedtuple("_Start", "state mesh bodies p fixers repairs")
 
@@ -482,7 +609,7 @@ def _hands_outside(state: FitState, mesh: ControlMesh, bodies, p: dict, fixers: 
     return walled
 
 
-def _walls_against(start: _Start, refused: np.ndarray) -> ControlMesh | None:
+def _walls_against(start: _Start, refused: np.ndarray, found: list | None = None) -> ControlMesh | None:
     """The cage of ``start`` with walls inside the hands that the refused surface ``refused`` encloses; None when it gives no valid cage.
 
     ``refused`` are control points of the cage's topology, the surface a
@@ -496,10 +623,13 @@ def _walls_against(start: _Start, refused: np.ndarray) -> ControlMesh | None:
     need not enclose less than the template's cage: it answers a surface
     the refiners refused, and they judge it. ``meta["enclosed"]`` says
     what the refused surface enclosed and what the walled cage's limit
-    surface encloses.
+    surface encloses. ``found`` is what the refused surface encloses when
+    it was measured already, on a cage with ``mesh``'s faces, segments and
+    special cases (:meth:`YamlTemplate.walls_against`).
     """
     state, mesh, bodies, p, fixers, repairs = start
-    found = enclosed_parts(dataclasses.replace(mesh, vertices=refused), bodies, p["max_penetration"])
+    if found is None:
+        found = enclosed_parts(dataclasses.replace(mesh, vertices=refused), bodies, p["max_penetration"])
     if not any(f["vertices"] for f in found) or not fixers:
         return None
     state.meta = copy.deepcopy(mesh.meta)

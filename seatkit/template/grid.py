@@ -381,6 +381,10 @@ class FitState:
       ``blocks[0].rows[i]`` before the border, whose two rings add two rows
       and columns on every side);
     * any step adds facts to ``meta`` (JSON-able; shown in report.json);
+      a step decides from the rest of the state and from the special cases
+      taken, not from other facts in ``meta`` (the engine recognises a
+      start that fits as a refused one did by that state:
+      :class:`seatkit.template.engine._AlikeStarts`);
     * random choices use ``rng`` only (same seed, same cage).
 
     Attributes
