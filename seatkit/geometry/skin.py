@@ -46,7 +46,8 @@ from scipy import ndimage
 from scipy.spatial import cKDTree
 
 from seatkit.cache import IdentityCache
-from seatkit.geometry.closest import closest_barycentric, row_norms, vertex_triangle_rings
+from seatkit.geometry.closest import closest_barycentric, distinct_ring_triangles, row_norms, vertex_triangle_rings
+from seatkit.geometry.normals import sum_rows_at
 
 __all__ = ["SkinDistance"]
 
@@ -96,12 +97,13 @@ class SkinDistance:
         fn = cross / np.maximum(row_norms(cross)[:, None], 1e-300)
         self.face_normals = fn
         # angle-weighted vertex pseudo-normals
-        vn = np.zeros_like(v)
+        weighted = []
         for c in range(3):
             a = corner[(c + 1) % 3] - corner[c]
             b = corner[(c + 2) % 3] - corner[c]
             cosang = np.einsum("ij,ij->i", a, b) / np.maximum(row_norms(a) * row_norms(b), 1e-300)
-            np.add.at(vn, f[:, c], fn * np.arccos(np.clip(cosang, -1.0, 1.0))[:, None])
+            weighted.append(fn * np.arccos(np.clip(cosang, -1.0, 1.0))[:, None])
+        vn = sum_rows_at(len(v), f.T, np.concatenate(weighted))  # corner by corner, in turn
         self.vertex_normals = vn / np.maximum(row_norms(vn)[:, None], 1e-300)
         # edge pseudo-normals, per triangle and edge (edge k is opposite corner k)
         m = len(f)
@@ -279,8 +281,8 @@ class SkinDistance:
             self._open = (origin, h, open_space, clear)
         return self._open
 
-    def _exact(self, points: np.ndarray, near: np.ndarray):
-        cand = np.take(self.rings, near, axis=0).reshape(len(points), -1)
+    def _nearest_triangle(self, points: np.ndarray, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Of the candidate triangles ``cand`` (k, c; -1: none) of each point, the closest (the first of equals) and the barycentric coordinates (k, 3) of its closest point."""
         valid = cand >= 0
         tri_i = np.where(valid, cand, 0)
         # each candidate's triangle in one gather (np.take: several times faster than indexing)
@@ -297,9 +299,14 @@ class SkinDistance:
         d2sq = np.where(valid & np.isfinite(d2sq), np.maximum(d2sq, 0.0), np.inf)
         best = np.argmin(d2sq, axis=1)
         rows = np.arange(len(points))
-        t = tri_i[rows, best]
+        return tri_i[rows, best], np.stack([x[rows, best] for x in bary], axis=1)
+
+    def _exact(self, points: np.ndarray, near: np.ndarray):
+        t = np.empty(len(points), dtype=np.int64)
+        w = np.empty((len(points), 3))
+        for rows, cand in distinct_ring_triangles(self.rings, near):
+            t[rows], w[rows] = self._nearest_triangle(np.take(points, rows, axis=0), cand)
         tri = np.take(self.faces, t, axis=0)
-        w = np.stack([x[rows, best] for x in bary], axis=1)
         g = np.take(self._table, t, axis=0)
         qb = g[:, 0:3] + w[:, 1:2] * g[:, 3:6] + w[:, 2:3] * g[:, 6:9]
         zero = w <= 0.0
