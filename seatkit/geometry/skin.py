@@ -125,7 +125,7 @@ class SkinDistance:
         self.edge_normals = per_tri.reshape(m, 3, 3)
         self.rings = vertex_triangle_rings(f, len(v))  # vertex -> incident triangles, padded with -1
         # only vertices some face uses (a stray vertex would offer no triangles)
-        self._used = np.unique(f)
+        self._used = np.flatnonzero(np.bincount(f.ravel(), minlength=len(v)))  # np.unique(f), sorted
         self.tree = cKDTree(np.take(v, self._used, axis=0), balanced_tree=False, compact_nodes=False)
         # per triangle: corner a, edges ab and ac and their dot products, for
         # the closest-point regions with two dot products per query
@@ -265,7 +265,11 @@ class SkinDistance:
             longest = row_norms(corners - np.roll(corners, 1, axis=1)).max(axis=1)
             steps = np.maximum(np.ceil(longest / h).astype(int), 1)
             marked = np.zeros(shape, bool)
-            for n in np.unique(steps):
+            # every triangle's corners are among its samples: the skin's vertices'
+            # cells, at once; the samples inside the triangles longer than a cell
+            cells = np.floor((np.take(v, self._used, axis=0) - origin) / h).astype(int)
+            marked[cells[:, 0], cells[:, 1], cells[:, 2]] = True
+            for n in np.unique(steps[steps > 1]):
                 i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
                 keep = i + j <= n
                 bary = np.stack([n - i[keep] - j[keep], i[keep], j[keep]], axis=1) / n  # (s, 3)
@@ -274,7 +278,7 @@ class SkinDistance:
                 marked[cells[:, 0], cells[:, 1], cells[:, 2]] = True
             # chessboard distance (cells) to the nearest touched cell
             reach = ndimage.distance_transform_cdt(~marked, metric="chessboard")
-            marked = ndimage.binary_dilation(marked, structure=np.ones((3, 3, 3), bool))
+            marked = reach <= 1  # dilated by one cell (3 x 3 x 3)
             labels, _ = ndimage.label(~marked)  # face-connected components of the unmarked cells
             open_space = labels == labels[0, 0, 0]
             clear = np.where(open_space, np.maximum((reach - 1.0 - 1.0 / np.sqrt(3.0)) * h, 0.0), 0.0)
