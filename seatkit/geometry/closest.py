@@ -5,23 +5,14 @@ regions (Real-Time Collision Detection 5.1.5), from two dot products per
 point and triangle (the other four follow from per-triangle constants, which
 :class:`seatkit.geometry.skin.SkinDistance` keeps); :func:`closest_point_on_triangles`
 is the same for explicit corners. :func:`vertex_triangle_rings` lists the
-triangles around each vertex, the candidates both queries search, and
-:func:`distinct_ring_triangles` the triangles around a point's nearest
-vertices, each once.
+triangles around each vertex, the candidates both queries search.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = [
-    "safe_ratio",
-    "row_norms",
-    "closest_barycentric",
-    "closest_point_on_triangles",
-    "vertex_triangle_rings",
-    "distinct_ring_triangles",
-]
+__all__ = ["safe_ratio", "row_norms", "closest_barycentric", "closest_point_on_triangles", "vertex_triangle_rings"]
 
 
 def safe_ratio(num, den) -> np.ndarray:
@@ -113,43 +104,3 @@ def vertex_triangle_rings(triangles: np.ndarray, n_vertices: int) -> np.ndarray:
     rings = np.full((n_vertices, width), -1, dtype=np.int64)
     rings[corner[order], slot] = owner[order]
     return rings
-
-
-def distinct_ring_triangles(rings: np.ndarray, near: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """The distinct triangles around each point's ``near`` vertices, in order, in groups of rows: ``[(rows, (r, c) int64), ...]``.
-
-    ``rings`` is :func:`vertex_triangle_rings`' table, ``near`` (k, n) the
-    vertices of each point. A triangle around several of a point's vertices
-    (neighbouring vertices share two) is listed once, where it first comes,
-    and the rings' padding is left out: on a body's skin about 10 triangles
-    for two vertices instead of 16 slots. The rows are split in two groups,
-    those with at most the median number of triangles and the rest, each as
-    wide as its longest row (padded with -1). A search for the closest
-    triangle that takes the first of equals finds the same triangle in a
-    row as in the full list: a repeated triangle is as near as its first
-    occurrence.
-    """
-    cand = np.take(rings, near, axis=0)  # (k, n, ring width)
-    cand = cand.reshape(len(near), -1, rings.shape[1])
-    k, n_near, width = cand.shape
-    flat = cand.reshape(k, -1)
-    keep = flat >= 0
-    for j in range(1, n_near):
-        seen = (cand[:, j, :, None] == cand[:, :j].reshape(k, 1, -1)).any(axis=2)
-        keep[:, j * width : (j + 1) * width] &= ~seen
-    count = keep.sum(axis=1)
-    r, c = np.nonzero(keep)
-    pos = (np.cumsum(keep, axis=1) - 1)[r, c]
-    narrow = count <= (int(np.median(count)) if k else 0)
-    groups = []
-    for group in (narrow, ~narrow):
-        rows = np.flatnonzero(group)
-        if not rows.size:
-            continue
-        sel = group[r]
-        index = np.zeros(k, dtype=np.int64)
-        index[rows] = np.arange(rows.size)
-        out = np.full((rows.size, max(int(count[rows].max()), 1)), -1, dtype=np.int64)
-        out[index[r[sel]], pos[sel]] = flat[r[sel], c[sel]]
-        groups.append((rows, out))
-    return groups

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from seatkit.geometry.closest import closest_point_on_triangles, distinct_ring_triangles, row_norms, vertex_triangle_rings
+from seatkit.geometry.closest import closest_point_on_triangles, row_norms, vertex_triangle_rings
 from seatkit.geometry.skin import SkinDistance
 from seatkit.model import Body, Surface
 
@@ -115,31 +115,31 @@ class SurfaceQuery:
             distance[wide], side[wide], normal[wide] = self._closest(points[wide], near.reshape(len(wide), -1))
         return distance, side, normal
 
-    def _nearest_triangle(self, points: np.ndarray, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Of the candidate triangles ``cand`` (k, c; -1: none) of each point, the closest (the first of equals): closest point, barycentric coordinates, squared distance, triangle."""
+    #: Points searched at once (their candidates' arrays, about 1 MB, stay in the cache: twice as fast
+    #: per point as one pass over ten thousand points, the same answers).
+    _BLOCK = 512
+
+    def _closest(self, points: np.ndarray, near: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Distance, side and surface normal of each point over the triangles around its ``near`` vertices."""
+        if len(points) > self._BLOCK:
+            parts = [self._closest(points[lo : lo + self._BLOCK], near[lo : lo + self._BLOCK]) for lo in range(0, len(points), self._BLOCK)]
+            return tuple(np.concatenate(part) for part in zip(*parts))
+        # (np.take gathers rows several times faster than indexing does)
+        cand = np.take(self.rings, near, axis=0).reshape(len(points), -1)  # (k, c)
         valid = cand >= 0
         tri_i = np.where(valid, cand, 0)
-        # (np.take gathers rows several times faster than indexing does)
         g = np.take(self._corners, tri_i, axis=0)  # (k, c, 9)
         a, b, c = g[..., 0:3], g[..., 3:6], g[..., 6:9]
         closest, bary = closest_point_on_triangles(points[:, None, :], a, b, c)
         d2 = np.where(valid, np.einsum("kci,kci->kc", closest - points[:, None, :], closest - points[:, None, :]), np.inf)
         best = np.argmin(d2, axis=1)
         rows = np.arange(len(points))
-        return closest[rows, best], bary[rows, best], d2[rows, best], tri_i[rows, best]
-
-    def _closest(self, points: np.ndarray, near: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Distance, side and surface normal of each point over the triangles around its ``near`` vertices."""
-        q = np.empty((len(points), 3))
-        w = np.empty((len(points), 3))
-        d2 = np.empty(len(points))
-        t = np.empty(len(points), dtype=np.int64)
-        for rows, cand in distinct_ring_triangles(self.rings, near):
-            q[rows], w[rows], d2[rows], t[rows] = self._nearest_triangle(np.take(points, rows, axis=0), cand)
-        t = np.take(self.triangles, t, axis=0)
+        q = closest[rows, best]
+        w = bary[rows, best]
+        t = np.take(self.triangles, tri_i[rows, best], axis=0)
         n = np.einsum("kj,kji->ki", w, np.take(self.normals, t, axis=0))
         n /= row_norms(n)[:, None] + 1e-300
-        distance = np.sqrt(d2)
+        distance = np.sqrt(d2[rows, best])
         side = np.einsum("ki,ki->k", points - q, n)
         return distance, side, n
 
