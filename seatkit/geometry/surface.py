@@ -193,8 +193,9 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
         return np.zeros(len(p), bool)
     # (np.take gathers rows several times faster than indexing does)
     t = np.take(v, tris, axis=0)  # (T, 3, 3)
-    lo = t[:, :, ::2].min(axis=1)  # x and z
-    hi = t[:, :, ::2].max(axis=1)
+    # x and z; corner by corner (a reduction along the short axis is several times slower)
+    lo = np.minimum(np.minimum(t[:, 0, ::2], t[:, 1, ::2]), t[:, 2, ::2])
+    hi = np.maximum(np.maximum(t[:, 0, ::2], t[:, 1, ::2]), t[:, 2, ::2])
     origin = np.minimum(lo.min(axis=0), p[:, [0, 2]].min(axis=0)) - cell
     c_lo = np.floor((lo - origin) / cell).astype(np.int64)
     c_hi = np.floor((hi - origin) / cell).astype(np.int64)
@@ -222,7 +223,7 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     # (the seat under the thighs) is left out, which changes no parity
     lowest = np.full(int(max(key.max(initial=0), pkey.max(initial=0))) + 1, np.inf)
     np.minimum.at(lowest, pkey, start_points[:, 1])
-    above = t[:, :, 1].max(axis=1)[owner] > lowest[key]
+    above = np.maximum(np.maximum(t[:, 0, 1], t[:, 1, 1]), t[:, 2, 1])[owner] > lowest[key]
     key, owner = key[above], owner[above]
     order = np.argsort(key, kind="stable")
     key, owner = key[order], owner[order]
@@ -235,7 +236,8 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     j = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
     tri = owner[np.repeat(start, n) + j]
     qx, qy, qz = (np.take(start_points[:, i], pt) for i in range(3))
-    ax, ay, az, bx, by, bz, cx, cy, cz = np.take(t.reshape(-1, 9), tri, axis=0).T
+    # one coordinate a row: each gathered column contiguous
+    ax, ay, az, bx, by, bz, cx, cy, cz = np.take(t.reshape(-1, 9).T, tri, axis=1)
     # plan barycentrics of q in (a, b, c)
     e1x, e1z, e2x, e2z, dx, dz = bx - ax, bz - az, cx - ax, cz - az, qx - ax, qz - az
     det = e1x * e2z - e1z * e2x
