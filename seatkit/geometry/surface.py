@@ -55,7 +55,9 @@ class SurfaceQuery:
         self._corners = corners.reshape(len(tris), 9)
         if len(tris):
             edges = row_norms(corners - np.roll(corners, -1, axis=1))
-            self.reach = float(np.sort(edges, axis=1)[:, 1].max())
+            a, b, c = edges[:, 0], edges[:, 1], edges[:, 2]
+            # each triangle's middle edge length (a sort along the short axis is several times slower)
+            self.reach = float(np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c)).max())
         else:
             self.reach = 0.0
 
@@ -115,8 +117,15 @@ class SurfaceQuery:
             distance[wide], side[wide], normal[wide] = self._closest(points[wide], near.reshape(len(wide), -1))
         return distance, side, normal
 
+    #: Points searched at once (their candidates' arrays, about 1 MB, stay in the cache: twice as fast
+    #: per point as one pass over ten thousand points, the same answers).
+    _BLOCK = 512
+
     def _closest(self, points: np.ndarray, near: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Distance, side and surface normal of each point over the triangles around its ``near`` vertices."""
+        if len(points) > self._BLOCK:
+            parts = [self._closest(points[lo : lo + self._BLOCK], near[lo : lo + self._BLOCK]) for lo in range(0, len(points), self._BLOCK)]
+            return tuple(np.concatenate(part) for part in zip(*parts))
         # (np.take gathers rows several times faster than indexing does)
         cand = np.take(self.rings, near, axis=0).reshape(len(points), -1)  # (k, c)
         valid = cand >= 0
@@ -186,8 +195,9 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
         return np.zeros(len(p), bool)
     # (np.take gathers rows several times faster than indexing does)
     t = np.take(v, tris, axis=0)  # (T, 3, 3)
-    lo = t[:, :, ::2].min(axis=1)  # x and z
-    hi = t[:, :, ::2].max(axis=1)
+    # x and z; corner by corner (a reduction along the short axis is several times slower)
+    lo = np.minimum(np.minimum(t[:, 0, ::2], t[:, 1, ::2]), t[:, 2, ::2])
+    hi = np.maximum(np.maximum(t[:, 0, ::2], t[:, 1, ::2]), t[:, 2, ::2])
     origin = np.minimum(lo.min(axis=0), p[:, [0, 2]].min(axis=0)) - cell
     c_lo = np.floor((lo - origin) / cell).astype(np.int64)
     c_hi = np.floor((hi - origin) / cell).astype(np.int64)
@@ -215,7 +225,7 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     # (the seat under the thighs) is left out, which changes no parity
     lowest = np.full(int(max(key.max(initial=0), pkey.max(initial=0))) + 1, np.inf)
     np.minimum.at(lowest, pkey, start_points[:, 1])
-    above = t[:, :, 1].max(axis=1)[owner] > lowest[key]
+    above = np.maximum(np.maximum(t[:, 0, 1], t[:, 1, 1]), t[:, 2, 1])[owner] > lowest[key]
     key, owner = key[above], owner[above]
     order = np.argsort(key, kind="stable")
     key, owner = key[order], owner[order]
@@ -228,7 +238,8 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     j = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
     tri = owner[np.repeat(start, n) + j]
     qx, qy, qz = (np.take(start_points[:, i], pt) for i in range(3))
-    ax, ay, az, bx, by, bz, cx, cy, cz = np.take(t.reshape(-1, 9), tri, axis=0).T
+    # one coordinate a row: each gathered column contiguous
+    ax, ay, az, bx, by, bz, cx, cy, cz = np.take(t.reshape(-1, 9).T, tri, axis=1)
     # plan barycentrics of q in (a, b, c)
     e1x, e1z, e2x, e2z, dx, dz = bx - ax, bz - az, cx - ax, cz - az, qx - ax, qz - az
     det = e1x * e2z - e1z * e2x

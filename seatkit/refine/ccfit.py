@@ -336,6 +336,20 @@ def _depths_to_exit(skins: Sequence[SkinDistance], ray: np.ndarray) -> np.ndarra
     return dd
 
 
+def _gram_by_coordinate(directions: np.ndarray, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``M`` and ``M.T @ M`` for ``M = [d_x * rows, d_y * rows, d_z * rows]`` (unknowns stacked by coordinate).
+
+    ``directions`` (k, 3) scales each row of ``rows`` (k, m) per coordinate.
+    ``M`` is written into one array (no ``hstack`` of three copies); the
+    product is numpy's ``a.T @ a`` (a symmetric rank-k update).
+    """
+    k, m = rows.shape
+    M = np.empty((k, 3 * m))
+    for d in range(3):
+        np.multiply(directions[:, d : d + 1], rows, out=M[:, d * m : (d + 1) * m])
+    return M, M.T @ M
+
+
 def _boundary_samples(ops) -> np.ndarray:
     """(p,) bool: refined vertices on the boundary of the refined mesh."""
     q = ops.faces
@@ -802,15 +816,19 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
         if dense_step:
             Ls = np.take(limit_rows, samples, axis=0)
             R = np.sqrt(W)[:, None] * Ls
-            RR = np.hstack([n_s[:, d : d + 1] * R for d in range(3)])
-            A = RR.T @ RR + np.kron(np.eye(3), mu * (R.T @ R)) + base
+            _, A = _gram_by_coordinate(n_s, R)
+            # the point-to-point term, mu R^T R on each coordinate's diagonal block
+            RtR = mu * (R.T @ R)
+            for d in range(3):
+                A[d * m : (d + 1) * m, d * m : (d + 1) * m] += RtR
+            A += base
             rhs = np.concatenate([Ls.T @ (n_s[:, d] * rhs_plane + mu * target[:, d]) for d in range(3)])
             if idx.size:
                 if probe_rows[phase] is None:
                     probe_rows[phase] = phases[phase][1].toarray()
                 Q = np.sqrt(wp2)[:, None] * np.take(probe_rows[phase], idx, axis=0)
-                QQ = np.hstack([g[:, d : d + 1] * Q for d in range(3)])
-                A += QQ.T @ QQ
+                QQ, QtQ = _gram_by_coordinate(g, Q)
+                A += QtQ
                 rhs += QQ.T @ (np.sqrt(wp2) * goal)
             rhs += base_rhs + (p["damping"] / n) * P_m.T.ravel()
             return np.linalg.solve(A, rhs)
