@@ -156,6 +156,27 @@ def test_a_design_is_the_pipelines_design(client, designer, default_design):
     assert d["files"] is None  # nothing written on the fast path
 
 
+def test_with_its_side_thread_the_server_designs_what_the_pipeline_designs(designer):
+    """``seatkit serve`` prepares the new bodies' checks and skin beside the template fit: the design is the same, bit for bit."""
+    import copy
+
+    from seatkit.pipeline import build
+    from seatkit.side import use_side_thread
+
+    recipe = designer.prepare({"bodies": [{"model": "p5-female", "pose": "upright-sitting"}], "seed": 61})
+    use_side_thread(True)
+    try:
+        d = designer.design(recipe, designer.new_request(), evaluate=False)
+    finally:
+        use_side_thread(False)
+    fast = copy.deepcopy(recipe)
+    fast["evaluate"]["enabled"] = False
+    ref = build(fast, pm=designer.pm, write=False, processes=False)
+    np.testing.assert_array_equal(d.result.initial_mesh.vertices, ref.initial_mesh.vertices)
+    np.testing.assert_array_equal(d.result.control_mesh.vertices, ref.control_mesh.vertices)
+    np.testing.assert_array_equal(d.result.surface.vertices, ref.surface.vertices)
+
+
 def test_the_same_recipe_is_answered_from_memory(client, default_design):
     r = client.post(FAST, json={"template": "chair"}).json()
     assert r["id"] == default_design["id"]

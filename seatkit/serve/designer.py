@@ -163,18 +163,23 @@ class _ObservedTemplate:
         from seatkit.search import template_cages
 
         self._observe("posed", bodies=bodies, pressures=pressures)
-        # the surface fit's skin distances of the new bodies, made beside the
-        # template fit (on the side thread, where it runs)
-        beside(_prepare_skins, bodies)
+        # what the cage check and the surface fit derive from the new bodies
+        # alone, made beside the template fit (on the side thread, where it runs)
+        beside(_prepare_bodies, bodies)
         for mesh in template_cages(self._template, bodies, pressures, params=params, seed=seed):
             self._observe("template", mesh=mesh)
             yield mesh
 
 
-def _prepare_skins(bodies) -> None:
-    """Build each body's skin distance (cached by its arrays, seatkit.geometry.skin) before the surface fit asks."""
+def _prepare_bodies(bodies) -> None:
+    """Before they are asked for: what the template's checks derive from each body (kept per
+    body, seatkit.template.checks), then its skin distance (kept by its arrays,
+    seatkit.geometry.skin), which the surface fit asks for later."""
     from seatkit.geometry.skin import SkinDistance
+    from seatkit.template.checks import prepare_body
 
+    for body in bodies:
+        prepare_body(body)
     for body in bodies:
         SkinDistance.of(body.vertices, body.faces).prepare()
 
