@@ -11,10 +11,10 @@ colours and our Table 1 figures). It reads the server process's CPU time
 (psutil) around each move: on a loaded machine the wall time is mostly
 waiting for a core, the CPU time is what the move costs. Meanwhile it polls
 GET /api/status every 50 ms as the page does (every 100 ms) and fetches each
-preview when it appears (the posed body; the template's cage; the refined
-surface, before the evaluation), timing
-when the page could draw it. Prints the medians, the stages of the design
-(from the report) and what the server reports as cached.
+preview the page draws when it appears (the posed body; the template's cage
+and its surface), timing when the page could draw it; with --no-previews it
+fetches none (the previews' cost is the difference). Prints the medians, the
+stages of the design (from the report) and what the server reports as cached.
 
 With --compare, a `seatkit build` of the same pose (what a designer ran before
 the web app: a fresh process, every stage, the files) is timed after each move,
@@ -23,7 +23,7 @@ alternating, so both see the same machine load.
 With --switches N, then N new pose or body choices (a library pose on a
 preset body, a combination not designed before), timed the same way.
 
-    python benchmarks/bench_serve.py [--moves 12] [--compare] [--switches 8]
+    python benchmarks/bench_serve.py [--moves 12] [--compare] [--switches 8] [--no-previews]
 """
 
 from __future__ import annotations
@@ -55,6 +55,9 @@ MOVES = [
 ]
 
 
+#: The previews the page draws (seatkit/serve/static/app.js, PREVIEW_LABEL), in order: their stages.
+PREVIEWS = ("posed", "template")
+
 #: New pose or body choices (--switches): each library pose on each body, in turn.
 SWITCH_POSES = ["reclined-sitting", "armrest-sitting", "crossed-legs-knees", "lounger", "upright-sitting"]
 SWITCH_BODIES = ["p5-female", "p95-male", "default-female", "p50-male"]
@@ -71,6 +74,7 @@ def main() -> None:
     ap.add_argument("--moves", type=int, default=12)
     ap.add_argument("--compare", action="store_true", help="alternate with a seatkit build of the same pose")
     ap.add_argument("--switches", type=int, default=0, help="then this many new pose or body choices (a library pose on a preset body, never seen before)")
+    ap.add_argument("--no-previews", action="store_true", help="poll the status but fetch no preview (what the previews cost is the difference)")
     args = ap.parse_args()
     seatkit = shutil.which("seatkit") or sys.exit("seatkit is not installed (pip install '.[serve]')")
     port = _free_port()
@@ -126,7 +130,7 @@ def main() -> None:
                 while worker.is_alive():
                     st = client.get("/api/status").json()
                     stage = st.get("preview")
-                    if st.get("request") == request and stage in ("posed", "template", "refine:catmull-clark-fit") and stage not in seen:
+                    if not args.no_previews and st.get("request") == request and stage in PREVIEWS and stage not in seen:
                         p = client.get("/api/preview", params={"request": request})
                         if p.status_code == 200:
                             seen[p.json()["stage"]] = time.perf_counter() - t
@@ -177,7 +181,7 @@ def main() -> None:
             proc.wait(timeout=30)
     print(f"designs answered from memory: {status['caches']['design_hits']} (0 expected: every move is a new pose)")
     print(f"load average at the end: {' '.join(f'{x:.1f}' for x in os.getloadavg())}")
-    print(f"slider move -> new design shown (POST /api/pose + POST /api/design, meshes included): {len(trips)} moves")
+    print(f"slider move -> new design shown (POST /api/pose + POST /api/design, meshes included): {len(trips)} moves, previews {'not fetched' if args.no_previews else 'fetched as the page does'}")
     print(f"  round trip: median {statistics.median(trips):.2f} s, min {min(trips):.2f} s, max {max(trips):.2f} s")
     print(f"  server CPU time until the design is shown: median {statistics.median(cpu_design):.2f} s, min {min(cpu_design):.2f} s, max {max(cpu_design):.2f} s")
     if evaluated:
@@ -185,8 +189,6 @@ def main() -> None:
     labels = {
         "posed": "preview: the body in its new pose",
         "template": "preview: the template's cage and surface",
-        "refine:optimize": "preview: the optimised cage",
-        "refine:catmull-clark-fit": "preview: the refined surface (before the evaluation)",
     }
     for stage, values in previews.items():
         print(f"  {labels[stage]}: median {statistics.median(values):.2f} s ({len(values)} of {len(trips)} moves)")

@@ -156,6 +156,27 @@ def test_a_design_is_the_pipelines_design(client, designer, default_design):
     assert d["files"] is None  # nothing written on the fast path
 
 
+def test_with_its_side_thread_the_server_designs_what_the_pipeline_designs(designer):
+    """``seatkit serve`` prepares the new bodies' checks and skin beside the template fit: the design is the same, bit for bit."""
+    import copy
+
+    from seatkit.pipeline import build
+    from seatkit.side import use_side_thread
+
+    recipe = designer.prepare({"bodies": [{"model": "p5-female", "pose": "upright-sitting"}], "seed": 61})
+    use_side_thread(True)
+    try:
+        d = designer.design(recipe, designer.new_request(), evaluate=False)
+    finally:
+        use_side_thread(False)
+    fast = copy.deepcopy(recipe)
+    fast["evaluate"]["enabled"] = False
+    ref = build(fast, pm=designer.pm, write=False, processes=False)
+    np.testing.assert_array_equal(d.result.initial_mesh.vertices, ref.initial_mesh.vertices)
+    np.testing.assert_array_equal(d.result.control_mesh.vertices, ref.control_mesh.vertices)
+    np.testing.assert_array_equal(d.result.surface.vertices, ref.surface.vertices)
+
+
 def test_the_same_recipe_is_answered_from_memory(client, default_design):
     r = client.post(FAST, json={"template": "chair"}).json()
     assert r["id"] == default_design["id"]
@@ -484,11 +505,32 @@ def test_previews_show_what_the_running_design_made(designer, client):
     body = _decode(seen["template"]["bodies"][0]["positions"], "<f4").reshape(-1, 3)
     np.testing.assert_allclose(body, d.result.bodies[0].vertices, atol=1e-6)
     assert seen["template"]["bodies"][0]["pressure_kind"] == "importance"
+    # the preview's surface is the limit surface of that cage at the recipe's level: what the design's own surface is made of
+    from seatkit.subdivision import limit_surface
+
+    surface = limit_surface(d.result.initial_mesh, level=recipe["surface_level"])
+    np.testing.assert_allclose(_decode(seen["template"]["surface"]["positions"], "<f4").reshape(-1, 3), surface.vertices, atol=1e-6)
+    np.testing.assert_array_equal(_decode(seen["template"]["surface"]["faces"], "<u4").reshape(-1, 3)[: len(surface.faces)], surface.faces[:, :3])
+    assert set(seen) <= {"posed", "template"}  # the previews the page draws; the design follows the refiners at once
     assert designer.preview("someone-else") is None
     assert client.get("/api/preview", params={"request": "someone-else"}).status_code == 404
     # a baseline fitted later does not touch the preview of the design
     designer.baseline(d)
     assert designer.preview("req-31")["stage"] == seen[max(seen, key=lambda k: list(seen).index(k))]["stage"]
+
+
+def test_a_preview_is_always_of_its_own_request(designer):
+    """After a newer design with another pose, the older request has no preview, and the newer one's is of its own body."""
+    a = designer.design(designer.prepare({"bodies": [{"pose": "reclined-sitting"}], "seed": 51}), designer.new_request(), "req-51a", evaluate=False)
+    assert designer.preview("req-51a") is not None
+    b = designer.design(designer.prepare({"bodies": [{"pose": "upright-sitting"}], "seed": 51}), designer.new_request(), "req-51b", evaluate=False)
+    assert designer.preview("req-51a") is None
+    p = designer.preview("req-51b")
+    body = _decode(p["bodies"][0]["positions"], "<f4").reshape(-1, 3)
+    np.testing.assert_allclose(body, b.result.bodies[0].vertices, atol=1e-6)
+    assert not np.allclose(body, a.result.bodies[0].vertices, atol=1e-3)
+    cage = _decode(p["cage"]["positions"], "<f4").reshape(-1, 3)
+    np.testing.assert_allclose(cage, b.result.initial_mesh.vertices, atol=1e-6)
 
 
 def test_a_baseline_asked_for_after_a_newer_request_is_skipped(client, designer):

@@ -137,7 +137,13 @@ class _CachingBodyModel:
 
 
 class _ObservedTemplate:
-    """A template that hands its inputs (the posed bodies, their pressure) and its cage to the designer's previews."""
+    """A template that hands its inputs (the posed bodies, their pressure) and its cage to the designer's previews.
+
+    These are the previews the page draws while a design is made: the body
+    in its new pose, then the template's cage. The refined cages are not
+    offered: after the refiners the design itself is a few milliseconds
+    away, and the optimised cage looks like the template's.
+    """
 
     def __init__(self, template, observe):
         self._template = template
@@ -157,58 +163,41 @@ class _ObservedTemplate:
         from seatkit.search import template_cages
 
         self._observe("posed", bodies=bodies, pressures=pressures)
-        # the surface fit's skin distances of the new bodies, made beside the
-        # template fit (on the side thread, where it runs)
-        beside(_prepare_skins, bodies)
+        # what the cage check and the surface fit derive from the new bodies
+        # alone, made beside the template fit (on the side thread, where it runs)
+        beside(_prepare_bodies, bodies)
         for mesh in template_cages(self._template, bodies, pressures, params=params, seed=seed):
             self._observe("template", mesh=mesh)
             yield mesh
 
 
-def _prepare_skins(bodies) -> None:
-    """Build each body's skin distance (cached by its arrays, seatkit.geometry.skin) before the surface fit asks."""
+def _prepare_bodies(bodies) -> None:
+    """Before they are asked for: what the template's checks derive from each body (kept per
+    body, seatkit.template.checks), then its skin distance (kept by its arrays,
+    seatkit.geometry.skin), which the surface fit asks for later."""
     from seatkit.geometry.skin import SkinDistance
+    from seatkit.template.checks import prepare_body
 
     for body in bodies:
+        prepare_body(body)
+    for body in bodies:
         SkinDistance.of(body.vertices, body.faces).prepare()
-
-
-class _ObservedRefiner:
-    """A refiner that hands each refined cage to the designer's previews."""
-
-    def __init__(self, refiner, observe):
-        self._refiner = refiner
-        self._observe = observe
-        self.name = refiner.name
-        self.description = refiner.description
-
-    def __getattr__(self, name):
-        return getattr(self._refiner, name)
-
-    def refine(self, mesh, bodies, pressures, *, params=None):
-        out = self._refiner.refine(mesh, bodies, pressures, params=params)
-        self._observe(f"refine:{self.name}", mesh=out)
-        return out
 
 
 class _CachingRegistry:
     """The plugin registry as the server uses it.
 
     Each body model is wrapped by :class:`_CachingBodyModel` (rigs kept);
-    templates and refiners by :class:`_ObservedTemplate` and
-    :class:`_ObservedRefiner`, which report to ``observe`` what they made
-    (it ignores them outside a design, e.g. for the baseline). Everything
-    else is the registry's own.
+    templates by :class:`_ObservedTemplate`, which reports to ``observe``
+    what it made (it ignores them outside a design, e.g. for the baseline).
+    Everything else is the registry's own.
     """
 
     def __init__(self, registry, observe=None):
         self._registry = registry
         self._bodies = {name: _CachingBodyModel(c) for name, c, _ in registry.items("body_model")}
         observe = observe or (lambda stage, **parts: None)
-        self._wrapped = {
-            **{("template", n): _ObservedTemplate(c, observe) for n, c, _ in registry.items("template")},
-            **{("refiner", n): _ObservedRefiner(c, observe) for n, c, _ in registry.items("refiner")},
-        }
+        self._wrapped = {("template", n): _ObservedTemplate(c, observe) for n, c, _ in registry.items("template")}
 
     def get(self, kind: str, name: str):
         if kind == "body_model" and name in self._bodies:
@@ -584,10 +573,11 @@ class Designer:
     def preview(self, request: str) -> dict | None:
         """What the running (or last) design of ``request`` has made so far, as :meth:`view` draws it; None if nothing yet.
 
-        After the template: the posed bodies (coloured by their importance,
-        the pressure supported everywhere) and the cage's limit surface at
-        the recipe's level; after the refiners, the refined cage's. Before
-        the template: the bodies alone.
+        After the pressure (stage ``posed``): the posed bodies, coloured by
+        their importance (the pressure supported everywhere); after the
+        template (stage ``template``): the same bodies, the template's cage
+        and its limit surface at the recipe's level. Each is made from the
+        objects the running design made, when asked (a few milliseconds).
         """
         from seatkit.subdivision import limit_surface
 

@@ -35,6 +35,7 @@ __all__ = [
     "topology_problems",
     "self_intersecting_faces",
     "crossing_faces",
+    "prepare_body",
     "faces_cross_body",
     "check_cage",
     "check_refined",
@@ -320,6 +321,19 @@ def _body_edge_bins(body: Body) -> list:
 def _body_triangle_bins(body: Body) -> list:
     """:func:`_target_bins` of the body's triangles (bounding spheres), once per body."""
     return _cached(body, "triangle_bins", lambda b: _target_bins(*_body_triangle_spheres(b)))
+
+
+def prepare_body(body: Body) -> None:
+    """Make what the checks derive from ``body`` alone, kept per body object: its k-d tree and vertex normals (the clearance step), its edges' and triangles' k-d trees (:func:`crossing_faces`).
+
+    A program with a core to spare (``seatkit serve``) calls it beside the
+    template fit, which asks for them in this order; the values are the
+    same whichever thread makes them.
+    """
+    body_tree(body)
+    body_vertex_normals(body)
+    _body_edge_bins(body)
+    _body_triangle_bins(body)
 
 
 def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, tolerance: float) -> np.ndarray:

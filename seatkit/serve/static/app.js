@@ -16,6 +16,7 @@ const state = {
   designsShown: 0,
   stale: false,        // the design on screen is not the one asked for last (a refusal, an error)
   frame: null,         // {centre, size} the camera is framed on
+  previewDraws: [],    // seconds each preview of the newest request took to draw
 };
 window.seatkit = state; // read by the browser test
 
@@ -185,10 +186,10 @@ function setProgress(text, fraction, cls = "") {
   $("progress-bar").style.width = `${Math.round(100 * fraction)}%`;
 }
 // While a design runs, the page polls the status; when the design has made something new
-// (the posed body, the template's cage, a refined cage) it draws that preview, labelled, until
-// the finished design replaces it. Only the newest request's previews are drawn, and never
+// (the posed body, then the template's cage) it draws that preview, labelled, until the
+// finished design replaces it. Only the newest request's previews are drawn, and never
 // after its finished design.
-const PREVIEW_LABEL = { posed: "new pose (pressure supported everywhere)", template: "template cage; refining", "refine:optimize": "optimised cage; fitting the surface", "refine:catmull-clark-fit": "fitted surface; evaluating" };
+const PREVIEW_LABEL = { posed: "new pose (pressure supported everywhere)", template: "template cage; refining" };
 function startPolling(label, request, seq) {
   stopPolling();
   const t0 = performance.now();
@@ -209,7 +210,9 @@ function startPolling(label, request, seq) {
       fetching = false;
       if (polling !== timer || seq !== state.clientSeq || state.shownSeq === seq || !p.ok) return;
       drawn = p.data.stage;
+      const drawStart = performance.now();
       showView(p.data);
+      state.previewDraws.push((performance.now() - drawStart) / 1000); // this design's previews drawn, and what each took
       state.previewsShown = (state.previewsShown || 0) + 1;
       state.lastPreview = { seq, stage: p.data.stage, seconds: (performance.now() - t0) / 1000 };
       setProgress(`${PREVIEW_LABEL[p.data.stage] || p.data.stage} (${state.lastPreview.seconds.toFixed(1)} s)`, (i + 1) / (STAGES.length + 1), "running");
@@ -565,6 +568,7 @@ async function requestDesign() {
   if (!state.pose) return;
   const seq = ++state.clientSeq;
   clearTimeout(baselineTimer);
+  state.previewDraws = [];
   const started = performance.now();
   const request = `${Date.now().toString(36)}-${seq}`;
   startPolling("designing", request, seq);
@@ -602,6 +606,7 @@ async function requestDesign() {
     showError(r.data.error, r.data.kind === "unsupported");
     return;
   }
+  state.lastAnswer = (performance.now() - started) / 1000; // the design's answer parsed, before drawing it (no WebGL in it)
   $("refusal").hidden = true;
   state.design = r.data;
   state.shownSeq = seq;
