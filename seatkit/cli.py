@@ -11,11 +11,14 @@ the traceback instead. Any other exception is a bug and shows its traceback.
 
 from __future__ import annotations
 
+import atexit
 import gc
 import importlib
 import json
+import os
 import pkgutil
 import sys
+import threading
 from pathlib import Path
 from typing import List, Optional, get_args, get_origin
 
@@ -412,17 +415,44 @@ def _register_command_modules() -> None:
 _register_command_modules()
 
 
-def main() -> None:
-    """Console-script entry point."""
+def run() -> int | str | None:
+    """Run the command ``sys.argv`` names and return its exit status (what it would pass to ``sys.exit``)."""
     try:
         app(prog_name="seatkit")
+    except SystemExit as e:
+        return e.code
     finally:
-        # The process ends here: its long-lived objects (numpy, scipy and the
+        # The process ends next: its long-lived objects (numpy, scipy and the
         # rest, ~100k) need no last garbage collection, which took ~0.08 s of
         # every command's exit. Frozen objects are skipped by it.
         gc.freeze()
+    return 0
+
+
+def main() -> None:
+    """Console-script entry point: runs the command, then ends the process without tearing the interpreter down.
+
+    Once the command is done, its output is flushed and the exit handlers
+    run (``atexit``: multiprocessing's, a plugin's), then the process ends
+    (``os._exit``) instead of freeing every module and object one by one,
+    which took 0.04-0.06 s of CPU after every build. Where that cannot be
+    done as ``sys.exit`` would (another thread still runs, an exit status
+    that is a message, standard output that cannot be flushed), the
+    process exits the usual way.
+    """
+    code = run()
+    if code is None:
+        code = 0
+    if not isinstance(code, int) or threading.active_count() > 1:
+        sys.exit(code)
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+    except (OSError, ValueError):
+        sys.exit(code)  # reported as Python reports it
+    atexit._run_exitfuncs()
+    os._exit(code & 0xFF)
 
 
 if __name__ == "__main__":  # pragma: no cover
     main()
-    sys.exit(0)
