@@ -418,6 +418,9 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
                 done[i][part] = place.result(part_job)
             for i in apart:
                 written[i] = _joined(exporters[i], [done[i][part] for part in _parts(exporters[i])])
+            for place in (helper, spare):  # nothing more for them: they end beside report.json
+                if place is not None:
+                    place.release()
         files = {role: target / Path(path).name for i in range(len(exporters)) for role, path in written[i].items()}
         result.timings, result.files = timer.timings, files
         report = registry.get("exporter", REPORT_EXPORTER).export(result, staging)
