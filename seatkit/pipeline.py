@@ -120,7 +120,7 @@ def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool
             context = _helper_context() if processes else None
             export_helper = _helper(helpers, "export", [e for e in exporters if e.prepare_ahead], processes, context)
             baseline_helper = _helper(helpers, "baseline", [], processes and _wants_baseline(recipe), context)
-            result = _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper)
+            result = _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper)
             if write:
                 _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper, spare=baseline_helper)
     return result
@@ -169,7 +169,7 @@ def _helper(stack: ExitStack, what: str, exporters: list, wanted: bool, context=
     return stack.enter_context(Helper(what, exporters, context))
 
 
-def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper, recline_offset: float = 0.0, recline_builds: int = 1) -> BuildResult:
+def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper, export_helper=None, recline_offset: float = 0.0, recline_builds: int = 1) -> BuildResult:
     """The stages from the bodies to the evaluation: the build's result, nothing written.
 
     With a backrest recline set (the ``seat`` step's ``recline``), a built
@@ -249,14 +249,14 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         got, want = recline
         if recline_builds < RECLINE_BUILDS:
             again = recline_offset + want - got
-            return _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, recline_offset=again, recline_builds=recline_builds + 1)
+            return _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper, recline_offset=again, recline_builds=recline_builds + 1)
         from seatkit.errors import RecipeError
 
         raise RecipeError(f"template_params.steps.seat.recline: the built backrest reclines {got:.1f} deg, not {want:g} deg (within {RECLINE_TOLERANCE_DEG:g} deg), after the trunk was reclined to meet it; allowed: -10 to 50 deg, try one nearer the pose's own")
 
     result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
     if recipe["evaluate"]["enabled"]:
-        evaluate_result(result, registry, timer, baseline=baseline, helper=baseline_helper)
+        evaluate_result(result, registry, timer, baseline=baseline, helper=(baseline_helper, export_helper))  # the interface pressure in the first that is idle
         if recipe.get("sitters"):
             with timer.stage("own designs"):  # the cost of sharing: each sitter's design alone (seatkit.sitters)
                 from seatkit.sitters import sharing_metrics
