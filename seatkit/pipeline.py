@@ -388,6 +388,7 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
     from seatkit.io import mark_complete
 
     target = output_target(result.recipe)
+    report = registry.get("exporter", REPORT_EXPORTER)
     ahead = [i for i, e in enumerate(exporters) if e.prepare_ahead] if helper is not None else []
     apart = []
     if spare is not None and spare.idle():
@@ -410,6 +411,7 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
                 for i, part, place in tasks:
                     if place is None:
                         done[i][part] = _run_part(exporters[i], result, staging, capture, part)
+                report.prepare()  # while the helpers finish
             finally:  # the helpers' files are in the staging folder before it is moved or deleted
                 wait([job] * (job is not None) + [r[3] for r in remote])
             if job is not None:
@@ -423,8 +425,8 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
                     place.release()
         files = {role: target / Path(path).name for i in range(len(exporters)) for role, path in written[i].items()}
         result.timings, result.files = timer.timings, files
-        report = registry.get("exporter", REPORT_EXPORTER).export(result, staging)
-        files.update({role: target / Path(path).name for role, path in report.items()})
+        written_report = report.export(result, staging)
+        files.update({role: target / Path(path).name for role, path in written_report.items()})
         mark_complete(staging, run_id=recipe_id(result.recipe), files=files)
     result.files = {k: str(v) for k, v in files.items()}
     result.output = str(target)
