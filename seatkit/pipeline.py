@@ -256,7 +256,10 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
     result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
     if recipe["evaluate"]["enabled"]:
-        evaluate_result(result, registry, timer, baseline=baseline, helper=(baseline_helper, export_helper))  # the interface pressure in the first that is idle
+        # the interface pressure in the baseline's helper when it is idle; in the
+        # export worker only where there is no baseline (a busy baseline helper
+        # means a busy machine, where this process computes it sooner itself)
+        evaluate_result(result, registry, timer, baseline=baseline, helper=baseline_helper if baseline_helper is not None else export_helper)
         if recipe.get("sitters"):
             with timer.stage("own designs"):  # the cost of sharing: each sitter's design alone (seatkit.sitters)
                 from seatkit.sitters import sharing_metrics

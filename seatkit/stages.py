@@ -295,11 +295,11 @@ def evaluate_result(
         Returns the baseline design (waiting for the helper process that
         fits it while our refiners run, :mod:`seatkit.workers`); without
         it the baseline is fitted here, when the recipe asks for one.
-    helper : seatkit.workers.Helper or sequence of them, optional
-        Helper processes (the baseline's, then the export worker), the
-        first of which that is idle computes the interface pressure while
-        this process evaluates the design; the ``interface pressure`` stage
-        is then the wait for it. The figures are the same either way.
+    helper : seatkit.workers.Helper, optional
+        A helper process (the baseline's, else the export worker) that,
+        when it is idle, computes the interface pressure while this process
+        evaluates the design; the ``interface pressure`` stage is then the
+        wait for it. The figures are the same either way.
     """
     from seatkit.dimensions import person_fit, support_dimensions
     from seatkit.evaluate import design_segments, evaluate_design
@@ -315,12 +315,11 @@ def evaluate_result(
     if interface:
         from seatkit.evaluate import evaluate_interface
 
-        idle = next((h for h in ([helper] if hasattr(helper, "idle") else helper or ()) if h is not None and h.idle()), None)
-        if idle is not None:  # beside the evaluation below (a copy of the bodies and surface there)
-            job = idle.submit(functools.partial(evaluate_interface, mu=p.get("mu")), result.bodies, result.surface)
+        if helper is not None and helper.idle():  # beside the evaluation below (a copy of the bodies and surface there)
+            job = helper.submit(functools.partial(evaluate_interface, mu=p.get("mu")), result.bodies, result.surface)
 
             def interface_now():
-                return idle.result(job)
+                return helper.result(job)
 
         else:
 
