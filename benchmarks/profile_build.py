@@ -29,15 +29,12 @@ from pathlib import Path
 
 _PROFILED = """
 import cProfile, sys, time
-from seatkit.cli import main
+from seatkit.cli import run
 sys.argv = ["seatkit", *{argv!r}]
 prof = cProfile.Profile(time.process_time)
 start = time.process_time()
 prof.enable()
-try:
-    main()
-except SystemExit:
-    pass
+run()
 prof.disable()
 print(f"CPU of the build (imports of seatkit.cli excluded): {{time.process_time() - start:.2f}} s", file=sys.stderr)
 prof.dump_stats({prof!r})

@@ -120,7 +120,7 @@ def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool
             context = _helper_context() if processes else None
             export_helper = _helper(helpers, "export", [e for e in exporters if e.prepare_ahead], processes, context)
             baseline_helper = _helper(helpers, "baseline", [], processes and _wants_baseline(recipe), context)
-            result = _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper)
+            result = _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper)
             if write:
                 _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper, spare=baseline_helper)
     return result
@@ -169,7 +169,7 @@ def _helper(stack: ExitStack, what: str, exporters: list, wanted: bool, context=
     return stack.enter_context(Helper(what, exporters, context))
 
 
-def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper, recline_offset: float = 0.0, recline_builds: int = 1) -> BuildResult:
+def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper, export_helper=None, recline_offset: float = 0.0, recline_builds: int = 1) -> BuildResult:
     """The stages from the bodies to the evaluation: the build's result, nothing written.
 
     With a backrest recline set (the ``seat`` step's ``recline``), a built
@@ -249,14 +249,17 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         got, want = recline
         if recline_builds < RECLINE_BUILDS:
             again = recline_offset + want - got
-            return _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, recline_offset=again, recline_builds=recline_builds + 1)
+            return _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper, recline_offset=again, recline_builds=recline_builds + 1)
         from seatkit.errors import RecipeError
 
         raise RecipeError(f"template_params.steps.seat.recline: the built backrest reclines {got:.1f} deg, not {want:g} deg (within {RECLINE_TOLERANCE_DEG:g} deg), after the trunk was reclined to meet it; allowed: -10 to 50 deg, try one nearer the pose's own")
 
     result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
     if recipe["evaluate"]["enabled"]:
-        evaluate_result(result, registry, timer, baseline=baseline, helper=baseline_helper)
+        # the interface pressure in the baseline's helper when it is idle; in the
+        # export worker only where there is no baseline (a busy baseline helper
+        # means a busy machine, where this process computes it sooner itself)
+        evaluate_result(result, registry, timer, baseline=baseline, helper=baseline_helper if baseline_helper is not None else export_helper)
         if recipe.get("sitters"):
             with timer.stage("own designs"):  # the cost of sharing: each sitter's design alone (seatkit.sitters)
                 from seatkit.sitters import sharing_metrics
@@ -388,6 +391,7 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
     from seatkit.io import mark_complete
 
     target = output_target(result.recipe)
+    report = registry.get("exporter", REPORT_EXPORTER)
     ahead = [i for i, e in enumerate(exporters) if e.prepare_ahead] if helper is not None else []
     apart = []
     if spare is not None and spare.idle():
@@ -410,6 +414,7 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
                 for i, part, place in tasks:
                     if place is None:
                         done[i][part] = _run_part(exporters[i], result, staging, capture, part)
+                report.prepare()  # while the helpers finish
             finally:  # the helpers' files are in the staging folder before it is moved or deleted
                 wait([job] * (job is not None) + [r[3] for r in remote])
             if job is not None:
@@ -418,10 +423,13 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
                 done[i][part] = place.result(part_job)
             for i in apart:
                 written[i] = _joined(exporters[i], [done[i][part] for part in _parts(exporters[i])])
+            for place in (helper, spare):  # nothing more for them: they end beside report.json
+                if place is not None:
+                    place.release()
         files = {role: target / Path(path).name for i in range(len(exporters)) for role, path in written[i].items()}
         result.timings, result.files = timer.timings, files
-        report = registry.get("exporter", REPORT_EXPORTER).export(result, staging)
-        files.update({role: target / Path(path).name for role, path in report.items()})
+        written_report = report.export(result, staging)
+        files.update({role: target / Path(path).name for role, path in written_report.items()})
         mark_complete(staging, run_id=recipe_id(result.recipe), files=files)
     result.files = {k: str(v) for k, v in files.items()}
     result.output = str(target)

@@ -296,10 +296,10 @@ def evaluate_result(
         fits it while our refiners run, :mod:`seatkit.workers`); without
         it the baseline is fitted here, when the recipe asks for one.
     helper : seatkit.workers.Helper, optional
-        A helper process (the baseline's) that, when it is idle, computes
-        the interface pressure while this process evaluates the design; the
-        ``interface pressure`` stage is then the wait for it. The figures
-        are the same either way.
+        A helper process (the baseline's, else the export worker) that,
+        when it is idle, computes the interface pressure while this process
+        evaluates the design; the ``interface pressure`` stage is then the
+        wait for it. The figures are the same either way.
     """
     from seatkit.dimensions import person_fit, support_dimensions
     from seatkit.evaluate import design_segments, evaluate_design

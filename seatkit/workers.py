@@ -336,6 +336,7 @@ class Helper:
             _share_imports()
         self._pool = ProcessPoolExecutor(max_workers=1, mp_context=context, initializer=_start_worker, initargs=(tuple(exporters), forked))
         self._jobs: list[Future] = []
+        self._ending: threading.Thread | None = None  # the pool's shutdown after release()
         self._started: list[Future] = []  # the first task: the worker's process id
         if forked:  # a fork takes milliseconds: now, before this process starts any other thread
             self._started.append(self._pool.submit(os.getpid))
@@ -369,6 +370,17 @@ class Helper:
             self._start.join()
         return self.result(self._started[0])
 
+    def release(self) -> None:
+        """No more tasks: the worker ends once those submitted are done, beside what the caller does next.
+
+        The pool's shutdown (the worker told to end, its exit waited for)
+        runs on a thread; :meth:`close` waits for it. A build releases its
+        helpers once it has their files, before it writes ``report.json``.
+        """
+        if self._ending is None:
+            self._ending = threading.Thread(target=self._pool.shutdown, name=f"seatkit-{self.what}-end", daemon=True)
+            self._ending.start()
+
     def close(self, *, stop: bool = False) -> None:
         """End the worker (idempotent); with ``stop``, work it still does is stopped, not waited for.
 
@@ -382,6 +394,8 @@ class Helper:
                 os.kill(self.pid(), signal.SIGTERM)
             except (ProcessLookupError, WorkerLost):
                 pass
+        if self._ending is not None:
+            self._ending.join()
         self._pool.shutdown(wait=True, cancel_futures=True)
 
     def __enter__(self) -> "Helper":

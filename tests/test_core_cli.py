@@ -86,3 +86,75 @@ def test_plugins_and_templates_fit_an_80_column_terminal():
         assert name in wide["plugins"]
     for name in ("bench", "chair", "flat-patch", "(Sit & Relax baseline)"):
         assert name in wide["templates"]
+
+
+
+def _tree(monkeypatch, *, typer_alone: bool):
+    """A fresh click tree of the ``seatkit`` command: its values read as ``seatkit`` reads them, or by typer alone."""
+    import typer.main
+
+    import seatkit.cli as cli
+
+    with monkeypatch.context() as m:
+        if typer_alone:
+            m.setattr(cli, "_plain_coercion", lambda params: None)
+        group = typer.main.get_command(app)
+        for command in group.commands.values():
+            command.get_help_option(group.make_context("seatkit", [command.name], resilient_parsing=True))
+    return group
+
+
+def _read(group, name, argv):
+    """The values of ``seatkit NAME ARGV`` (each with its type), or how it is refused."""
+    try:
+        parent = group.make_context("seatkit", [name, *argv])
+        values = group.commands[name].make_context(name, list(argv), parent=parent).params
+    except Exception as e:  # typer's own UsageError, BadParameter (its vendored click)
+        return f"{type(e).__name__}: {e.format_message() if hasattr(e, 'format_message') else e}"
+    return {k: (v, type(v), [type(x) for x in v] if isinstance(v, (list, tuple)) else None) for k, v in values.items()}
+
+
+def test_every_option_reads_as_typer_reads_it(tmp_path, monkeypatch):
+    """Options and arguments of every command, read without pydantic where plain (seatkit.cli._PlainCoercion): the same values and refusals as typer's own reading."""
+    from pathlib import Path
+
+    file, folder = tmp_path / "recipe.yaml", tmp_path / "folder"
+    file.write_text("template: chair\n")
+    folder.mkdir()
+    ours, typers = _tree(monkeypatch, typer_alone=False), _tree(monkeypatch, typer_alone=True)
+    samples = {str: ["chair", "", "-"], Path: [str(file), str(folder), str(tmp_path / "missing"), ""], int: ["3", "x"], float: ["0.5", "inf", "x"]}
+    compared = 0
+    for name, command in ours.commands.items():
+        params = [p for p in command.params if getattr(p, "type_descriptor", None) is not None]
+        required = [str(file) for p in params if p.param_type_name == "argument" and p.required]
+        assert _read(ours, name, required) == _read(typers, name, required), name  # nothing given: the defaults
+        for param in params:
+            annotation = param.type_descriptor.annotation
+            kind = getattr(annotation, "__args__", (annotation,))[0]
+            for value in [None] if getattr(param, "is_flag", False) else samples.get(kind, ["x"]):
+                if param.param_type_name == "argument":
+                    argv = [value, value] if param.nargs == -1 else [value] + required[1:]
+                else:
+                    given = [param.opts[0]] if value is None else [param.opts[0], value]
+                    argv = required + given * (2 if param.multiple else 1)
+                assert _read(ours, name, argv) == _read(typers, name, argv), (name, argv)
+                compared += 1
+    assert compared > 150
+
+
+def test_a_default_build_reads_its_options_without_pydantic():
+    """typer builds a pydantic adapter for every option it reads; the build's plain options are read without (0.07-0.1 s of start-up)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, typer.main\n"
+        "from seatkit.cli import app\n"
+        "group = typer.main.get_command(app)\n"
+        "argv = ['-q', '--template', 'chair', '--out', 'o', '--pose', 'upright-sitting', '--body', 'default-male']\n"
+        "values = group.commands['build'].make_context('build', argv, parent=group.make_context('seatkit', ['build', *argv])).params\n"
+        "assert values['pose'] == ['upright-sitting'] and values['mass'] is None, values\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('pydantic', 'click')))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "[]", done.stdout

@@ -323,16 +323,16 @@ def measure_rig(rig: RiggedBody) -> Measurements:
 
 def print_measurements(rig: RiggedBody) -> Measurements:
     """Measure ``rig`` and print one line per measurement (and the density check) on stdout."""
-    import click
+    import typer
 
     from seatkit.body.anthropometry import body_density
 
     m = measure_rig(rig)
     density = body_density(m.stature, m.mass)
-    click.echo(f"{rig.name}: measured on the bare-skin mesh (docs/bodies.md, 'Measuring a body')")
+    typer.echo(f"{rig.name}: measured on the bare-skin mesh (docs/bodies.md, 'Measuring a body')")
     for key, value in m.as_dict().items():
         unit = "kg" if key == "mass" else "m^3" if key == "volume" else "m"
-        click.echo(f"  {key:24s} {value:9.4f} {unit:4s} {HOW_MEASURED[key]}")
-    click.echo(f"  {'bmi':24s} {m.mass / m.stature**2:9.2f} kg/m^2")
-    click.echo(f"  {'volume x density':24s} {m.volume * density:9.2f} kg   (Contini 1972: {density:.0f} kg/m^3)")
+        typer.echo(f"  {key:24s} {value:9.4f} {unit:4s} {HOW_MEASURED[key]}")
+    typer.echo(f"  {'bmi':24s} {m.mass / m.stature**2:9.2f} kg/m^2")
+    typer.echo(f"  {'volume x density':24s} {m.volume * density:9.2f} kg   (Contini 1972: {density:.0f} kg/m^3)")
     return m

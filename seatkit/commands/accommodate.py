@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
-import click
 import typer
 
 
@@ -50,8 +49,8 @@ def register(app: typer.Typer) -> None:
                 criteria=criteria, scheduler=scheduler, workers=workers, reference=reference,
                 progress=lambda done, total: bar.update(task, completed=done, total=total),
             )
-        click.echo(share_text(summary))
+        typer.echo(share_text(summary))
         sole = summary["sole_reasons"]
         for reason, count in summary["reasons"].items():
-            click.echo(f"  {count} {reason}" + (f" ({sole[reason]} for this reason alone)" if reason in sole else ""))
-        click.echo(f"{folder / 'accommodation.json'}")
+            typer.echo(f"  {count} {reason}" + (f" ({sole[reason]} for this reason alone)" if reason in sole else ""))
+        typer.echo(f"{folder / 'accommodation.json'}")

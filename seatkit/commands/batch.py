@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import List, Optional
 
-import click
 import typer
 
 
@@ -28,9 +27,9 @@ def _progress_runner(items, out, scheduler, workers, disabled=()):
 def _print_outcome(results, out: Path) -> None:
     failed = [r for r in results if r.status == "failed"]
     for r in failed:
-        click.echo(f"failed: {r.name}: {r.error}", err=True)
+        typer.echo(f"failed: {r.name}: {r.error}", err=True)
     counts = {s: sum(r.status == s for r in results) for s in ("ok", "skipped", "failed")}
-    click.echo(f"{counts['ok']} built, {counts['skipped']} already complete, {counts['failed']} failed; summary: {out / 'summary.csv'}")
+    typer.echo(f"{counts['ok']} built, {counts['skipped']} already complete, {counts['failed']} failed; summary: {out / 'summary.csv'}")
     if failed:  # scripts must be able to tell: exit 1 when any item failed
         raise typer.Exit(1)
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
-import click
 import typer
 
 
@@ -60,7 +59,7 @@ def register(app: typer.Typer) -> None:
         mesh = trimesh.Trimesh(posed.vertices, posed.faces, process=False)
         data = mesh.export(file_type=suffix)
         write_bytes_atomic(out, data.encode() if isinstance(data, str) else data)
-        click.echo(
+        typer.echo(
             f"{out}: {len(posed.vertices)} vertices, {len(posed.faces)} triangles, "
             f"{posed.mass:.1f} kg, hip centre at y = {posed.joints[0][1]:.3f} m"
         )
@@ -68,4 +67,4 @@ def register(app: typer.Typer) -> None:
             from seatkit.body.render import render_body
 
             render_body(posed, png, views=("front", "side"), title=posed.name, show_skeleton=True)
-            click.echo(f"{png}: preview")
+            typer.echo(f"{png}: preview")

@@ -6,7 +6,6 @@ import json
 from pathlib import Path
 from typing import Optional
 
-import click
 import typer
 
 from seatkit.designs import load_checked_design  # noqa: F401  (the reader ``seatkit evaluate`` uses; its home is seatkit.designs)
@@ -71,7 +70,7 @@ def register(app: typer.Typer) -> None:
         metrics = jsonable(result.metrics)
         write_text_atomic(Path(directory) / "evaluation.json", json.dumps(metrics, indent=1) + "\n")
         if as_json:
-            click.echo(json.dumps(metrics, indent=1))
+            typer.echo(json.dumps(metrics, indent=1))
             return
         from rich.console import Console
         from rich.table import Table

@@ -40,8 +40,6 @@ def register(app: typer.Typer) -> None:
 
 
 def _check(ctx, pose: str, body_name: str, template_name: str, frame) -> None:
-    import click
-
     from seatkit.body import load_pose
     from seatkit.body.frame import to_canonical
     from seatkit.cli import plugin_manager
@@ -57,13 +55,13 @@ def _check(ctx, pose: str, body_name: str, template_name: str, frame) -> None:
     posed = to_canonical(model.pose(rig, load_pose(pose, frame=frame, rig=rig, dirs=registry.pose_dirs), ground=True))[0]
     rule = template_rule(template)
     if rule is None:
-        click.echo(f"{pose}: template {template_name!r} declares no pose rule; only a build can tell (seatkit build --pose {pose})")
+        typer.echo(f"{pose}: template {template_name!r} declares no pose rule; only a build can tell (seatkit build --pose {pose})")
         return
     verdict = assess_pose(posed, rule)
     if verdict.supportable:
-        click.echo(f"{pose}: supportable by the {template_name} template (on {posed.name.split(':')[0] or body_name})")
+        typer.echo(f"{pose}: supportable by the {template_name} template (on {posed.name.split(':')[0] or body_name})")
         return
-    click.echo(f"{pose}: not supportable by the {template_name} template:")
+    typer.echo(f"{pose}: not supportable by the {template_name} template:")
     for reason in verdict.reasons:
-        click.echo(f"  - {reason}")
+        typer.echo(f"  - {reason}")
     raise typer.Exit(1)

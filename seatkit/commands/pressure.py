@@ -11,7 +11,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
-import click
 import typer
 
 from seatkit.constants import DEFAULT_BODY_MASS, DEFAULT_LAMBDA, DEFAULT_MU, GRAVITY
@@ -85,7 +84,7 @@ def register(app: typer.Typer) -> None:
         moments = np.linalg.norm(field.joint_moment, axis=1)
         j = int(np.argmax(moments))
         limit = friction_state(field, mu=mu)
-        click.echo(
+        typer.echo(
             f"{posed.name}: {field.params['n_contact']} contact vertices, total reaction "
             f"{field.force[:, 1].sum():.2f} N (weight {posed.mass * GRAVITY:.2f} N), max pressure {field.pressure.max():.0f} Pa, "
             f"max joint moment {moments[j]:.2f} N m at {SEGMENTS[j + 1]}, {field.params.get('backend', solver)} "
@@ -93,4 +92,4 @@ def register(app: typer.Typer) -> None:
             f"({limit['above_coulomb_share']:.0%} beyond Coulomb's cone)"
         )
         for f in (npz, ply, png):
-            click.echo(f"{f}")
+            typer.echo(f"{f}")

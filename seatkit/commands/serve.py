@@ -27,8 +27,6 @@ def register(app: typer.Typer) -> None:
         import threading
         import webbrowser
 
-        import click
-
         from seatkit.cli import plugin_manager, stderr_console
         from seatkit.errors import MissingExtraError, SeatkitError
 
@@ -43,7 +41,7 @@ def register(app: typer.Typer) -> None:
         if not 0 < port < 65536:
             raise SeatkitError(f"--port: expected a port number between 1 and 65535, got {port}")
         if host not in ("127.0.0.1", "localhost", "::1"):
-            click.echo(
+            typer.echo(
                 f"seatkit: warning: listening on {host}: anyone who can reach this address can run designs "
                 "and read the designs' files; the app has no login",
                 err=True,

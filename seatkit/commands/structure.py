@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
-import click
 import typer
 
 
@@ -90,7 +89,7 @@ def register(app: typer.Typer) -> None:
         )
         s = analysis.summary
         if as_json:
-            click.echo(Path(files["structure_json"]).read_text(), nl=False)
+            typer.echo(Path(files["structure_json"]).read_text(), nl=False)
             return
         from rich.console import Console
         from rich.table import Table

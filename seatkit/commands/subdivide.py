@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
-import click
 import typer
 
 _OUT_FORMATS = (".obj", ".ply", ".stl", ".glb", ".usda", ".usdc")
@@ -75,7 +74,7 @@ def register(app: typer.Typer) -> None:
 
             write_surface(surface, out)
         what = "limit positions" if limit else "refined points"
-        click.echo(
+        typer.echo(
             f"{out}: level {levels}, {len(points)} {what}, {len(ops.faces)} quads "
             f"(cage: {c.n_vertices} vertices, {c.n_faces} faces, {len(c.crease_edges)} creases, "
             f"{len(c.corners)} corners, boundary {c.boundary}); extent {np.ptp(points, axis=0).round(4).tolist()} m"

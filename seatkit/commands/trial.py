@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Optional
 
-import click
 import typer
 
 
@@ -53,26 +52,26 @@ def register(app: typer.Typer) -> None:
         files = write_trial(design, result, folder)
         report = trial_report(design, result)
         if as_json:
-            click.echo(json.dumps(report, indent=1))
+            typer.echo(json.dumps(report, indent=1))
             return
         m, fit, pl = report["metrics"], report["person_fit"], report["placement"]
         t = pl["translation_m"]
-        click.echo(
+        typer.echo(
             f"{result.body.name} on {Path(directory).name}: placed by ({t[0] * 1000:+.0f}, {t[1] * 1000:+.0f}, {t[2] * 1000:+.0f}) mm, "
             f"hip {pl['hip_flexion_deg']:+.1f} deg, knee {pl['knee_flexion_deg']:+.1f} deg, back {pl['back_recline_deg']:+.1f} deg"
         )
         if not m.get("supported"):
-            click.echo(f"the design cannot hold this person: {m.get('reason')}")
+            typer.echo(f"the design cannot hold this person: {m.get('reason')}")
         else:
-            click.echo(
+            typer.echo(
                 f"avg distance {m['avg_distance_m'] * 1000:.1f} mm, max pressure {m['max_pressure_pa'] / 1000:.1f} kPa, "
                 f"max joint moment {m['max_moment_nm']:.1f} N m, penetration {m['max_penetration_m'] * 1000:.1f} mm, "
                 f"body depth {m['max_body_depth_m'] * 1000:.1f} mm"
             )
         if fit.get("popliteal_height_m") is not None and fit.get("seat_height_m") is not None:
-            click.echo(
+            typer.echo(
                 f"seat height {fit['seat_height_m'] * 1000:.0f} mm vs popliteal height + shoes {fit['seat_height_for_shoes_m'] * 1000:.0f} mm "
                 f"({fit['seat_height_difference_m'] * 1000:+.0f} mm)"
             )
         for f in files.values():
-            click.echo(str(f))
+            typer.echo(str(f))

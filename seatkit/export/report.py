@@ -39,6 +39,7 @@ from __future__ import annotations
 import base64
 import html
 import math
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -902,18 +903,27 @@ def timings_html(timings: dict) -> str:
 
 
 def finish_report_html(path, timings: dict) -> bool:
-    """Replace the time table of a written ``report.html`` with the build's final one.
+    """Replace the time table of a written ``report.html`` with the build's final one, in place.
 
     ``report.html`` is written during the export stage, before that stage's
     time is known; the build calls this once it is (with ``export`` and the
-    total). Returns whether the file held a table to replace.
+    total), on the file in its staging folder (moved into place only once
+    every file is written: :func:`seatkit.output.staging_folder`). The table
+    is near the end of the page: only the bytes from it on are written again,
+    not the page's several megabytes of plotly. Returns whether the file held
+    a table to replace.
     """
-    path = Path(path)
-    text = path.read_text(encoding="utf-8")
-    start, end = text.find(_TIMINGS_START), text.find(_TIMINGS_END)
-    if start < 0 or end < start:
-        return False
-    write_text_atomic(path, text[:start] + timings_html(timings) + text[end + len(_TIMINGS_END) :])
+    start_mark, end_mark = _TIMINGS_START.encode(), _TIMINGS_END.encode()
+    with open(path, "r+b") as fh:
+        data = fh.read()
+        start, end = data.find(start_mark), data.find(end_mark)
+        if start < 0 or end < start:
+            return False
+        fh.seek(start)
+        fh.write(timings_html(timings).encode("utf-8") + data[end + len(end_mark) :])
+        fh.truncate()
+        fh.flush()
+        os.fsync(fh.fileno())
     return True
 
 

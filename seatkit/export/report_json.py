@@ -11,6 +11,7 @@ in docs/output.md.
 
 from __future__ import annotations
 
+import functools
 import json
 import platform
 from pathlib import Path
@@ -54,16 +55,21 @@ FIGURE_MODELS = {
 
 
 def versions() -> dict:
-    """Python's version and those of seatkit and the libraries its results depend on."""
+    """Python's version and those of seatkit and the libraries its results depend on (those this process runs: read once)."""
+    return dict(_versions())
+
+
+@functools.lru_cache(maxsize=1)
+def _versions() -> tuple:
     import importlib.metadata as md
 
-    out = {"python": platform.python_version()}
+    out = [("python", platform.python_version())]
     for dist in _DISTRIBUTIONS:
         try:
-            out[dist] = md.version(dist)
+            out.append((dist, md.version(dist)))
         except md.PackageNotFoundError:
             pass
-    return out
+    return tuple(out)
 
 
 def report_data(result) -> dict:
@@ -129,7 +135,8 @@ class ReportJsonExporter:
     prepare_ahead = False
 
     def prepare(self) -> None:
-        """Nothing to prepare: this exporter imports nothing big."""
+        """Read the libraries' versions (:func:`versions`), ahead of :meth:`export`: a build does it while its helpers finish."""
+        versions()
 
     def export(self, result, directory: Path) -> dict[str, Path]:
         directory = Path(directory)

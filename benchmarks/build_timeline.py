@@ -1,0 +1,134 @@
+"""The timeline of one default build: when each stage, exporter and helper job starts and ends, with the CPU spent by then.
+
+    python benchmarks/build_timeline.py [--phases] [-- extra seatkit build flags]
+    /path/to/previous/.venv/bin/python benchmarks/build_timeline.py --phases   # the previous code, the same way
+
+Runs ``seatkit build -q --template chair`` in this process (the command's
+own code path, ``seatkit.cli.run``; helper processes as the command decides,
+``SEATKIT_HELPERS=on``/``off`` to force them) with the build's stages,
+exporter calls, helper jobs and the end of its helpers logged. Each line:
+wall seconds since this script started, the CPU seconds (user + system) of
+the process that logged it, and the event; lines of a helper process carry
+its process id and its own CPU (counted from its fork). The main process's
+lines show what the build's critical path does and when it waits for a
+helper (a ``done`` after its own work has ended). ``--phases`` prints only
+the main process's CPU at the start of the first stage, of the export stage,
+at its end and at the end of the command (one line, for comparing two
+versions of the code run the same way).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+T0 = time.perf_counter()
+MAIN = os.getpid()
+LOG: list[tuple[float, float, str]] = []
+
+
+def _cpu() -> float:
+    t = os.times()
+    return t.user + t.system
+
+
+def log(what: str) -> None:
+    if os.getpid() == MAIN:
+        LOG.append((time.perf_counter() - T0, _cpu(), what))
+    else:  # a helper: printed at once (its log dies with it)
+        print(f"  [{os.getpid()}] {time.perf_counter() - T0:7.3f} s  cpu {_cpu():6.3f} s  {what}", file=sys.stderr, flush=True)
+
+
+def _instrument() -> None:
+    """Log the stages, the components' calls, the helper jobs and the helpers' end (helpers inherit it: they are forks)."""
+    import seatkit.cli  # noqa: F401  (imported before the clock of the first event)
+    import seatkit.plugins as plugins
+    import seatkit.stages as stages
+    import seatkit.workers as workers
+
+    log("seatkit.cli imported")
+    call = plugins.Guarded._call
+
+    def guarded_call(self, method, *args, **kwargs):
+        name = f"{self._component.name}.{method.__name__}"
+        if method.__name__ not in ("run",):  # template steps: too many lines
+            log(f"start {name}")
+        try:
+            return call(self, method, *args, **kwargs)
+        finally:
+            if method.__name__ not in ("run",):
+                log(f"end {name}")
+
+    plugins.Guarded._call = guarded_call
+    stage = stages.StageTimer.stage
+
+    @contextlib.contextmanager
+    def timed_stage(self, name):
+        log(f"stage> {name}")
+        with stage(self, name):
+            yield
+        log(f"stage< {name}")
+
+    stages.StageTimer.stage = timed_stage
+    submit = workers.Helper.submit
+
+    def logged_submit(self, fn, *args):
+        label = f"{self.what}:{getattr(fn, '__name__', None) or getattr(getattr(fn, 'func', None), '__name__', repr(fn))}"
+        log(f"submit {label}")
+        job = submit(self, fn, *args)
+        job.add_done_callback(lambda _: log(f"done {label}"))
+        return job
+
+    workers.Helper.submit = logged_submit
+    close = workers.Helper.close
+
+    def logged_close(self, **kwargs):
+        log(f"close> {self.what}")
+        close(self, **kwargs)
+        log(f"close< {self.what}")
+
+    workers.Helper.close = logged_close
+
+
+def _at(what: str) -> float:
+    return next((cpu for _, cpu, w in LOG if w == what), float("nan"))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--phases", action="store_true", help="one line: the main process's CPU at the start of the first stage, of the export stage, at its end and at the end")
+    ap.add_argument("extra", nargs="*", help="more flags for seatkit build")
+    args = ap.parse_args()
+    _instrument()
+    import seatkit.cli as cli
+
+    with tempfile.TemporaryDirectory() as tmp:
+        sys.argv = ["seatkit", "build", "-q", "--template", "chair", "--out", str(Path(tmp) / "out"), *args.extra]
+        if hasattr(cli, "run"):
+            code = cli.run()
+        else:  # code from before seatkit.cli.run
+            try:
+                cli.main()
+                code = 0
+            except SystemExit as e:
+                code = e.code
+        log("command done")
+    if code not in (0, None):
+        sys.exit(f"the build failed (exit status {code})")
+    if args.phases:
+        first = _at("stage> bodies")
+        export, exported, done = _at("stage> export"), _at("stage< export"), _at("command done")
+        print(f"main process CPU: start-up {first:.3f} s, design {export - first:.3f} s, export {exported - export:.3f} s, after it {done - exported:.3f} s, in all {done:.3f} s")
+        return
+    print(f"{'wall':>8} {'cpu':>8}  main process (helpers' lines on stderr, as they happen)")
+    for wall, cpu, what in LOG:
+        print(f"{wall:7.3f} s {cpu:6.3f} s  {what}")
+
+
+if __name__ == "__main__":
+    main()
