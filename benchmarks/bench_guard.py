@@ -12,8 +12,8 @@ through it, and no point of the tessellation moves farther in an iteration
 than its farthest-moving vertex. So an incremental test would re-test a
 vertex only once the surface's moves since its last test add up to its
 distance to the surface. The benchmark replays the refit's surfaces with
-every vertex's exact distance to each (free, which no real test is) and
-counts the vertices such a test would re-test: the CPU it could save is
+every vertex's distance to each (the closest-point query's, within 0.1 mm,
+taken as free, which no real test's is) and counts the vertices such a test would re-test: the CPU it could save is
 at most the inside test's CPU times the share it would skip.
 docs/performance.md, "The guarded refit's inside test", gives what it measured:
 
@@ -119,7 +119,7 @@ def main() -> None:
                 f"{len(points)} guarded vertices; inside test {parity:.2f} s ({len(tests)} calls, "
                 f"{1000 * parity / len(tests):.1f} ms each); the surface's largest move an iteration "
                 f"{1000 * np.median(moves):.1f} mm (median), {1000 * max(moves):.1f} mm (largest); "
-                f"re-tested with exact distances: {100 * share:.0f}% a call; could save at most "
+                f"re-tested with free distances: {100 * share:.0f}% a call; could save at most "
                 f"{parity * (1 - share) * (len(tests) - 1) / len(tests):.2f} s ({100 * parity * (1 - share) / refit:.0f}% of the refit); "
                 f"per vertex: inside test {1e6 * parity / (len(tests) * len(points)):.2f} us, "
                 f"the distances (SurfaceQuery) {1e6 * distance_cpu / max(asked, 1):.2f} us",
