@@ -41,7 +41,7 @@ def main() -> None:
 
     from threadpoolctl import threadpool_limits
 
-    from seatkit.body.generator import draw_pose, pose_yaml
+    from seatkit.body.generator import draw_case, pose_yaml
     from seatkit.errors import SeatkitError
     from seatkit.geometry.closest import row_norms
     from seatkit.geometry.surface import SurfaceQuery
@@ -67,10 +67,10 @@ def main() -> None:
 
     with tempfile.TemporaryDirectory() as tmp:
         for case in args.cases:
-            name, body = case.split("@")
-            family, index = name.rsplit("-", 1)
+            drawn, body = draw_case(case)
+            name = drawn.name
             path = Path(tmp) / f"{name}.yaml"
-            path.write_text(pose_yaml(draw_pose(np.random.default_rng([2026, int(index)]), family, name)))
+            path.write_text(pose_yaml(drawn))
             captured.clear()
             ccfit._fit_once = capture
             try:

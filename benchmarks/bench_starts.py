@@ -21,8 +21,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -30,7 +28,7 @@ def main() -> None:
     ap.add_argument("--results", type=Path, help="append one JSON line per case here")
     args = ap.parse_args()
 
-    from seatkit.body.generator import draw_pose, pose_yaml
+    from seatkit.body.generator import draw_case, pose_yaml
     from seatkit.errors import SeatkitError, UnsupportedPoseError
     from seatkit.pipeline import build
     from seatkit.template import engine
@@ -73,10 +71,10 @@ def main() -> None:
     ccfit._fit_once, ccfit.push_out = logged_fit, logged_push
     with tempfile.TemporaryDirectory() as tmp:
         for case in args.cases:
-            name, body = case.split("@")
-            family, index = name.rsplit("-", 1)
+            drawn, body = draw_case(case)
+            name = drawn.name
             path = Path(tmp) / f"{name}.yaml"
-            path.write_text(pose_yaml(draw_pose(np.random.default_rng([2026, int(index)]), family, name)))
+            path.write_text(pose_yaml(drawn))
             log.clear()
             fits.clear()
             start = time.process_time()

@@ -252,6 +252,15 @@ def draw_pose(rng: np.random.Generator, family: str, name: str = "") -> DrawnPos
     return DrawnPose(name, family, angles, Pose(euler_to_rotvec(angles), np.zeros(3), name))
 
 
+def draw_case(case: str, *, seed: int = 2026) -> tuple[DrawnPose, str]:
+    """A drawn case ``FAMILY-INDEX@BODY`` (``seated-104@default-male``): pose ``INDEX`` of ``FAMILY`` drawn from the stream ``[seed, INDEX]``, as the benchmarks draw it, and the body's name."""
+    name, _, body = case.partition("@")
+    family, _, index = name.rpartition("-")
+    if not body or not family or not index.isdigit():
+        raise ValueError(f"a drawn case is FAMILY-INDEX@BODY (seated-104@default-male), not {case!r}")
+    return draw_pose(np.random.default_rng([seed, int(index)]), family, name), body
+
+
 def draw_poses(n: int, *, seed: int = 0, families=FAMILIES) -> list[DrawnPose]:
     """``n`` random poses, the families in turn (pose ``i`` is of ``families[i % len]``), reproducible from ``seed``."""
     rng = np.random.default_rng(seed)
