@@ -72,8 +72,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for case in args.cases:
             drawn, body = draw_case(case)
-            name = drawn.name
-            path = Path(tmp) / f"{name}.yaml"
+            path = Path(tmp) / f"{drawn.name}.yaml"
             path.write_text(pose_yaml(drawn))
             log.clear()
             fits.clear()

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from seatkit.body import list_poses, load_pose, load_rig, pose_rig
-from seatkit.body.generator import FAMILIES, UNSUPPORTED_FAMILIES, draw_pose, draw_poses, pose_yaml, yaml_float
+from seatkit.body.generator import FAMILIES, UNSUPPORTED_FAMILIES, draw_case, draw_pose, draw_poses, pose_yaml, yaml_float
 from seatkit.body.poses import euler_to_rotvec
 from seatkit.cli import app
 from seatkit.errors import UnsupportedPoseError
@@ -124,6 +124,15 @@ def test_draws_are_reproducible_and_cover_the_families():
     with pytest.raises(ValueError, match="unknown pose family 'flying'"):
         draw_pose(np.random.default_rng(0), "flying")
     assert set(UNSUPPORTED_FAMILIES).isdisjoint(FAMILIES)
+
+
+def test_a_drawn_case_is_the_pose_its_name_says():
+    drawn, body = draw_case("crossed-legs-050@default-female")
+    assert (body, drawn.name, drawn.family) == ("default-female", "crossed-legs-050", "crossed-legs")
+    np.testing.assert_array_equal(drawn.angles, draw_pose(np.random.default_rng([2026, 50]), "crossed-legs").angles)
+    for bad in ("seated-104", "seated@default-male", "seated-x@default-male"):
+        with pytest.raises(ValueError, match="FAMILY-INDEX@BODY"):
+            draw_case(bad)
 
 
 def test_leaning_forward_hands_on_the_thighs_rest_on_the_thighs(rigs):
