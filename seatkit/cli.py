@@ -264,18 +264,21 @@ def build(
 
     Stages: bodies -> pressure -> template -> refiners -> surface -> exporters.
     """
+    from seatkit.pipeline import build as run_build
+    from seatkit.recipe import apply_overrides, check_recipe, load_recipe
     from seatkit.workers import helpers_pay, start_fork_server
 
-    # helper processes only with an idle core beside this one (measured
-    # over this program's start-up); forks of this process once it has
-    # imported the stages, or, where it cannot fork, of a fork server that
-    # imports numpy, scipy and the stages (seatkit.workers): started first,
-    # its imports run beside this process's start-up, not beside the stages
+    # helper processes only with an idle core beside this one, measured
+    # over this program's start-up up to here: the stages' imports (numpy,
+    # scipy: a few tenths of a second of one core) are the window, long
+    # enough for the machine's idle time to tell (seatkit.workers.spare_cores
+    # needs 10 clock ticks; the option parsing alone is shorter). The
+    # helpers are forks of this process, which has imported the stages, or,
+    # where it cannot fork, of a fork server that imports them, started
+    # now, beside the plugins and the recipe
     processes = helpers_pay(_STARTED)
     if processes:
         start_fork_server()
-    from seatkit.pipeline import build as run_build
-    from seatkit.recipe import apply_overrides, check_recipe, load_recipe
 
     pm = plugin_manager(ctx)
     base, document = load_recipe(recipe)

@@ -456,6 +456,33 @@ def test_without_a_measurement_the_load_average_decides(monkeypatch):
     assert workers.helpers_pay(None) is False
 
 
+_DECISION_CHECK = """
+import sys
+import seatkit.workers as workers
+seen = []
+def spare(since, _spare=workers.spare_cores):
+    seen.append(_spare(since))
+    raise SystemExit(0)  # the decision is all this check needs
+workers.spare_cores = spare
+sys.argv = ["seatkit", "build", "-q", "--template", "chair", "--out", sys.argv[1]]
+from seatkit import cli
+cli.run()
+print(seen)
+"""
+
+
+@needs_proc
+def test_seatkit_build_decides_on_helpers_from_its_own_start_up(tmp_path, monkeypatch):
+    # the idle time is measured over the program's start-up up to the
+    # decision; a window too short to measure (fewer than 10 clock ticks)
+    # would leave it to the load average, which the build itself raises
+    monkeypatch.delenv("SEATKIT_HELPERS", raising=False)
+    done = subprocess.run([sys.executable, "-c", _DECISION_CHECK, str(tmp_path / "out")], capture_output=True, text=True, check=True)
+    (spare,) = eval(done.stdout.strip())
+    assert spare is not None and 0.0 <= spare <= os.cpu_count() + 1e-9
+    assert not (tmp_path / "out").exists()
+
+
 @needs_proc
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="helpers are forks of the build on Linux only")
 def test_a_worker_is_a_fork_of_the_build_only_while_no_other_thread_runs():
