@@ -79,7 +79,7 @@ Departures from the paper, and why:
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
 import numpy as np
@@ -122,6 +122,9 @@ _PREV = np.array([3, 0, 1, 2])
 _NEXT = np.array([1, 2, 3, 0])
 _C1 = np.array([1, 2, 0])
 _C2 = np.array([2, 0, 1])
+#: ``np.sum`` without its Python wrapper (the same reduction): paid a few
+#: times per energy evaluation, hundreds of evaluations per run.
+_sum = np.add.reduce
 
 
 def _scatter_matrix(index: np.ndarray, n: int) -> sp.csr_matrix:
@@ -130,20 +133,65 @@ def _scatter_matrix(index: np.ndarray, n: int) -> sp.csr_matrix:
     return sp.csr_matrix((np.ones(m), (index, np.arange(m))), shape=(n, m))
 
 
-def _corner_angles(x: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, tuple]:
+class _RowSums:
+    """``matrix @ x`` for a fixed sparse matrix, added up with ``np.bincount``.
+
+    Each row's products are the ones scipy's CSR kernel forms, added in the
+    same order starting from zero, so the result is scipy's to the bit (a CSC
+    matrix, such as a transpose, is turned into CSR first: its rows then list
+    their entries in the order the CSC kernel adds them). It skips
+    scipy.sparse's dispatch, which is most of a product's cost on a cage of a
+    hundred vertices and was paid several times per energy evaluation.
+
+    Parameters
+    ----------
+    matrix : sparse matrix
+        (n, m); ``x`` is (m,) or (m, 3).
+    """
+
+    def __init__(self, matrix: sp.spmatrix):
+        csr = sp.csr_matrix(matrix)
+        self.shape = csr.shape
+        self.cols = csr.indices.astype(np.intp)
+        self.data = csr.data.astype(np.float64)
+        self.rows = np.repeat(np.arange(csr.shape[0]), np.diff(csr.indptr))
+        self.rows3 = (3 * self.rows[:, None] + np.arange(3)).ravel()
+
+    def __matmul__(self, x: np.ndarray) -> np.ndarray:
+        n = self.shape[0]
+        if x.ndim == 1:
+            return np.bincount(self.rows, weights=self.data * x[self.cols], minlength=n)
+        products = self.data[:, None] * x.take(self.cols, axis=0)
+        return np.bincount(self.rows3, weights=products.ravel(), minlength=3 * n).reshape(n, 3)
+
+
+def _around(faces: np.ndarray) -> np.ndarray:
+    """(3, f, 4) each corner of the quads ``faces``, the corner before it and the corner after it."""
+    return np.stack([faces, faces[:, _PREV], faces[:, _NEXT]]).astype(np.intp)
+
+
+def _corner_angles(x: np.ndarray, faces: np.ndarray, around: np.ndarray | None = None) -> tuple[np.ndarray, tuple]:
     """Interior angle of every corner of the quads ``faces`` at ``x``.
 
     Returns ``alpha`` (f, 4) = atan2(|a x b|, a . b), ``a`` and ``b`` the edges
     to the previous and the next corner, and the parts the gradient needs
-    (:func:`_angle_gradient`).
+    (:func:`_angle_gradient`): ``(a, b)`` (2, f, 4, 3), ``|a x b|``, ``a . b``
+    and ``(|a|^2, |b|^2)`` (2, f, 4). ``around`` is :func:`_around` of
+    ``faces`` (made here when not given).
     """
-    corner = x[faces]  # (f, 4, 3)
-    a = corner[:, _PREV] - corner
-    b = corner[:, _NEXT] - corner
-    cross = a[..., _C1] * b[..., _C2] - a[..., _C2] * b[..., _C1]
-    sin_part = np.sqrt(np.einsum("fkc,fkc->fk", cross, cross))
-    cos_part = np.einsum("fkc,fkc->fk", a, b)
-    return np.arctan2(sin_part, cos_part), (a, b, sin_part, cos_part)
+    if around is None:
+        around = _around(faces)
+    # take: the same rows as x[around], at a fraction of fancy indexing's cost
+    corners = x.take(around, axis=0)  # (3, f, 4, 3)
+    ab = corners[1:] - corners[0]
+    first, second = ab.take(_C1, axis=-1), ab.take(_C2, axis=-1)
+    cross = first[0] * second[1] - second[0] * first[1]
+    cross *= cross
+    # the three squares added in order (a dot product's SIMD path would round differently)
+    sin_part = np.sqrt(cross[..., 0] + cross[..., 1] + cross[..., 2])
+    cos_part = np.einsum("fkc,fkc->fk", ab[0], ab[1])
+    squares = np.einsum("sfkc,sfkc->sfk", ab, ab)
+    return np.arctan2(sin_part, cos_part), (ab, sin_part, cos_part, squares)
 
 
 def _angle_gradient(parts: tuple, d_alpha: np.ndarray) -> np.ndarray:
@@ -162,18 +210,16 @@ def _angle_gradient(parts: tuple, d_alpha: np.ndarray) -> np.ndarray:
         Row ``[j, k]`` is the derivative w.r.t. the position of corner ``k``
         of face ``j`` (sum rows into vertices with a scatter matrix).
     """
-    a, b, sin_part, cos_part = parts
+    ab, sin_part, cos_part, squares = parts
     # d alpha / d a = -b_perp / |a x b|, b_perp = b minus its component along a
-    aa = np.einsum("fkc,fkc->fk", a, a)
-    bb = np.einsum("fkc,fkc->fk", b, b)
+    # (and the same with a and b swapped): both at once, (b_perp, a_perp)
     safe = np.maximum(sin_part, 1e-300)[..., None]
-    b_perp = b - (cos_part / np.maximum(aa, 1e-300))[..., None] * a
-    a_perp = a - (cos_part / np.maximum(bb, 1e-300))[..., None] * b
-    g_a = -b_perp / safe * d_alpha[..., None]  # w.r.t. the previous corner
-    g_b = -a_perp / safe * d_alpha[..., None]  # w.r.t. the next corner
+    perp = ab[::-1] - (cos_part / np.maximum(squares, 1e-300))[..., None] * ab
+    # w.r.t. the previous corner (row 0) and the next corner (row 1)
+    g = -perp / safe * d_alpha[..., None]
     # corner k gets -(g_a + g_b) from its own angle, g_a from the angle
     # of corner k+1 (k is its previous) and g_b from corner k-1
-    return -(g_a + g_b) + g_a[:, _NEXT] + g_b[:, _PREV]
+    return -(g[0] + g[1]) + g[0].take(_NEXT, axis=1) + g[1].take(_PREV, axis=1)
 
 
 @dataclass(frozen=True)
@@ -212,12 +258,24 @@ class CageEnergy:
     coeffs: dict
     corner_scatter: sp.csr_matrix
     plane_scatter: sp.csr_matrix
-    #: ``laplacian.T``, made once (scipy makes a new transposed matrix at every ``.T``)
-    laplacian_t: sp.spmatrix | None = None
+    #: What every evaluation reuses: the sparse products as :class:`_RowSums`
+    #: (``laplacian``, its transpose, the scatters), the corners around each
+    #: corner, the corners of the faces with a plane and their weights.
+    _fixed: dict = field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
-        if self.laplacian_t is None:
-            object.__setattr__(self, "laplacian_t", self.laplacian.T)
+        plane_corners = self.faces[self.plane_faces]
+        fixed = {
+            "laplacian": _RowSums(self.laplacian),
+            "laplacian_t": _RowSums(self.laplacian.T),
+            "corner_scatter": _RowSums(self.corner_scatter),
+            "plane_scatter": _RowSums(self.plane_scatter),
+            "around": _around(self.faces),
+            "plane_corners": plane_corners,
+            "plane_weights": self.weights[plane_corners],
+            "vertex_weights": self.weights[:, None],
+        }
+        object.__setattr__(self, "_fixed", fixed)
 
     @classmethod
     def build(
@@ -305,20 +363,21 @@ class CageEnergy:
 
     def _evaluate(self, x: np.ndarray, *, want_grad: bool, angle_penalty=None):
         c = self.coeffs
-        grad = np.zeros_like(x)
+        fixed = self._fixed
+        grad = np.zeros(x.shape)
         terms: dict[str, float] = {}
 
         # S_L: squared distance of each vertex to its weighted 1-ring average
-        residual = self.laplacian @ x
-        terms["laplacian"] = c["laplacian"] * float(np.sum(residual**2))
+        residual = fixed["laplacian"] @ x
+        terms["laplacian"] = c["laplacian"] * float(_sum(residual**2, axis=None))
         if want_grad:
-            grad += 2.0 * c["laplacian"] * (self.laplacian_t @ residual)
+            grad += 2.0 * c["laplacian"] * (fixed["laplacian_t"] @ residual)
 
         # S_A: corner angles alpha = angle(a, b), a = prev - v, b = next - v
-        alpha, parts = _corner_angles(x, self.faces)
-        sum_err = alpha.sum(axis=1) - 2.0 * np.pi
-        terms["regular"] = c["regular"] * float(np.sum(sum_err**2))
-        terms["max_angle"] = c["max_angle"] * float(np.sum((alpha - np.pi) ** 2))
+        alpha, parts = _corner_angles(x, self.faces, fixed["around"])
+        sum_err = _sum(alpha, axis=1) - 2.0 * np.pi
+        terms["regular"] = c["regular"] * float(_sum(sum_err**2, axis=None))
+        terms["max_angle"] = c["max_angle"] * float(_sum((alpha - np.pi) ** 2, axis=None))
         extra = 0.0
         if want_grad:
             # dE/dalpha per corner
@@ -326,23 +385,24 @@ class CageEnergy:
             if angle_penalty is not None:
                 extra, d_extra = angle_penalty(alpha)
                 d_alpha = d_alpha + d_extra
-            grad += self.corner_scatter @ _angle_gradient(parts, d_alpha).reshape(-1, 3)
+            grad += fixed["corner_scatter"] @ _angle_gradient(parts, d_alpha).reshape(-1, 3)
 
         # D_V: weighted squared distance to the template positions
         delta = x - self.rest
-        terms["vertex"] = c["vertex"] * float(np.sum(self.weights[:, None] * delta**2))
+        w = fixed["vertex_weights"]
+        terms["vertex"] = c["vertex"] * float(_sum(w * delta**2, axis=None))
         if want_grad:
-            grad += 2.0 * c["vertex"] * self.weights[:, None] * delta
+            grad += 2.0 * c["vertex"] * w * delta
 
         # D_P: weighted squared distance of each face's corners to its plane
         if self.plane_faces.size:
-            idx = self.faces[self.plane_faces]  # (g, 4)
-            dist = np.einsum("gkc,gc->gk", x[idx] - self.plane_points[:, None, :], self.plane_normals)
-            w = self.weights[idx]
-            terms["plane"] = c["plane"] * float(np.sum(w * dist**2))
+            idx = fixed["plane_corners"]  # (g, 4)
+            dist = np.einsum("gkc,gc->gk", x.take(idx, axis=0) - self.plane_points[:, None, :], self.plane_normals)
+            w = fixed["plane_weights"]
+            terms["plane"] = c["plane"] * float(_sum(w * dist**2, axis=None))
             if want_grad:
                 g = 2.0 * c["plane"] * (w * dist)[..., None] * self.plane_normals[:, None, :]
-                grad += self.plane_scatter @ g.reshape(-1, 3)
+                grad += fixed["plane_scatter"] @ g.reshape(-1, 3)
         else:
             terms["plane"] = 0.0
 
@@ -583,15 +643,17 @@ class _EdgeLengthPenalty:
         self.target_sq = target**2
         self.directions = directions
         self.linear = np.any(directions != 0.0, axis=1)
+        self.first, self.second = edges[:, 0].copy(), edges[:, 1].copy()
         # signed incidence (n, m): +1 at an edge's first end, -1 at its second
         self.incidence = sp.csr_matrix(
             (np.concatenate([np.ones(m), -np.ones(m)]), (edges.T.ravel(), np.tile(np.arange(m), 2))),
             shape=(n, m),
         )
+        self._incidence = _RowSums(self.incidence)
 
     def constraint(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``c`` (m,), the edge vectors (m, 3) and squared lengths (m,) at ``x`` (n, 3)."""
-        d = x[self.edges[:, 0]] - x[self.edges[:, 1]]
+        d = x.take(self.first, axis=0) - x.take(self.second, axis=0)
         # floored so that coinciding ends give a huge finite value, not inf
         sq = np.maximum(np.einsum("ec,ec->e", d, d), 1e-12 * self.target_sq)
         along = np.einsum("ec,ec->e", d, self.directions)
@@ -609,7 +671,7 @@ class _EdgeLengthPenalty:
             self.directions,
             (self.target * self.target_sq / sq**2)[:, None] * d,
         )
-        grad = self.incidence @ (-q[:, None] * dc)
+        grad = self._incidence @ (-q[:, None] * dc)
         return value, grad
 
 
@@ -643,10 +705,12 @@ class _CornerAnglePenalty:
         self.size = int(self.target.size)
         self.scale = self.target * self.lever  # relative violation: -c / scale
         self.scatter = _scatter_matrix(faces.ravel(), n)
+        self._scatter = _RowSums(self.scatter)
+        self._around = _around(faces)
 
     def constraint(self, x: np.ndarray) -> tuple[np.ndarray]:
         """``c`` (m,) at ``x`` (n, 3)."""
-        return (self.of_angles(_corner_angles(x, self.faces)[0]),)
+        return (self.of_angles(_corner_angles(x, self.faces, self._around)[0]),)
 
     def of_angles(self, alpha: np.ndarray) -> np.ndarray:
         """``c`` (m,) from the corner angles ``alpha`` (f, 4)."""
@@ -662,9 +726,9 @@ class _CornerAnglePenalty:
 
     def value_and_grad(self, x: np.ndarray, lam: np.ndarray, mu: float) -> tuple[float, np.ndarray]:
         """Penalty value and its gradient (n, 3) at ``x``."""
-        alpha, parts = _corner_angles(x, self.faces)
+        alpha, parts = _corner_angles(x, self.faces, self._around)
         value, d_alpha = self.on_angles(alpha, lam, mu)
-        return value, self.scatter @ _angle_gradient(parts, d_alpha).reshape(-1, 3)
+        return value, self._scatter @ _angle_gradient(parts, d_alpha).reshape(-1, 3)
 
 
 def _solve(
@@ -818,13 +882,14 @@ class _Problem:
     penalty: "_EdgeLengthPenalty"
     angle_floor: np.ndarray  # (f, 4) rad, 0 where a corner is free
     angles: "_CornerAnglePenalty"
-    basis_t: sp.csr_matrix
+    basis: _RowSums  # border.basis, for the products of every evaluation
+    basis_t: _RowSums  # its transpose
     z0: np.ndarray
     bounds: scipy.optimize.Bounds
 
     def unpack(self, z: np.ndarray) -> np.ndarray:
         """(n, 3) normalised vertices of the unknowns ``z``."""
-        return (self.border.base + self.border.basis @ z).reshape(-1, 3)
+        return (self.border.base + self.basis @ z).reshape(-1, 3)
 
     def slack(self, x: np.ndarray) -> np.ndarray:
         """Relative slack of |e|^2 >= l^2 on the constrained edges (>= 0: met)."""
@@ -874,8 +939,8 @@ def _angle_penalty(x0, faces, border: _Border, p) -> tuple[np.ndarray, "_CornerA
     Only corners whose angle can change (one of their three vertices moves)
     and whose angle is defined get a floor.
     """
-    template_angles, (ea, eb, _, _) = _corner_angles(x0, faces)
-    lever = np.sqrt(np.linalg.norm(ea, axis=-1) * np.linalg.norm(eb, axis=-1))
+    template_angles, (ab, _, _, _) = _corner_angles(x0, faces)
+    lever = np.sqrt(np.linalg.norm(ab[0], axis=-1) * np.linalg.norm(ab[1], axis=-1))
     can_change = border.moving[faces] | border.moving[faces[:, _PREV]] | border.moving[faces[:, _NEXT]]
     can_change &= lever > 1e-9
     angle_floor = np.where(can_change, np.minimum(template_angles, np.radians(p["min_corner_angle_deg"])), 0.0)
@@ -923,7 +988,8 @@ def _build_problem(mesh: ControlMesh, vertices, faces, p) -> _Problem:
         penalty=_EdgeLengthPenalty(c_edges, n, min_len * (1.0 + _EDGE_MARGIN), directions),
         angle_floor=angle_floor,
         angles=angles,
-        basis_t=border.basis.T.tocsr(),
+        basis=_RowSums(border.basis),
+        basis_t=_RowSums(border.basis.T),
         z0=z0,
         bounds=scipy.optimize.Bounds(lower, upper),
     )
