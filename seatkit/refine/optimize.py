@@ -60,9 +60,16 @@ end (the other eight library poses, the benches) the results move by at most
 
 Every step costs O(v) (sparse products, vectorised per-face terms, limited
 memory quasi-Newton), and the number of iterations (200-300) does not grow
-with the cage: about 0.11 s for the 96-point chair cage (0.16 s, 400
-iterations, on crossed-legs-ankles where the angle floor binds) and 0.1-0.2 s
-for benches of 2 to 6 people (144-336 points), one BLAS thread. The SLSQP solver
+with the cage. On a chair-sized cage an evaluation of the energy, its
+gradient and the penalties (about 300 a run) is a few dozen numpy calls on
+arrays of a few hundred entries, so each call's fixed overhead, not the
+arithmetic, is the cost: the sparse products are summed with
+``np.bincount`` (:class:`_RowSums`: scipy's sums to the bit, without its
+dispatch), rows are gathered with ``take`` (fancy indexing of an (n, 3)
+array is several times slower), every corner's edges come from one gather
+and the angles' parts are shared with their gradient. That is about 0.1 s of
+CPU for the 96-point chair cage and 0.1-0.2 s for benches of 2 to 6 people
+(144-336 points), one BLAS thread (docs/performance.md). The SLSQP solver
 used before (dense QP subproblems, O(v^3)) took 0.7-0.9 s and 4 s (3-person
 bench) to reach the same energies.
 
