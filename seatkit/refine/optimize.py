@@ -229,13 +229,14 @@ def _angle_gradient(parts: tuple, d_alpha: np.ndarray) -> np.ndarray:
     ab, sin_part, cos_part, squares = parts
     # d alpha / d a = -b_perp / |a x b|, b_perp = b minus its component along a
     # (and the same with a and b swapped): both at once, (b_perp, a_perp)
-    safe = np.maximum(sin_part, 1e-300)[..., None]
+    # (dividing by -|a x b| is negating the quotient, exactly: the small array is negated)
+    minus_safe = -np.maximum(sin_part, 1e-300)[..., None]
     perp = ab[::-1] - (cos_part / np.maximum(squares, 1e-300))[..., None] * ab
     # w.r.t. the previous corner (row 0) and the next corner (row 1)
-    g = -perp / safe * d_alpha[..., None]
+    g = perp / minus_safe * d_alpha[..., None]
     # corner k gets -(g_a + g_b) from its own angle, g_a from the angle
     # of corner k+1 (k is its previous) and g_b from corner k-1
-    return -(g[0] + g[1]) + g[0].take(_NEXT, axis=1) + g[1].take(_PREV, axis=1)
+    return g[0].take(_NEXT, axis=1) - (g[0] + g[1]) + g[1].take(_PREV, axis=1)
 
 
 @dataclass(frozen=True)
@@ -718,6 +719,7 @@ class _CornerAnglePenalty:
     def __init__(self, faces: np.ndarray, n: int, target: np.ndarray, lever: np.ndarray):
         self.faces = faces
         self.mask = target > 0.0
+        self.every = bool(self.mask.all())  # every corner has a floor: no masking
         self.target = target[self.mask]
         self.lever = lever[self.mask]
         self.size = int(self.target.size)
@@ -732,12 +734,14 @@ class _CornerAnglePenalty:
 
     def of_angles(self, alpha: np.ndarray) -> np.ndarray:
         """``c`` (m,) from the corner angles ``alpha`` (f, 4)."""
-        return (alpha[self.mask] - self.target) * self.lever
+        return ((alpha.ravel() if self.every else alpha[self.mask]) - self.target) * self.lever
 
     def on_angles(self, alpha: np.ndarray, lam: np.ndarray, mu: float) -> tuple[float, np.ndarray]:
         """Penalty value and its derivative (f, 4) w.r.t. the corner angles."""
         q = np.maximum(lam - mu * self.of_angles(alpha), 0.0)  # -dP/dc
         value = float(q @ q - lam @ lam) / (2.0 * mu)
+        if self.every:
+            return value, (-q * self.lever).reshape(self.mask.shape)
         d_alpha = np.zeros(self.mask.shape)
         d_alpha[self.mask] = -q * self.lever
         return value, d_alpha
