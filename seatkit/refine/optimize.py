@@ -68,8 +68,8 @@ arithmetic, is the cost: the sparse products are summed with
 dispatch), rows are gathered with ``take`` (fancy indexing of an (n, 3)
 array is several times slower), every corner's edges come from one gather
 and the angles' parts are shared with their gradient. That is about 0.1 s of
-CPU for the 96-point chair cage and 0.1-0.2 s for benches of 2 to 6 people
-(144-336 points), one BLAS thread (docs/performance.md). The SLSQP solver
+CPU for the 96-point chair cage, one BLAS thread (docs/performance.md,
+``benchmarks/bench_optimize.py``). The SLSQP solver
 used before (dense QP subproblems, O(v^3)) took 0.7-0.9 s and 4 s (3-person
 bench) to reach the same energies.
 
