@@ -22,7 +22,6 @@ optimise to the same control points, energy and iterations, bit for bit.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import pickle
 import statistics
 import sys
@@ -32,14 +31,6 @@ from pathlib import Path
 import numpy as np
 
 BODIES = ("default-female", "default-male")
-
-
-def _load(name: str, path: Path):
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
 
 
 def _library_cages() -> list[tuple[str, object]]:
@@ -82,6 +73,9 @@ def main() -> None:
         cages = _library_cages()
     versions = [("this", optimize)]
     if args.against:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from bench_geometry import _load  # another checkout's module, loaded from its file
+
         versions.insert(0, ("other", _load("other_optimize", Path(args.against) / "seatkit" / "refine" / "optimize.py")))
 
     evaluations = [0]
