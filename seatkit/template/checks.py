@@ -28,7 +28,7 @@ from seatkit.geometry.surface import SurfaceQuery, inside_furniture
 from seatkit.model import Body, ControlMesh, Surface
 from seatkit.skeleton import PARENTS, SEGMENT_INDEX, SEGMENTS
 from seatkit.template.grid import NOT_HELD
-from seatkit.template.planes import unit
+from seatkit.template.planes import cross, unit
 
 __all__ = [
     "quad_triangles",
@@ -117,13 +117,13 @@ def segments_cross_triangles(p0: np.ndarray, p1: np.ndarray, a: np.ndarray, b: n
     """
     e1, e2 = b - a, c - a
     d = p1 - p0
-    pvec = np.cross(d, e2)
+    pvec = cross(d, e2)
     det = np.einsum("ij,ij->i", pvec, e1)
     ok = np.abs(det) > 1e-14
     inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
     tvec = p0 - a
     u = np.einsum("ij,ij->i", tvec, pvec) * inv
-    qvec = np.cross(tvec, e1)
+    qvec = cross(tvec, e1)
     v = np.einsum("ij,ij->i", d, qvec) * inv
     t = np.einsum("ij,ij->i", e2, qvec) * inv
     return ok & (u > eps) & (v > eps) & (u + v < 1 - eps) & (t > eps) & (t < 1 - eps)
@@ -221,7 +221,7 @@ def _cover_triangles(points: np.ndarray, tris: np.ndarray, spacing: float) -> tu
     t = np.arange(len(P))
     A, B, C = P[t, first], P[t, (first + 1) % 3], P[t, (first + 2) % 3]
     L = side[t, first]
-    area2 = np.linalg.norm(np.cross(B - A, C - A), axis=1)
+    area2 = np.linalg.norm(cross(B - A, C - A), axis=1)
     h = area2 / np.maximum(L, 1e-300)
     m = np.maximum(np.ceil(h / step).astype(np.int64), 1)  # row gaps per triangle
     row_tri = np.repeat(t, m + 1)
@@ -366,7 +366,7 @@ def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, toleranc
     # every quad moved back along its own normal (quads come apart, which is
     # fine here): a face may rest ``tolerance`` deep in the skin
     Q = V[quads]
-    fn = np.cross(Q[:, 2] - Q[:, 0], Q[:, 3] - Q[:, 1])
+    fn = cross(Q[:, 2] - Q[:, 0], Q[:, 3] - Q[:, 1])
     fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
     Q = Q - tolerance * fn[:, None, :]
     points, tris, owner = quad_triangles(Q.reshape(-1, 3), np.arange(4 * len(quads)).reshape(-1, 4))
@@ -437,9 +437,9 @@ def cast_parallel(body: Body, origins: np.ndarray, direction: np.ndarray, length
     d = np.asarray(direction, dtype=np.float64)
     d = d / np.linalg.norm(d)
     helper = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(d, helper)
+    e1 = cross(d, helper)
     e1 /= np.linalg.norm(e1)
-    e2 = np.cross(d, e1)
+    e2 = cross(d, e1)
     B = np.asarray(body.vertices, dtype=np.float64)
     F = np.asarray(body.faces)
     t_hit = np.full(len(origins), np.inf)
@@ -547,7 +547,7 @@ DOWN_ANGLE = np.radians(30.0)
 def face_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     """Unit normals ``(c - a) x (d - b)`` of the quads (the side the body is on), (m, 3) float64."""
     corner = vertices[quads]  # (m, 4, 3)
-    n = np.cross(corner[:, 2] - corner[:, 0], corner[:, 3] - corner[:, 1])
+    n = cross(corner[:, 2] - corner[:, 0], corner[:, 3] - corner[:, 1])
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
