@@ -317,6 +317,17 @@ def body_vertex_normals(body: Body) -> np.ndarray:
     return _cached(body, "vertex_normals", lambda b: _triangle_normals(b.vertices, b.faces))
 
 
+def _body_segments(body: Body) -> np.ndarray:
+    """(n,) segment of largest skinning weight of each body vertex, once per body (read-only)."""
+
+    def make(b):
+        seg = np.asarray(b.weights).argmax(1)
+        seg.flags.writeable = False
+        return seg
+
+    return _cached(body, "segments", make)
+
+
 def _body_triangle_spheres(body: Body) -> tuple[np.ndarray, np.ndarray]:
     return _cached(body, "spheres", lambda b: _triangle_spheres(np.asarray(b.vertices, dtype=np.float64), np.asarray(b.faces)))
 
@@ -581,7 +592,7 @@ def wrong_side_faces(mesh: ControlMesh, bodies) -> list[tuple[int, int, str]]:
             found.append((int(face), person, f"it holds it from above, its normal {down:.0f} deg from straight down (a support pushes a body up or sideways)"))
             continue
         body = bodies[person]
-        points = body.vertices[np.argmax(body.weights, axis=1) == mesh.face_segments[face]]
+        points = body.vertices[_body_segments(body) == mesh.face_segments[face]]
         if len(points) == 0:
             continue
         # the segment's vertices nearest the face's centre, and their signed distances to its plane

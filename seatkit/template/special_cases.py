@@ -224,7 +224,8 @@ def add_armrests(state: FitState, options) -> None:
         f_in, f_out = sorted(front, key=lambda q: q @ side_dir)
         b_in, b_out = sorted(back, key=lambda q: q @ side_dir)
         rect = np.array([f_in, b_in, b_out, f_out])
-        others = np.setdiff1d(np.arange(len(block.body.vertices)), block.vertices_of(segs + [SEGMENT_INDEX[f"{side.capitalize()}Hand"]]))
+        others = np.ones(len(block.body.vertices), bool)  # every vertex but the arm's and the hand's
+        others[block.vertices_of(segs + [SEGMENT_INDEX[f"{side.capitalize()}Hand"]])] = False
         body_pts = block.body.vertices[others]
         # the armrest and its support below it must not pass through the body
         below = plane.signed_distance(body_pts) < -p["max_penetration"]
