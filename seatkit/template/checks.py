@@ -149,20 +149,20 @@ def _set_tree(points: np.ndarray) -> cKDTree:
     return cKDTree(points, balanced_tree=False, compact_nodes=False)
 
 
-def _close_pairs(queries: np.ndarray, reach: float, targets, radii: np.ndarray | None = None, *, tree=cKDTree) -> tuple[np.ndarray, np.ndarray]:
+def _close_pairs(queries: np.ndarray, reach: float, targets, radii: np.ndarray | None = None, *, make_tree=cKDTree) -> tuple[np.ndarray, np.ndarray]:
     """(i, j) pairs with ``|queries[i] - targets[j]| <= reach + radii[j]`` (a superset).
 
     Targets are split by radius (the smallest 60 %, up to 95 %, the rest),
     so that one large target does not widen every query (scipy k-d trees,
     ``sparse_distance_matrix``). ``targets`` may also be the bins
     :func:`_target_bins` made of them once (a body's edges, kept per body).
-    ``tree`` makes the k-d trees (:func:`_set_tree` when the caller reads
-    the pairs as a set: their order is the tree's).
+    ``make_tree`` makes the k-d trees (:func:`_set_tree` when the caller
+    reads the pairs as a set: their order is the trees').
     """
-    bins = _target_bins(targets, radii, tree=tree) if radii is not None else targets
+    bins = _target_bins(targets, radii, make_tree=make_tree) if radii is not None else targets
     if len(queries) == 0 or not bins:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    qtree = tree(queries)
+    qtree = make_tree(queries)
     out_i, out_j = [], []
     for sel, tree, rmax in bins:
         res = qtree.sparse_distance_matrix(tree, reach + rmax, output_type="ndarray")
@@ -171,7 +171,7 @@ def _close_pairs(queries: np.ndarray, reach: float, targets, radii: np.ndarray |
     return np.concatenate(out_i), np.concatenate(out_j)
 
 
-def _target_bins(targets: np.ndarray, radii: np.ndarray, *, tree=cKDTree) -> list:
+def _target_bins(targets: np.ndarray, radii: np.ndarray, *, make_tree=cKDTree) -> list:
     """[(indices, k-d tree of those targets, their largest radius)] by radius: the smallest 60 %, up to 95 %, the rest."""
     if len(targets) == 0:
         return []
@@ -179,7 +179,7 @@ def _target_bins(targets: np.ndarray, radii: np.ndarray, *, tree=cKDTree) -> lis
     bins = []
     for sel in (np.flatnonzero(radii <= cuts[0]), np.flatnonzero((radii > cuts[0]) & (radii <= cuts[1])), np.flatnonzero(radii > cuts[1])):
         if len(sel):
-            bins.append((sel, tree(targets[sel]), float(radii[sel].max())))
+            bins.append((sel, make_tree(targets[sel]), float(radii[sel].max())))
     return bins
 
 
@@ -339,14 +339,14 @@ def _body_edge_bins(body: Body) -> list:
         bv = np.asarray(b.vertices, dtype=np.float64)
         be = body_edges(b)
         e0, e1 = bv[be[:, 0]], bv[be[:, 1]]
-        return _target_bins(0.5 * (e0 + e1), 0.5 * np.linalg.norm(e1 - e0, axis=1), tree=_set_tree)
+        return _target_bins(0.5 * (e0 + e1), 0.5 * np.linalg.norm(e1 - e0, axis=1), make_tree=_set_tree)
 
     return _cached(body, "edge_bins", make)
 
 
 def _body_triangle_bins(body: Body) -> list:
     """:func:`_target_bins` of the body's triangles (bounding spheres), once per body."""
-    return _cached(body, "triangle_bins", lambda b: _target_bins(*_body_triangle_spheres(b), tree=_set_tree))
+    return _cached(body, "triangle_bins", lambda b: _target_bins(*_body_triangle_spheres(b), make_tree=_set_tree))
 
 
 def prepare_body(body: Body) -> None:
@@ -398,7 +398,7 @@ def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, toleranc
     # length of a sample: the candidates are a superset of the crossings,
     # and the exact test below decides (any superset gives the same faces)
     samples, s_owner = _cover_triangles(points, tris[near], spacing)
-    si, ej = _close_pairs(samples, spacing, _body_edge_bins(body), tree=_set_tree)
+    si, ej = _close_pairs(samples, spacing, _body_edge_bins(body), make_tree=_set_tree)
     ti, ej = _unique_pairs(near[s_owner[si]], ej, len(be))
     e0, e1 = bv[be[ej, 0]], bv[be[ej, 1]]
     T = points[tris[ti]]
@@ -414,7 +414,7 @@ def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, toleranc
     p0, p1 = points[edges[:, 0]], points[edges[:, 1]]
     # a point of an edge lies within half a gap (spacing / 2) of a sample
     es, e_owner = _sample_segments(p0, p1, spacing)
-    si, tj = _close_pairs(es, 0.5 * spacing * (1.0 + 1e-6), _body_triangle_bins(body), tree=_set_tree)
+    si, tj = _close_pairs(es, 0.5 * spacing * (1.0 + 1e-6), _body_triangle_bins(body), make_tree=_set_tree)
     ei, tj = _unique_pairs(e_owner[si], tj, len(bf))
     B = bv[bf[tj]]
     hit = segments_cross_triangles(p0[ei], p1[ei], B[:, 0], B[:, 1], B[:, 2])
