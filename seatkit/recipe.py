@@ -745,8 +745,8 @@ def _check_pose(spec: str, path, fail, registry) -> None:
         if not _is_file(spec):
             fail(path, f"pose file not found: {quote(spec)}")
         return
-    from seatkit.body import list_poses
+    from seatkit.body.poses import pose_names
 
-    names = [p.name for p in list_poses(getattr(registry, "pose_dirs", None))]
+    names = pose_names(getattr(registry, "pose_dirs", None))  # the files are read when the pose is loaded
     if spec not in names:
         fail(path, f"unknown pose {quote(spec)}; library poses: {', '.join(names)} (or give a .yaml or .bvh path)")

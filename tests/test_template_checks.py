@@ -5,7 +5,9 @@ The cage-against-body and cage-against-itself checks
 trees; a candidate set that misses a crossing pair would pass a cage that
 crosses the body. Here they are compared with the exact test run on every
 pair, on a sphere crossed by a random cage, and the triangle cover the first
-pass samples is checked to reach every point of its triangle.
+pass samples is checked to reach every point of its triangle; the clearance
+step's grid keeps every body vertex within reach of the cage's samples, and
+the fit's cross products and unit vectors are numpy's to the bit.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from seatkit.model import Body
+from seatkit.template.clearance import _within_reach
+from seatkit.template.planes import cross, unit
 from seatkit.template.checks import (
     _cover_triangles,
     crossing_faces,
@@ -130,6 +134,34 @@ def test_triangle_cover_reaches_every_point(corners, squash, spacing):
     pts = np.vstack([P, P[0] + u[:, :1] * (P[1] - P[0]) + u[:, 1:] * (P[2] - P[0]), 0.5 * (P + np.roll(P, 1, axis=0))])
     d, _ = cKDTree(samples).query(pts)
     assert d.max() <= spacing * (1 + 1e-9)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(1, 200), st.floats(1e-3, 0.5), st.floats(0.05, 3.0), st.integers(0, 2**32 - 1))
+def test_the_reach_grid_keeps_every_point_within_reach(n_samples, reach, spread, seed):
+    rng = np.random.default_rng(seed)
+    samples = rng.normal(0.0, 0.3, (n_samples, 3)) * rng.uniform(0.05, 1.0, 3) * spread
+    points = samples.mean(0) + rng.normal(0.0, 0.5 * spread, (1500, 3))
+    # points at exactly the reach from a sample along an axis, and just inside it
+    pick = samples[rng.integers(0, n_samples, 300)]
+    step = np.eye(3)[rng.integers(0, 3, 300)] * rng.choice([-1.0, 1.0], (300, 1)) * reach
+    points = np.vstack([points, pick + step, pick + step * (1 - 1e-12), pick + step / np.sqrt(3.0)])
+    d, _ = cKDTree(samples).query(points, distance_upper_bound=reach)
+    kept = _within_reach(points, samples, reach)
+    assert kept[np.isfinite(d)].all()
+
+
+def test_cross_and_unit_are_numpys_to_the_bit():
+    rng = np.random.default_rng(7)
+    a, b = rng.normal(size=(50, 3)) * 1e3, rng.normal(size=(50, 3)) * 1e-3
+    for x, y in ((a, b), (a, b[0]), (a[0], b), (a[0], b[0]), (a.astype(np.float32), b), (np.arange(6).reshape(2, 3), [1, 0, 0])):
+        want = np.cross(x, y)
+        got = cross(x, y)
+        assert got.dtype == want.dtype and got.shape == want.shape
+        assert np.array_equal(got, want)
+    for x in (a, a[0], np.zeros((4, 3)), np.arange(9).reshape(3, 3), [0, 3, 4]):
+        want = np.asarray(x) / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-12)
+        assert np.array_equal(unit(x), want)
 
 
 def test_a_small_body_through_a_large_face_is_found():

@@ -48,6 +48,7 @@ __all__ = [
     "builtin_pose_dir",
     "euler_to_rotvec",
     "list_poses",
+    "pose_names",
     "load_pose",
     "load_pose_file",
     "pose_dirs",
@@ -185,6 +186,17 @@ def find_pose(name: str, dirs=None) -> Path:
     except KeyError:
         msg = f"unknown pose {name!r}: not a file and not in the pose library ({', '.join(sorted(library))})"
         raise RecipeError(msg) from None
+
+
+def pose_names(dirs=None) -> list[str]:
+    """Every library pose's name, sorted, from the file names alone (``dirs``: see :func:`pose_dirs`).
+
+    Raises
+    ------
+    PluginError
+        A name defined twice.
+    """
+    return sorted(_library(dirs))
 
 
 def list_poses(dirs=None) -> list[PoseInfo]:

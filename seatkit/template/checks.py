@@ -28,7 +28,7 @@ from seatkit.geometry.surface import SurfaceQuery, inside_furniture
 from seatkit.model import Body, ControlMesh, Surface
 from seatkit.skeleton import PARENTS, SEGMENT_INDEX, SEGMENTS
 from seatkit.template.grid import NOT_HELD
-from seatkit.template.planes import unit
+from seatkit.template.planes import cross, unit
 
 __all__ = [
     "quad_triangles",
@@ -117,13 +117,13 @@ def segments_cross_triangles(p0: np.ndarray, p1: np.ndarray, a: np.ndarray, b: n
     """
     e1, e2 = b - a, c - a
     d = p1 - p0
-    pvec = np.cross(d, e2)
+    pvec = cross(d, e2)
     det = np.einsum("ij,ij->i", pvec, e1)
     ok = np.abs(det) > 1e-14
     inv = np.where(ok, 1.0 / np.where(ok, det, 1.0), 0.0)
     tvec = p0 - a
     u = np.einsum("ij,ij->i", tvec, pvec) * inv
-    qvec = np.cross(tvec, e1)
+    qvec = cross(tvec, e1)
     v = np.einsum("ij,ij->i", d, qvec) * inv
     t = np.einsum("ij,ij->i", e2, qvec) * inv
     return ok & (u > eps) & (v > eps) & (u + v < 1 - eps) & (t > eps) & (t < 1 - eps)
@@ -136,18 +136,33 @@ def _triangle_spheres(points: np.ndarray, tris: np.ndarray) -> tuple[np.ndarray,
     return c, np.linalg.norm(P - c[:, None], axis=2).max(1)
 
 
-def _close_pairs(queries: np.ndarray, reach: float, targets, radii: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+def _set_tree(points: np.ndarray) -> cKDTree:
+    """A k-d tree for questions whose answer does not depend on the tree's shape: a distance, or a set of pairs read in sorted order.
+
+    Split at the sliding midpoint, nodes not shrunk to their points: about
+    half the build time of scipy's default (median splits, compact nodes)
+    and faster pair searches. Which of two equally near points a k-nearest
+    query names, and the order ``sparse_distance_matrix`` lists its pairs
+    in, depend on the tree's shape: a query that reads those keeps the
+    default tree.
+    """
+    return cKDTree(points, balanced_tree=False, compact_nodes=False)
+
+
+def _close_pairs(queries: np.ndarray, reach: float, targets, radii: np.ndarray | None = None, *, make_tree=cKDTree) -> tuple[np.ndarray, np.ndarray]:
     """(i, j) pairs with ``|queries[i] - targets[j]| <= reach + radii[j]`` (a superset).
 
     Targets are split by radius (the smallest 60 %, up to 95 %, the rest),
     so that one large target does not widen every query (scipy k-d trees,
     ``sparse_distance_matrix``). ``targets`` may also be the bins
     :func:`_target_bins` made of them once (a body's edges, kept per body).
+    ``make_tree`` makes the k-d trees (:func:`_set_tree` when the caller
+    reads the pairs as a set: their order is the trees').
     """
-    bins = _target_bins(targets, radii) if radii is not None else targets
+    bins = _target_bins(targets, radii, make_tree=make_tree) if radii is not None else targets
     if len(queries) == 0 or not bins:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    qtree = cKDTree(queries)
+    qtree = make_tree(queries)
     out_i, out_j = [], []
     for sel, tree, rmax in bins:
         res = qtree.sparse_distance_matrix(tree, reach + rmax, output_type="ndarray")
@@ -156,7 +171,7 @@ def _close_pairs(queries: np.ndarray, reach: float, targets, radii: np.ndarray |
     return np.concatenate(out_i), np.concatenate(out_j)
 
 
-def _target_bins(targets: np.ndarray, radii: np.ndarray) -> list:
+def _target_bins(targets: np.ndarray, radii: np.ndarray, *, make_tree=cKDTree) -> list:
     """[(indices, k-d tree of those targets, their largest radius)] by radius: the smallest 60 %, up to 95 %, the rest."""
     if len(targets) == 0:
         return []
@@ -164,7 +179,7 @@ def _target_bins(targets: np.ndarray, radii: np.ndarray) -> list:
     bins = []
     for sel in (np.flatnonzero(radii <= cuts[0]), np.flatnonzero((radii > cuts[0]) & (radii <= cuts[1])), np.flatnonzero(radii > cuts[1])):
         if len(sel):
-            bins.append((sel, cKDTree(targets[sel]), float(radii[sel].max())))
+            bins.append((sel, make_tree(targets[sel]), float(radii[sel].max())))
     return bins
 
 
@@ -206,7 +221,7 @@ def _cover_triangles(points: np.ndarray, tris: np.ndarray, spacing: float) -> tu
     t = np.arange(len(P))
     A, B, C = P[t, first], P[t, (first + 1) % 3], P[t, (first + 2) % 3]
     L = side[t, first]
-    area2 = np.linalg.norm(np.cross(B - A, C - A), axis=1)
+    area2 = np.linalg.norm(cross(B - A, C - A), axis=1)
     h = area2 / np.maximum(L, 1e-300)
     m = np.maximum(np.ceil(h / step).astype(np.int64), 1)  # row gaps per triangle
     row_tri = np.repeat(t, m + 1)
@@ -248,7 +263,7 @@ def self_intersecting_faces(vertices: np.ndarray, quads: np.ndarray) -> np.ndarr
     centres, radius = _triangle_spheres(points, tris)
     # triangle pairs whose bounding spheres overlap
     # (every pair within twice the largest radius, each once, ordered by quad)
-    i, j = cKDTree(centres).query_pairs(2.0 * float(radius.max()), output_type="ndarray").T.astype(np.int64)
+    i, j = _set_tree(centres).query_pairs(2.0 * float(radius.max()), output_type="ndarray").T.astype(np.int64)
     i, j = np.where(owner[i] < owner[j], i, j), np.where(owner[i] < owner[j], j, i)
     keep = (owner[i] < owner[j]) & (np.linalg.norm(centres[i] - centres[j], axis=1) <= radius[i] + radius[j])
     i, j = i[keep], j[keep]
@@ -292,14 +307,25 @@ def body_edges(body: Body) -> np.ndarray:
 
 
 def body_tree(body: Body) -> cKDTree:
-    """k-d tree of the body's vertices."""
-    return _cached(body, "tree", lambda b: cKDTree(np.asarray(b.vertices, dtype=np.float64)))
+    """k-d tree of the body's vertices, for distances to the body (:func:`_set_tree`: which of two equally near vertices it names is its shape's)."""
+    return _cached(body, "tree", lambda b: _set_tree(np.asarray(b.vertices, dtype=np.float64)))
 
 
 def body_vertex_normals(body: Body) -> np.ndarray:
     """(n, 3) float64 area-weighted outward vertex normals of a body."""
 
     return _cached(body, "vertex_normals", lambda b: _triangle_normals(b.vertices, b.faces))
+
+
+def _body_segments(body: Body) -> np.ndarray:
+    """(n,) segment of largest skinning weight of each body vertex, once per body (read-only)."""
+
+    def make(b):
+        seg = np.asarray(b.weights).argmax(1)
+        seg.flags.writeable = False
+        return seg
+
+    return _cached(body, "segments", make)
 
 
 def _body_triangle_spheres(body: Body) -> tuple[np.ndarray, np.ndarray]:
@@ -313,14 +339,14 @@ def _body_edge_bins(body: Body) -> list:
         bv = np.asarray(b.vertices, dtype=np.float64)
         be = body_edges(b)
         e0, e1 = bv[be[:, 0]], bv[be[:, 1]]
-        return _target_bins(0.5 * (e0 + e1), 0.5 * np.linalg.norm(e1 - e0, axis=1))
+        return _target_bins(0.5 * (e0 + e1), 0.5 * np.linalg.norm(e1 - e0, axis=1), make_tree=_set_tree)
 
     return _cached(body, "edge_bins", make)
 
 
 def _body_triangle_bins(body: Body) -> list:
     """:func:`_target_bins` of the body's triangles (bounding spheres), once per body."""
-    return _cached(body, "triangle_bins", lambda b: _target_bins(*_body_triangle_spheres(b)))
+    return _cached(body, "triangle_bins", lambda b: _target_bins(*_body_triangle_spheres(b), make_tree=_set_tree))
 
 
 def prepare_body(body: Body) -> None:
@@ -351,7 +377,7 @@ def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, toleranc
     # every quad moved back along its own normal (quads come apart, which is
     # fine here): a face may rest ``tolerance`` deep in the skin
     Q = V[quads]
-    fn = np.cross(Q[:, 2] - Q[:, 0], Q[:, 3] - Q[:, 1])
+    fn = cross(Q[:, 2] - Q[:, 0], Q[:, 3] - Q[:, 1])
     fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
     Q = Q - tolerance * fn[:, None, :]
     points, tris, owner = quad_triangles(Q.reshape(-1, 3), np.arange(4 * len(quads)).reshape(-1, 4))
@@ -372,7 +398,7 @@ def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, toleranc
     # length of a sample: the candidates are a superset of the crossings,
     # and the exact test below decides (any superset gives the same faces)
     samples, s_owner = _cover_triangles(points, tris[near], spacing)
-    si, ej = _close_pairs(samples, spacing, _body_edge_bins(body))
+    si, ej = _close_pairs(samples, spacing, _body_edge_bins(body), make_tree=_set_tree)
     ti, ej = _unique_pairs(near[s_owner[si]], ej, len(be))
     e0, e1 = bv[be[ej, 0]], bv[be[ej, 1]]
     T = points[tris[ti]]
@@ -388,7 +414,7 @@ def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, toleranc
     p0, p1 = points[edges[:, 0]], points[edges[:, 1]]
     # a point of an edge lies within half a gap (spacing / 2) of a sample
     es, e_owner = _sample_segments(p0, p1, spacing)
-    si, tj = _close_pairs(es, 0.5 * spacing * (1.0 + 1e-6), _body_triangle_bins(body))
+    si, tj = _close_pairs(es, 0.5 * spacing * (1.0 + 1e-6), _body_triangle_bins(body), make_tree=_set_tree)
     ei, tj = _unique_pairs(e_owner[si], tj, len(bf))
     B = bv[bf[tj]]
     hit = segments_cross_triangles(p0[ei], p1[ei], B[:, 0], B[:, 1], B[:, 2])
@@ -422,9 +448,9 @@ def cast_parallel(body: Body, origins: np.ndarray, direction: np.ndarray, length
     d = np.asarray(direction, dtype=np.float64)
     d = d / np.linalg.norm(d)
     helper = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(d, helper)
+    e1 = cross(d, helper)
     e1 /= np.linalg.norm(e1)
-    e2 = np.cross(d, e1)
+    e2 = cross(d, e1)
     B = np.asarray(body.vertices, dtype=np.float64)
     F = np.asarray(body.faces)
     t_hit = np.full(len(origins), np.inf)
@@ -532,7 +558,7 @@ DOWN_ANGLE = np.radians(30.0)
 def face_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:
     """Unit normals ``(c - a) x (d - b)`` of the quads (the side the body is on), (m, 3) float64."""
     corner = vertices[quads]  # (m, 4, 3)
-    n = np.cross(corner[:, 2] - corner[:, 0], corner[:, 3] - corner[:, 1])
+    n = cross(corner[:, 2] - corner[:, 0], corner[:, 3] - corner[:, 1])
     return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
 
 
@@ -566,7 +592,7 @@ def wrong_side_faces(mesh: ControlMesh, bodies) -> list[tuple[int, int, str]]:
             found.append((int(face), person, f"it holds it from above, its normal {down:.0f} deg from straight down (a support pushes a body up or sideways)"))
             continue
         body = bodies[person]
-        points = body.vertices[np.argmax(body.weights, axis=1) == mesh.face_segments[face]]
+        points = body.vertices[_body_segments(body) == mesh.face_segments[face]]
         if len(points) == 0:
             continue
         # the segment's vertices nearest the face's centre, and their signed distances to its plane

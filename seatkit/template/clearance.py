@@ -76,6 +76,39 @@ class ClearanceResult:
     worst: float
 
 
+def _within_reach(points: np.ndarray, samples: np.ndarray, reach: float) -> np.ndarray:
+    """(k,) bool: a superset of the points within ``reach`` of some sample, from a grid of cells at least a quarter of ``reach`` wide.
+
+    A point within ``reach`` of a sample is, on every axis, at most four
+    cells from the sample's cell (a cell of margin for round-off), so the
+    points outside the samples' cells grown by four cells are farther than
+    ``reach`` from every sample: a k-d tree query need not be asked about
+    them (the far points of the body are most of its cost). Cells are
+    wider when the samples span more than 100 quarter reaches (at most
+    about 110 cells a side).
+    """
+    h = max(reach / 4.0, float(np.ptp(samples, axis=0).max()) / 100.0)
+    origin = samples.min(0) - reach
+    shape = np.floor((samples.max(0) + reach - origin) / h).astype(np.int64) + 2
+    grid = np.zeros(shape, bool)
+    cell = np.floor((samples - origin) / h).astype(np.int64)
+    grid[cell[:, 0], cell[:, 1], cell[:, 2]] = True
+    for axis in range(3):  # grown by 4 cells along each axis in turn: a box of 9 x 9 x 9 cells around every sample's cell
+        grown = grid.copy()
+        for step in range(1, 5):
+            head = (slice(None),) * axis + (slice(step, None),)
+            tail = (slice(None),) * axis + (slice(None, -step),)
+            grown[head] |= grid[tail]
+            grown[tail] |= grid[head]
+        grid = grown
+    cell = np.floor((points - origin) / h).astype(np.int64)
+    inside = ((cell >= 0) & (cell < shape)).all(1)
+    out = np.zeros(len(points), bool)
+    c = cell[inside]
+    out[inside] = grid[c[:, 0], c[:, 1], c[:, 2]]
+    return out
+
+
 def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, depth, facing, cache):
     """Rows (A, rhs) of ``A t >= rhs`` over the move columns, and the deepest sink.
 
@@ -115,6 +148,7 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
         if person not in cache:
             lo, hi = samples.min(0) - depth, samples.max(0) + depth
             cand = np.flatnonzero(((B >= lo) & (B <= hi)).all(1))
+            cand = cand[_within_reach(B[cand], samples, reach)]  # the others would not be found
             d, nearest = stree.query(B[cand], k=k, distance_upper_bound=reach)
             d, nearest = d.reshape(len(cand), k), nearest.reshape(len(cand), k)
             found = np.isfinite(d[:, 0])

@@ -19,7 +19,7 @@ import numpy as np
 
 from seatkit.model import Body
 from seatkit.skeleton import PARENTS, SEGMENTS
-from seatkit.template.planes import Plane, intersect_planes, unit
+from seatkit.template.planes import Plane, intersect_planes, cross, unit
 from seatkit.template.schema import FaceSpec, TemplateSpec
 
 __all__ = ["FaceState", "Block", "GridMesh", "FitState", "segment_of_vertex"]
@@ -168,7 +168,7 @@ class Block:
         from seatkit.skeleton import SEGMENT_INDEX as S
 
         axis = unit(self.body.tips[S["Spine3"]] - self.body.joints[S["Hips"]])
-        return unit(np.cross(self.lateral(), axis))
+        return unit(cross(self.lateral(), axis))
 
     def oriented_bone(self, segments, r: int) -> np.ndarray:
         """(3,) float64 bone direction of ``segments`` pointing along the grid's rows at row ``r``."""
@@ -189,7 +189,7 @@ class Block:
 
     def frame_normal(self, segments, r: int) -> np.ndarray:
         """(3,) float64 the normal a face of row ``r`` would have with d_side along the lateral axis."""
-        return unit(np.cross(self.lateral(), self.row_axis(segments, r)))
+        return unit(cross(self.lateral(), self.row_axis(segments, r)))
 
     def row_segments(self, r: int) -> tuple:
         """Every segment supported in row ``r``."""
@@ -210,9 +210,9 @@ class Block:
         axis = self.row_axis(face.segments, face.spec.row)
         up = axis - n * (n @ axis)
         if np.linalg.norm(up) < 1e-6:
-            up = np.cross(n, self.lateral())
+            up = cross(n, self.lateral())
         up = unit(up)
-        side = np.cross(up, n)
+        side = cross(up, n)
         idx = self.vertices_of(face.segments)
         pts = self.body.vertices[idx]
         centre = plane.project(self.centroid(face.segments)[None])[0]

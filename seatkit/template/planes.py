@@ -30,6 +30,7 @@ __all__ = [
     "fit_support_plane",
     "intersect_planes",
     "unit",
+    "cross",
 ]
 
 _EPS = 1e-12
@@ -37,8 +38,33 @@ _EPS = 1e-12
 
 def unit(v: np.ndarray) -> np.ndarray:
     """Rows of ``v`` (..., 3) scaled to unit length (zero rows stay zero)."""
-    n = np.linalg.norm(v, axis=-1, keepdims=True)
+    v = np.asarray(v)
+    # np.linalg.norm(v, axis=-1, keepdims=True) of a real array, without its argument handling (the same numbers)
+    x = v if v.dtype.kind == "f" else v.astype(np.float64)
+    n = np.sqrt(np.add.reduce(x * x, axis=-1, keepdims=True))
     return v / np.maximum(n, _EPS)
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``np.cross`` of vectors (..., 3) broadcast against each other: the same numbers, without its axis handling and copies.
+
+    Each component is one product less another (``a1 b2 - a2 b1``, ...),
+    as numpy computes it; the fit calls this a few hundred times on small
+    arrays, where ``np.cross``'s own overhead was most of its cost.
+    """
+    a, b = np.asarray(a), np.asarray(b)
+    dtype = np.promote_types(a.dtype, b.dtype)
+    a, b = a.astype(dtype, copy=False), b.astype(dtype, copy=False)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape), dtype)
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    np.multiply(a1, b2, out=out[..., 0])
+    out[..., 0] -= a2 * b1
+    np.multiply(a2, b0, out=out[..., 1])
+    out[..., 1] -= a0 * b2
+    np.multiply(a0, b1, out=out[..., 2])
+    out[..., 2] -= a1 * b0
+    return out
 
 
 @dataclass(frozen=True)
@@ -103,9 +129,9 @@ def penalty_reference(normals: np.ndarray, reference: np.ndarray) -> np.ndarray:
     (k,) float64
         1 - min(4/pi * angle, 1): 1 for a normal along the reference, 0 at 45 deg or more.
     """
-    cross = np.linalg.norm(np.cross(normals, reference), axis=-1)
+    sine = np.linalg.norm(cross(normals, reference), axis=-1)
     dot = np.abs(normals @ reference)
-    angle = np.abs(np.arctan2(cross, dot))
+    angle = np.abs(np.arctan2(sine, dot))
     return 1.0 - np.minimum(4.0 / np.pi * angle, 1.0)
 
 
@@ -250,7 +276,7 @@ def fit_support_plane(
         prob = w / w.sum()
         idx = rng.choice(k, size=(iterations, 3), p=prob)
         a, b, c = points[idx[:, 0]], points[idx[:, 1]], points[idx[:, 2]]
-        normals = np.cross(b - a, c - a)
+        normals = cross(b - a, c - a)
         anchors = a
         # the reference orientations compete too (a cylinder-like limb with
         # no load gives RANSAC nothing to prefer one tangent plane by)
@@ -261,7 +287,7 @@ def fit_support_plane(
     else:
         a, b = fixed
         third = points if candidates is None else candidates
-        normals = np.cross(b - a, third - a)
+        normals = cross(b - a, third - a)
         anchors = np.broadcast_to(a, third.shape)
     norm = np.linalg.norm(normals, axis=1)
     ok = norm > 1e-9
@@ -291,7 +317,7 @@ def fit_support_plane(
     # penalties
     p_r = penalty_reference(normals, n_ref)
     d_up = unit(bone - normals * (normals @ bone)[:, None])
-    d_side = np.cross(d_up, normals)
+    d_side = cross(d_up, normals)
     if side_hint is not None:
         wrong = d_side @ unit(side_hint) < np.cos(max_side_angle)
         rejected["wrong_side"] = int((wrong & ok).sum())
@@ -303,7 +329,7 @@ def fit_support_plane(
         ok &= ~off
     p_d = np.ones(len(normals))
     if previous_normal is not None:
-        d_ir = np.cross(normals, previous_normal)
+        d_ir = cross(normals, previous_normal)
         meets = np.linalg.norm(d_ir, axis=1) > np.sin(np.radians(5.0))
         p_d = np.where(meets, penalty_direction(d_side, d_ir, m_alpha), 1.0)
         row_angle = _fold_angle(np.einsum("ij,ij->i", unit(d_side), unit(d_ir)))
@@ -346,18 +372,25 @@ def fit_support_plane(
 
 def _neighbour_cut(points, supported, neighbours, normals, offsets, d_up, d_side, max_penetration):
     """(c,) float64 fraction of neighbour vertices each candidate cuts under its patch."""
-    # in-plane coordinates of the supported patch and of the neighbours, (c, k) and (c, q)
-    pu, pv = points @ d_up.T, points @ d_side.T
+    # in-plane coordinates of the supported patch and of the neighbours, (k, c) and (q, c)
     inf = np.inf
-    lo_u = np.where(supported.T, pu, inf).min(0)
-    hi_u = np.where(supported.T, pu, -inf).max(0)
-    lo_v = np.where(supported.T, pv, inf).min(0)
-    hi_v = np.where(supported.T, pv, -inf).max(0)
-    nu, nv = neighbours @ d_up.T, neighbours @ d_side.T
-    depth = neighbours @ normals.T - offsets
-    inside = (nu > lo_u) & (nu < hi_u) & (nv > lo_v) & (nv < hi_v)
-    cut = inside & (depth < -max_penetration)
-    return cut.mean(0)
+    mask = supported.T
+    pu = points @ d_up.T
+    lo_u = np.min(pu, axis=0, where=mask, initial=inf)
+    hi_u = np.max(pu, axis=0, where=mask, initial=-inf)
+    pv = points @ d_side.T
+    lo_v = np.min(pv, axis=0, where=mask, initial=inf)
+    hi_v = np.max(pv, axis=0, where=mask, initial=-inf)
+    nu = neighbours @ d_up.T
+    cut = nu > lo_u  # inside the patch ...
+    cut &= nu < hi_u
+    nv = neighbours @ d_side.T
+    cut &= nv > lo_v
+    cut &= nv < hi_v
+    depth = neighbours @ normals.T
+    depth -= offsets
+    cut &= depth < -max_penetration  # ... and deeper than the allowed sink
+    return np.count_nonzero(cut, axis=0) / len(neighbours)
 
 
 def intersect_planes(p: Plane, q: Plane, *, min_angle: float) -> tuple[np.ndarray, np.ndarray] | None:
@@ -373,7 +406,7 @@ def intersect_planes(p: Plane, q: Plane, *, min_angle: float) -> tuple[np.ndarra
     (point, direction) : ((3,), (3,)) float64, or None
         The point of the line nearest to ``p.point``; a unit direction.
     """
-    d = np.cross(p.normal, q.normal)
+    d = cross(p.normal, q.normal)
     s = np.linalg.norm(d)
     if s < np.sin(min_angle):
         return None

@@ -10,7 +10,7 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from seatkit.template.grid import Block, FaceState, FitState, GridMesh
-from seatkit.template.planes import Plane, fit_support_plane, unit
+from seatkit.template.planes import Plane, fit_support_plane, cross, unit
 
 __all__ = ["fit_outer_face", "merge_crossed_legs", "add_armrests", "minimal_rectangle"]
 
@@ -28,7 +28,7 @@ def fit_outer_face(state: FitState, block: Block, face: FaceState, options) -> N
     k_in, k_out, c_in, sign = (1, 0, 1, -1.0) if c == 0 else (C - 1, C, C - 2, 1.0)
     A, B = block.vertex(r, k_in), block.vertex(r + 1, k_in)
     inner = block.faces[(r, c_in)]
-    side_out = sign * (inner.d_side if inner.d_side is not None else unit(np.cross(B - A, [0.0, 1.0, 0.0])))
+    side_out = sign * (inner.d_side if inner.d_side is not None else unit(cross(B - A, [0.0, 1.0, 0.0])))
     idx = block.vertices_of(face.segments)
     pts = block.body.vertices[idx]
     outer = (pts - A) @ side_out > 0
@@ -62,7 +62,7 @@ def fit_outer_face(state: FitState, block: Block, face: FaceState, options) -> N
         importance_floor=p["importance_floor"],
     )
     n = res.plane.normal
-    e = unit(np.cross(n, B - A))
+    e = unit(cross(n, B - A))
     if e @ side_out < 0:
         e = -e
     near = pts[np.abs(res.plane.signed_distance(pts)) <= 2 * p["support_distance"]]
@@ -70,7 +70,7 @@ def fit_outer_face(state: FitState, block: Block, face: FaceState, options) -> N
     width = max(reach + float(options.get("margin", 0.02)), float(options.get("min_width", 0.06)))
     face.plane = res.plane
     face.d_up = unit(B - A)
-    face.d_side = np.cross(face.d_up, n)
+    face.d_side = cross(face.d_up, n)
     face.centre = (A + B) / 2
     face.side_range = np.array([0.0, width])
     face.supported = idx[res.supported]
@@ -208,7 +208,7 @@ def add_armrests(state: FitState, options) -> None:
         V = grid.vertices
         rows_dir = V[-1].mean(0) - V[0].mean(0)
         e1 = unit(rows_dir - plane.normal * (plane.normal @ rows_dir))
-        e2 = np.cross(plane.normal, e1)
+        e2 = cross(plane.normal, e1)
         sup = plane.project(pts[res.supported])
         uv = np.stack([(sup - plane.point) @ e1, (sup - plane.point) @ e2], 1)
         box = minimal_rectangle(uv)
@@ -224,7 +224,8 @@ def add_armrests(state: FitState, options) -> None:
         f_in, f_out = sorted(front, key=lambda q: q @ side_dir)
         b_in, b_out = sorted(back, key=lambda q: q @ side_dir)
         rect = np.array([f_in, b_in, b_out, f_out])
-        others = np.setdiff1d(np.arange(len(block.body.vertices)), block.vertices_of(segs + [SEGMENT_INDEX[f"{side.capitalize()}Hand"]]))
+        others = np.ones(len(block.body.vertices), bool)  # every vertex but the arm's and the hand's
+        others[block.vertices_of(segs + [SEGMENT_INDEX[f"{side.capitalize()}Hand"]])] = False
         body_pts = block.body.vertices[others]
         # the armrest and its support below it must not pass through the body
         below = plane.signed_distance(body_pts) < -p["max_penetration"]
