@@ -384,9 +384,10 @@ def _run_early(exporter, result: BuildResult):
     return exporter.export_early(result)
 
 
-def _run_exporters(exporters: list, result: BuildResult, directory: Path, capture: BuildResult | None = None) -> list[dict]:
-    """Each exporter's ``{role: path}``, in order (the export helper's job)."""
-    return [exporter.export(_exported(exporter, result, capture), directory) for exporter in exporters]
+def _run_exporters(exporters: list, result: BuildResult, directory: Path, capture: BuildResult | None = None, keywords: list | None = None) -> list[dict]:
+    """Each exporter's ``{role: path}``, in order (the export helper's job); ``keywords``: each one's ``early`` keyword (:class:`_Early`)."""
+    keywords = keywords or [{}] * len(exporters)
+    return [exporter.export(_exported(exporter, result, capture), directory, **kw) for exporter, kw in zip(exporters, keywords)]
 
 
 def _run_part(exporter, result: BuildResult, directory: Path, capture: BuildResult | None, part: int | None, early: dict | None = None) -> dict:
@@ -454,7 +455,7 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
     capture = _capture_result(result)
     with staging_folder(target, overwrite=overwrite) as staging:
         with timer.stage("export"):
-            job = helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture) if ahead else None
+            job = helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture, [early.keywords(i) for i in ahead]) if ahead else None
             # the parts run apart, in turn: the spare helper, the export helper, this process
             places = [spare] + ([helper] if helper is not None else []) + [None]
             tasks = [(i, part, places[k % len(places)]) for k, (i, part) in enumerate((i, part) for i in apart for part in _parts(exporters[i]))]
