@@ -48,7 +48,7 @@ import numpy as np
 from seatkit import picture as pic
 from seatkit.errors import InputError
 from seatkit.geometry.normals import vertex_normals
-from seatkit.io import write_bytes_atomic, write_text_atomic
+from seatkit.io import atomic_write, write_bytes_atomic
 from seatkit.picture import draw as pic_draw
 from seatkit.picture import raster as rs
 
@@ -1011,11 +1011,18 @@ def write_report_html(result, path) -> Path:
     summary = html.escape(f"template: {recipe.get('template', '?')}; {people}")
     title = html.escape(f"seatkit build: {recipe.get('template', '')}")
     low, high = HTML_VIEW_HEIGHT_PX
-    page = _PAGE.format(
-        max_width=HTML_VIEW_MAX_WIDTH, vh=HTML_VIEW_VH, min_h=low, max_h=high,
-        title=title, summary=summary, plot=f'<div id="view-box">{plot}</div>', metrics=_metrics_html(result),
-    )
-    return write_text_atomic(Path(path), page)
+    # the page around the plot, formatted without it: the plot (plotly.js
+    # inline, 6 MB) is encoded once and written between, not copied into
+    # the page first
+    fields = {
+        "max_width": HTML_VIEW_MAX_WIDTH, "vh": HTML_VIEW_VH, "min_h": low, "max_h": high,
+        "title": title, "summary": summary, "metrics": _metrics_html(result),
+    }
+    head, tail = (text.format(**fields) for text in _PAGE.split("{plot}"))
+    with atomic_write(Path(path), "wb") as fh:
+        for piece in (head, '<div id="view-box">', plot, "</div>", tail):
+            fh.write(piece.encode("utf-8"))
+    return Path(path)
 
 
 # ----------------------------------------------------------------------------- exporters
