@@ -13,8 +13,9 @@ its process id and its own CPU (counted from its fork). The main process's
 lines show what the build's critical path does and when it waits for a
 helper (a ``done`` after its own work has ended). ``--phases`` prints only
 the main process's CPU at the start of the first stage, of the export stage,
-at its end and at the end of the command (one line, for comparing two
-versions of the code run the same way).
+at its end and at the end of the command, the export stage's wall time and
+the CPU the helpers spent in exporter calls, in the export stage and before
+it (one line, for comparing two versions of the code run the same way).
 """
 
 from __future__ import annotations
@@ -37,11 +38,41 @@ def _cpu() -> float:
     return t.user + t.system
 
 
+#: A file the helper processes append their lines to (set by main(); the helpers are forks and inherit it).
+HELPER_LOG: Path | None = None
+
+
 def log(what: str) -> None:
     if os.getpid() == MAIN:
         LOG.append((time.perf_counter() - T0, _cpu(), what))
     else:  # a helper: printed at once (its log dies with it)
         print(f"  [{os.getpid()}] {time.perf_counter() - T0:7.3f} s  cpu {_cpu():6.3f} s  {what}", file=sys.stderr, flush=True)
+        if HELPER_LOG is not None:
+            with open(HELPER_LOG, "a") as fh:
+                fh.write(f"{os.getpid()}\t{_cpu()}\t{what}\n")
+
+
+def _helpers_exporting_cpu() -> tuple[float, float]:
+    """The helpers' CPU in exporter calls: ``export``/``export_part`` (the export stage) and ``export_early`` (before it)."""
+    stage = early = 0.0
+    started: dict = {}
+    if HELPER_LOG is None or not HELPER_LOG.exists():
+        return stage, early
+    for line in HELPER_LOG.read_text().splitlines():
+        pid, cpu, what = line.split("\t")
+        kind, _, name = what.partition(" ")
+        method = name.rpartition(".")[2]
+        if method not in ("export", "export_part", "export_early"):
+            continue
+        if kind == "start":
+            started[pid, name] = float(cpu)
+        elif kind == "end" and (pid, name) in started:
+            spent = float(cpu) - started.pop((pid, name))
+            if method == "export_early":
+                early += spent
+            else:
+                stage += spent
+    return stage, early
 
 
 def _instrument() -> None:
@@ -95,8 +126,8 @@ def _instrument() -> None:
     workers.Helper.close = logged_close
 
 
-def _at(what: str) -> float:
-    return next((cpu for _, cpu, w in LOG if w == what), float("nan"))
+def _at(what: str, wall: bool = False) -> float:
+    return next((t if wall else cpu for t, cpu, w in LOG if w == what), float("nan"))
 
 
 def main() -> None:
@@ -107,7 +138,9 @@ def main() -> None:
     _instrument()
     import seatkit.cli as cli
 
+    global HELPER_LOG
     with tempfile.TemporaryDirectory() as tmp:
+        HELPER_LOG = Path(tmp) / "helpers.log"
         sys.argv = ["seatkit", "build", "-q", "--template", "chair", "--out", str(Path(tmp) / "out"), *args.extra]
         if hasattr(cli, "run"):
             code = cli.run()
@@ -118,12 +151,15 @@ def main() -> None:
             except SystemExit as e:
                 code = e.code
         log("command done")
+        stage, early = _helpers_exporting_cpu()
     if code not in (0, None):
         sys.exit(f"the build failed (exit status {code})")
     if args.phases:
         first = _at("stage> bodies")
         export, exported, done = _at("stage> export"), _at("stage< export"), _at("command done")
-        print(f"main process CPU: start-up {first:.3f} s, design {export - first:.3f} s, export {exported - export:.3f} s, after it {done - exported:.3f} s, in all {done:.3f} s")
+        export_wall = _at("stage< export", wall=True) - _at("stage> export", wall=True)
+        print(f"main process CPU: start-up {first:.3f} s, design {export - first:.3f} s, export {exported - export:.3f} s, after it {done - exported:.3f} s, in all {done:.3f} s; "
+              f"the export stage's wall time {export_wall:.3f} s; the helpers' CPU in exporters {stage:.3f} s, before the export stage {early:.3f} s")
         return
     print(f"{'wall':>8} {'cpu':>8}  main process (helpers' lines on stderr, as they happen)")
     for wall, cpu, what in LOG:

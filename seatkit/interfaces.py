@@ -226,7 +226,15 @@ class Exporter(Protocol):
     one whose work divides declares ``parts`` (a count),
     ``export_part(result, directory, part)`` and optionally
     ``join_parts(list of each part's files)``, and the build runs the parts
-    in its idle processes in turn.
+    in its idle processes in turn. An exporter with work that needs only
+    the bodies and their importance pressure (the report's ``pressure.png``)
+    may declare ``export_early(result)``: a build with helper processes
+    calls it in one of them as soon as those pressures are solved, on a
+    result that holds only the recipe, the bodies and the pressures, and
+    passes what it returned (pickled) to ``export`` and ``export_part`` as
+    the keyword ``early`` (None when it did not run or failed). The
+    exporter must use it only where it still fits the result it exports
+    (a seat height set, or sitters, move the bodies later).
     """
 
     name: str

@@ -120,9 +120,12 @@ def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool
             context = _helper_context() if processes else None
             export_helper = _helper(helpers, "export", [e for e in exporters if e.prepare_ahead], processes, context)
             baseline_helper = _helper(helpers, "baseline", [], processes and _wants_baseline(recipe), context)
-            result = _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper)
+            # the exporters' work that needs only the bodies and their importance, in a helper
+            # idle then (the baseline's, until the template is fitted; else the export worker)
+            early = _Early(exporters, baseline_helper or export_helper)
+            result = _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper, early=early.submit)
             if write:
-                _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper, spare=baseline_helper)
+                _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper, spare=baseline_helper, early=early)
     return result
 
 
@@ -169,8 +172,11 @@ def _helper(stack: ExitStack, what: str, exporters: list, wanted: bool, context=
     return stack.enter_context(Helper(what, exporters, context))
 
 
-def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper, export_helper=None, recline_offset: float = 0.0, recline_builds: int = 1) -> BuildResult:
+def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper, export_helper=None, early=None, recline_offset: float = 0.0, recline_builds: int = 1) -> BuildResult:
     """The stages from the bodies to the evaluation: the build's result, nothing written.
+
+    ``early(recipe, bodies, pressures)`` is called once the importance
+    pressures are solved (:class:`_Early`).
 
     With a backrest recline set (the ``seat`` step's ``recline``), a built
     backrest more than :data:`~seatkit.template.seat.RECLINE_TOLERANCE_DEG`
@@ -187,6 +193,8 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     if recipe.get("sitters"):  # one seat for several sitters: each pelvis on one seat pan (seatkit.sitters)
         with timer.stage("pressure"):
             bodies, pressures, moves = _seat_sitters(recipe, bodies, pressures, registry)
+    if early is not None:
+        early(recipe, bodies, pressures)
 
     template = registry.get("template", recipe["template"])
     if recipe.get("sitters"):  # one seat for several sitters (seatkit.sitters)
@@ -249,7 +257,7 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         got, want = recline
         if recline_builds < RECLINE_BUILDS:
             again = recline_offset + want - got
-            return _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper, recline_offset=again, recline_builds=recline_builds + 1)
+            return _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper, early=early, recline_offset=again, recline_builds=recline_builds + 1)
         from seatkit.errors import RecipeError
 
         raise RecipeError(f"template_params.steps.seat.recline: the built backrest reclines {got:.1f} deg, not {want:g} deg (within {RECLINE_TOLERANCE_DEG:g} deg), after the trunk was reclined to meet it; allowed: -10 to 50 deg, try one nearer the pose's own")
@@ -333,16 +341,61 @@ def own_designs(recipe: Recipe, registry) -> list[dict]:
     return out
 
 
-def _run_exporters(exporters: list, result: BuildResult, directory: Path, capture: BuildResult | None = None) -> list[dict]:
-    """Each exporter's ``{role: path}``, in order (the export helper's job)."""
-    return [exporter.export(_exported(exporter, result, capture), directory) for exporter in exporters]
+class _Early:
+    """The exporters' work that needs only the bodies and their importance pressure (``export_early``).
+
+    :meth:`submit` hands it to ``helper`` as soon as the pressures are
+    solved, so that it runs while the design is computed; :meth:`payload`
+    gives an exporter what its ``export_early`` returned, as its ``early``
+    keyword at export time (None without a helper, or where it failed: the
+    exporter then does that work itself). The exporter checks that the
+    payload shows the bodies it exports (a seat height set, or sitters,
+    move them after the pressures are solved).
+    """
+
+    def __init__(self, exporters: list, helper):
+        self._exporters = {i: e for i, e in enumerate(exporters) if helper is not None and hasattr(e, "export_early")}
+        self._helper = helper
+        self._jobs: dict = {}
+
+    def submit(self, recipe, bodies: list, pressures: list) -> None:
+        if self._jobs or not self._exporters:
+            return
+        partial = BuildResult(recipe, list(bodies), list(pressures))
+        self._jobs = {i: self._helper.submit(_run_early, e, partial) for i, e in self._exporters.items()}
+
+    def payload(self, index: int):
+        job = self._jobs.get(index)
+        if job is None:
+            return None
+        try:
+            return self._helper.result(job)
+        except Exception:  # noqa: BLE001  (the exporter does the work itself, and reports its own error)
+            return None
+
+    def keywords(self, index: int) -> dict:
+        """``{"early": payload}`` for an exporter that has ``export_early``, else nothing."""
+        return {"early": self.payload(index)} if index in self._exporters else {}
 
 
-def _run_part(exporter, result: BuildResult, directory: Path, capture: BuildResult | None, part: int | None) -> dict:
-    """An exporter prepared and run, whole (``part`` None) or one part of it (``export_part``): its ``{role: path}``."""
+def _run_early(exporter, result: BuildResult):
+    """An exporter's ``export_early`` on a result that holds the recipe, the bodies and their importance only (a helper's job)."""
+    exporter.prepare()
+    return exporter.export_early(result)
+
+
+def _run_exporters(exporters: list, result: BuildResult, directory: Path, capture: BuildResult | None = None, keywords: list | None = None) -> list[dict]:
+    """Each exporter's ``{role: path}``, in order (the export helper's job); ``keywords``: each one's ``early`` keyword (:class:`_Early`)."""
+    keywords = keywords or [{}] * len(exporters)
+    return [exporter.export(_exported(exporter, result, capture), directory, **kw) for exporter, kw in zip(exporters, keywords)]
+
+
+def _run_part(exporter, result: BuildResult, directory: Path, capture: BuildResult | None, part: int | None, early: dict | None = None) -> dict:
+    """An exporter prepared and run, whole (``part`` None) or one part of it (``export_part``): its ``{role: path}``; ``early``: its ``early`` keyword (:class:`_Early`)."""
     exporter.prepare()
     exported = _exported(exporter, result, capture)
-    return exporter.export(exported, directory) if part is None else exporter.export_part(exported, directory, part)
+    kw = early or {}
+    return exporter.export(exported, directory, **kw) if part is None else exporter.export_part(exported, directory, part, **kw)
 
 
 def _parts(exporter) -> list:
@@ -375,7 +428,7 @@ def _capture_result(result: BuildResult) -> BuildResult | None:
     return result_in_capture_frame(result)
 
 
-def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *, overwrite: bool, helper=None, spare=None) -> None:
+def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *, overwrite: bool, helper=None, spare=None, early: _Early | None = None) -> None:
     """Run the exporters into a staging folder, report.json last, and move the folder into place.
 
     With an export ``helper``, the exporters whose ``prepare_ahead`` is true
@@ -387,8 +440,11 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
     spare helper, the export helper (after its own exporters) and this
     process (after the others). The files of all are listed in recipe
     order, an exporter's parts as its ``export`` lists them (``join_parts``).
+    An exporter with ``export_early`` gets what it returned (``early``).
     """
     from seatkit.io import mark_complete
+
+    early = early if early is not None else _Early([], None)
 
     target = output_target(result.recipe)
     report = registry.get("exporter", REPORT_EXPORTER)
@@ -399,21 +455,20 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
     capture = _capture_result(result)
     with staging_folder(target, overwrite=overwrite) as staging:
         with timer.stage("export"):
-            job = helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture) if ahead else None
+            job = helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture, [early.keywords(i) for i in ahead]) if ahead else None
             # the parts run apart, in turn: the spare helper, the export helper, this process
             places = [spare] + ([helper] if helper is not None else []) + [None]
             tasks = [(i, part, places[k % len(places)]) for k, (i, part) in enumerate((i, part) for i in apart for part in _parts(exporters[i]))]
-            remote = [(i, part, place, place.submit(_run_part, exporters[i], result, staging, capture, part)) for i, part, place in tasks if place is not None]
+            remote = [(i, part, place, place.submit(_run_part, exporters[i], result, staging, capture, part, early.keywords(i))) for i, part, place in tasks if place is not None]
             done: dict[int, dict] = {i: {} for i in apart}  # exporter index -> {part: its files}
             written = {}
             try:
                 for i, exporter in enumerate(exporters):
                     if i not in ahead and i not in apart:
-                        exporter.prepare()
-                        written[i] = exporter.export(_exported(exporter, result, capture), staging)
+                        written[i] = _run_part(exporter, result, staging, capture, None, early.keywords(i))
                 for i, part, place in tasks:
                     if place is None:
-                        done[i][part] = _run_part(exporters[i], result, staging, capture, part)
+                        done[i][part] = _run_part(exporters[i], result, staging, capture, part, early.keywords(i))
                 report.prepare()  # while the helpers finish
             finally:  # the helpers' files are in the staging folder before it is moved or deleted
                 wait([job] * (job is not None) + [r[3] for r in remote])

@@ -22,6 +22,10 @@ from seatkit.io import jsonable, write_bytes_atomic
 from seatkit.model import Body, BuildResult, ControlMesh
 
 FORMAT_VERSION = 1
+#: zlib level of ``design.npz``'s members: 1 writes the default design in
+#: half the time of zlib's default (6), for a file about 6% larger; any
+#: level reads the same (docs/performance.md, "One build as a whole process").
+DESIGN_ZLIB_LEVEL = 1
 _BODY_ARRAYS = ("vertices", "faces", "weights", "joints", "tips", "segment_mass", "segment_com")
 _MESH_ARRAYS = tuple(
     f.name for f in fields(ControlMesh) if f.name not in ("meta", "face_labels")
@@ -58,7 +62,7 @@ def save_design(result: BuildResult, path) -> Path:
             info.compress_type = zipfile.ZIP_DEFLATED
             member = io.BytesIO()
             np.lib.format.write_array(member, np.asarray(arrays[name]), allow_pickle=False)
-            zf.writestr(info, member.getvalue())
+            zf.writestr(info, member.getvalue(), compresslevel=DESIGN_ZLIB_LEVEL)
     return write_bytes_atomic(path, buf.getvalue())
 
 

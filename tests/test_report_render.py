@@ -168,6 +168,40 @@ def test_the_pictures_drawn_in_parts_are_the_whole_pictures(tmp_path):
         assert path.read_bytes() == whole[role].read_bytes(), role
 
 
+def test_the_pictures_drawn_early_are_those_of_the_result_and_only_of_its_bodies(tmp_path):
+    """A build with helpers draws pressure.png from the bodies and their importance before the design exists: the same bytes; a payload drawn from other bodies is not used."""
+    import dataclasses
+
+    from seatkit.model import BuildResult
+
+    result = evaluated_result()
+    exporter = report.ReportPngExporter()
+    (tmp_path / "whole").mkdir()
+    whole = exporter.export(result, tmp_path / "whole")
+    early = exporter.export_early(BuildResult(result.recipe, result.bodies, result.pressures))
+    assert set(early["png"]) == set(report.EARLY_PNGS)
+    assert early["png"]["report_pressure_png"] == whole["report_pressure_png"].read_bytes()
+    written = []
+    for part in range(exporter.parts):
+        (tmp_path / f"part{part}").mkdir()
+        written.append(exporter.export_part(result, tmp_path / f"part{part}", part, early=early))
+    for role, path in exporter.join_parts(written).items():
+        assert path.read_bytes() == whole[role].read_bytes(), role
+    # bodies moved after their importance was drawn (a seat height set, sitters): drawn again
+    body = result.bodies[0]
+    moved = dataclasses.replace(body, vertices=body.vertices * [1.3, 1.0, 1.0])  # a picture of its own (a move alone is framed away)
+    other = dataclasses.replace(result, bodies=[moved])
+    (tmp_path / "moved").mkdir()
+    again = exporter.export(other, tmp_path / "moved", early=early)
+    (tmp_path / "fresh").mkdir()
+    fresh = exporter.export(other, tmp_path / "fresh")
+    assert again["report_pressure_png"].read_bytes() == fresh["report_pressure_png"].read_bytes() != early["png"]["report_pressure_png"]
+    stale = dataclasses.replace(result, pressures=[dataclasses.replace(p, pressure=p.pressure * 2) for p in result.pressures])
+    (tmp_path / "stale").mkdir()
+    redrawn = exporter.export_part(stale, tmp_path / "stale", report.PNG_PARTS.index(("report_pressure_png", "report_interface_png")), early=early)
+    assert redrawn["report_pressure_png"].read_bytes() != early["png"]["report_pressure_png"]
+
+
 def test_comparison_only_with_a_baseline(tmp_path):
     files = report.ReportPngExporter().export(plain_result(), tmp_path)
     assert set(files) == {"report_pressure_png", "report_cage_png", "report_surface_png"}

@@ -42,9 +42,15 @@ MAX_CAGE_INDEX = 10_000_000
 SURFACE_FORMATS = (".obj", ".ply", ".stl", ".glb")
 
 
-def _fmt_rows(prefix: str, rows: np.ndarray, fmt: str) -> str:
+def _fmt_rows(prefix: str, rows: np.ndarray, fmt: str, per_value: np.ndarray | None = None) -> str:
+    """One line ``prefix fmt fmt ...`` per row, ``fmt`` once per column, formatted as one text at once.
+
+    ``per_value``: the values ``fmt`` takes, row by row, when it takes more than one per column.
+    """
+    rows = np.asarray(rows)
+    values = rows if per_value is None else np.asarray(per_value)
     line = prefix + " " + " ".join([fmt] * rows.shape[1]) + "\n"
-    return "".join(line % tuple(r) for r in rows.tolist())
+    return (line * len(rows)) % tuple(values.ravel().tolist())
 
 
 def write_cage_obj(mesh, path) -> Path:
@@ -179,7 +185,7 @@ def write_surface(surface, path) -> Path:
         text.append(_fmt_rows("v", np.asarray(surface.vertices), "%.9g"))
         text.append(_fmt_rows("vn", np.asarray(surface.normals), "%.7g"))
         f1 = np.asarray(surface.faces, dtype=np.int64) + 1
-        text.extend("f " + " ".join(f"{i}//{i}" for i in row) + "\n" for row in f1.tolist())
+        text.append(_fmt_rows("f", f1, "%d//%d", per_value=np.repeat(f1, 2, axis=1)))
         with atomic_write(path, "w") as fh:
             fh.write("".join(text))
         return path

@@ -48,7 +48,7 @@ import numpy as np
 from seatkit import picture as pic
 from seatkit.errors import InputError
 from seatkit.geometry.normals import vertex_normals
-from seatkit.io import write_bytes_atomic, write_text_atomic
+from seatkit.io import atomic_write, write_bytes_atomic
 from seatkit.picture import draw as pic_draw
 from seatkit.picture import raster as rs
 
@@ -247,6 +247,14 @@ class _Scene:
         return ra, ra.shade(lit), alpha
 
 
+def _body_scene(body: _Mesh, importance: np.ndarray) -> _Scene:
+    """A scene of the bodies and their importance pressure alone: no design, no evaluation."""
+    return _Scene(
+        body=body, importance=importance, contact=None, surface=None, cage=None,
+        baseline_surface=None, baseline_contact=None, baseline_cage=None, baseline_name="", metrics={},
+    )
+
+
 def _surface_mesh(surface) -> _Mesh | None:
     if surface is None:
         return None
@@ -268,7 +276,8 @@ def _concat_fields(fields, n_per_body) -> np.ndarray | None:
     return np.concatenate(arrays)
 
 
-def _scene(result) -> _Scene:
+def _scene(result, *, body_only: bool = False) -> _Scene:
+    """The scene of a result; ``body_only``: its bodies and importance alone (what :func:`draw_early_pngs` draws)."""
     bodies = list(result.bodies or [])
     if not bodies:
         msg = "the build result holds no body to draw in the report"
@@ -282,6 +291,8 @@ def _scene(result) -> _Scene:
     if importance is None:
         msg = f"the report needs one importance pressure per body, got {len(result.pressures or [])} for {len(bodies)} bodies"
         raise InputError(msg)
+    if body_only:
+        return _body_scene(body, importance)
     base = result.baseline
     metrics = result.metrics or {}
     return _Scene(
@@ -408,18 +419,7 @@ def write_importance_png(path, body, pressure, *, title: str | None = None) -> P
     """
     pressure = np.asarray(getattr(pressure, "pressure", pressure), dtype=np.float64)
     verts, faces = np.asarray(body.vertices, dtype=np.float64), np.asarray(body.faces, dtype=np.int64)
-    scene = _Scene(
-        body=_Mesh(verts, faces, vertex_normals(verts, faces), closed=True),
-        importance=pressure,
-        contact=None,
-        surface=None,
-        cage=None,
-        baseline_surface=None,
-        baseline_contact=None,
-        baseline_cage=None,
-        baseline_name="",
-        metrics={},
-    )
+    scene = _body_scene(_Mesh(verts, faces, vertex_normals(verts, faces), closed=True), pressure)
     return _pressure_png(scene, Path(path), title=title)
 
 
@@ -565,15 +565,52 @@ def _interface_png(scene: _Scene, path: Path, save=_write_png) -> Path:
 PNG_PARTS = (("report_surface_png", "report_comparison_png"), ("report_cage_png",), ("report_pressure_png", "report_interface_png"))
 
 
-def render_pngs(result, directory, roles=None) -> dict[str, Path]:
+#: The pictures that show only the bodies and their importance pressure: a
+#: build with helper processes draws them while it designs
+#: (:meth:`ReportPngExporter.export_early`).
+EARLY_PNGS = ("report_pressure_png",)
+
+
+def _importance_key(result) -> str:
+    """A digest of what the early pictures show: every body's vertices and faces and its importance pressure."""
+    import hashlib
+
+    digest = hashlib.blake2b(digest_size=16)
+    bodies, pressures = list(result.bodies or []), list(result.pressures or [])
+    digest.update(f"{len(bodies)} {len(pressures)}".encode())
+    for array in [a for b in bodies for a in (b.vertices, b.faces)] + [getattr(p, "pressure", p) for p in pressures]:
+        a = np.ascontiguousarray(array)
+        digest.update(f"{a.dtype.str}{a.shape}".encode())
+        digest.update(a.tobytes())
+    return digest.hexdigest()
+
+
+def draw_early_pngs(result) -> dict:
+    """The pictures of :data:`EARLY_PNGS`, drawn in memory from the bodies and their importance alone.
+
+    Returns ``{"key": digest of those inputs, "png": {role: PNG bytes}}``;
+    :func:`render_pngs` writes the bytes instead of drawing the pictures
+    again when the result it is given has the same bodies and importance.
+    """
+    scene = _scene(result, body_only=True)
+    return {"key": _importance_key(result), "png": {"report_pressure_png": _pressure_png(scene, None, lambda image, _: pic.png_bytes(image))}}
+
+
+def render_pngs(result, directory, roles=None, early=None) -> dict[str, Path]:
     """Write the report's PNG files into ``directory`` and return them by role.
 
     ``comparison.png`` is written only when the result holds a baseline
     surface; ``cage.png`` and ``surface.png`` only when it holds a cage and a
     surface. ``roles`` (a subset of :data:`PNG_FILES`' keys): only those
-    pictures.
+    pictures. ``early`` (:func:`draw_early_pngs`): pictures drawn ahead,
+    written as they are when they show this result's bodies and importance.
     """
     directory = Path(directory)
+    ready = {}
+    if early and early.get("key") == _importance_key(result):
+        ready = {role: data for role, data in early["png"].items() if roles is None or role in roles}
+    if roles is not None and set(roles) <= set(ready):  # nothing left to draw
+        return {role: write_bytes_atomic(directory / PNG_FILES[role], ready[role]) for role in PNG_FILES if role in ready}
     scene = _scene(result)
     jobs = [("report_pressure_png", _pressure_png)]
     if scene.cage is not None:
@@ -586,16 +623,17 @@ def render_pngs(result, directory, roles=None) -> dict[str, Path]:
             jobs.append(("report_interface_png", _interface_png))
     if roles is not None:
         jobs = [job for job in jobs if job[0] in roles]
-    return _render(scene, jobs, directory)
+    return _render(scene, jobs, directory, ready)
 
 
-def _render(scene: _Scene, jobs, directory: Path) -> dict[str, Path]:
-    """Draw and write the pictures ``jobs`` lists as ``(role, function)``, in order."""
+def _render(scene: _Scene, jobs, directory: Path, ready=None) -> dict[str, Path]:
+    """Draw and write the pictures ``jobs`` lists as ``(role, function)``, in order; those in ``ready`` (role -> PNG bytes) are written as they are."""
     save = _PngWriter()
     out = {}
     try:
         for role, draw in jobs:
-            out[role] = draw(scene, directory / PNG_FILES[role], save)
+            path = directory / PNG_FILES[role]
+            out[role] = write_bytes_atomic(path, ready[role]) if ready and role in ready else draw(scene, path, save)
     finally:
         save.result()
     return out
@@ -973,11 +1011,18 @@ def write_report_html(result, path) -> Path:
     summary = html.escape(f"template: {recipe.get('template', '?')}; {people}")
     title = html.escape(f"seatkit build: {recipe.get('template', '')}")
     low, high = HTML_VIEW_HEIGHT_PX
-    page = _PAGE.format(
-        max_width=HTML_VIEW_MAX_WIDTH, vh=HTML_VIEW_VH, min_h=low, max_h=high,
-        title=title, summary=summary, plot=f'<div id="view-box">{plot}</div>', metrics=_metrics_html(result),
-    )
-    return write_text_atomic(Path(path), page)
+    # the page around the plot, formatted without it: the plot (plotly.js
+    # inline, 6 MB) is encoded once and written between, not copied into
+    # the page first
+    fields = {
+        "max_width": HTML_VIEW_MAX_WIDTH, "vh": HTML_VIEW_VH, "min_h": low, "max_h": high,
+        "title": title, "summary": summary, "metrics": _metrics_html(result),
+    }
+    head, tail = (text.format(**fields) for text in _PAGE.split("{plot}"))
+    with atomic_write(Path(path), "wb") as fh:
+        for piece in (head, '<div id="view-box">', plot, "</div>", tail):
+            fh.write(piece.encode("utf-8"))
+    return Path(path)
 
 
 # ----------------------------------------------------------------------------- exporters
@@ -999,12 +1044,16 @@ class ReportPngExporter:
     def prepare(self) -> None:
         """Nothing to prepare: this exporter imports nothing big."""
 
-    def export(self, result, directory: Path) -> dict[str, Path]:
-        return render_pngs(result, directory)
+    def export_early(self, result) -> dict:
+        """``pressure.png`` drawn from the bodies and their importance alone (:func:`draw_early_pngs`), before the design exists."""
+        return draw_early_pngs(result)
 
-    def export_part(self, result, directory: Path, part: int) -> dict[str, Path]:
+    def export(self, result, directory: Path, early=None) -> dict[str, Path]:
+        return render_pngs(result, directory, early=early)
+
+    def export_part(self, result, directory: Path, part: int, early=None) -> dict[str, Path]:
         """The pictures of one part (:data:`PNG_PARTS`) only; the parts together write what :meth:`export` writes."""
-        return render_pngs(result, directory, roles=PNG_PARTS[part])
+        return render_pngs(result, directory, roles=PNG_PARTS[part], early=early)
 
     def join_parts(self, written: list) -> dict[str, Path]:
         """The parts' files by role, in the order :meth:`export` gives them."""

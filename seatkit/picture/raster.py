@@ -283,14 +283,20 @@ def rasterize(frame: Frame, vertices: np.ndarray, faces: np.ndarray, *, cull_bac
             gw, gh = int(sw[grp[0]]), int(sh[grp[0]])
             gx = np.arange(gw, dtype=np.float32)[None, None, :]
             gy = np.arange(gh, dtype=np.float32)[None, :, None]
-            ga1, gb1, gc1, ga2, gb2, gc2, gaz, gbz, gcz, grx, gry = coef[:, grp, None, None]
+            ga1, gb1, gc1, ga2, gb2, gc2, _, _, _, grx, gry = coef[:, grp, None, None]
             l1 = ga1 * gx + gb1 * gy + gc1
             l2 = ga2 * gx + gb2 * gy + gc2
-            inside = (l1 >= -1e-6) & (l2 >= -1e-6) & (l1 + l2 <= 1.0 + 1e-6) & (gx < grx) & (gy < gry)
+            inside = l1 >= -1e-6  # in place: fewer (k, bh, bw) temporaries
+            inside &= l2 >= -1e-6
+            inside &= l1 + l2 <= 1.0 + 1e-6
+            inside &= gx < grx
+            inside &= gy < gry
             k_i, y_i, x_i = np.nonzero(inside)
             tri = grp[k_i]
-            zz = gaz * gx + gbz * gy + gcz
-            parts.append((tri, (by0[tri] + y_i) * w + bx0[tri] + x_i, l1[inside], l2[inside], zz[inside]))
+            # the depth at the covered pixels only, with the same operations as over the box
+            fx, fy = gx.ravel()[x_i], gy.ravel()[y_i]
+            zz = coef[6, tri] * fx + coef[7, tri] * fy + coef[8, tri]
+            parts.append((tri, (by0[tri] + y_i) * w + bx0[tri] + x_i, l1[inside], l2[inside], zz))
         tri = np.concatenate([p[0] for p in parts])
         pix = np.concatenate([p[1] for p in parts])
         l1 = np.concatenate([p[2] for p in parts])
@@ -305,7 +311,7 @@ def rasterize(frame: Frame, vertices: np.ndarray, faces: np.ndarray, *, cull_bac
     frag = face_img[covered]  # the winning fragment of each covered pixel
     if ids.size:
         l1, l2 = l1[frag], l2[frag]
-        bary = np.stack([1.0 - l1 - l2, l1, l2], axis=1).astype(np.float32)
+        bary = np.stack([1.0 - l1 - l2, l1, l2], axis=1).astype(np.float32, copy=False)
         face_img[covered] = ids[tri[frag]]
     else:
         bary = np.zeros((0, 3), np.float32)
