@@ -57,11 +57,12 @@ supported body regions without passing through the body. ICP-like:
    flat patch rising from the floor). Correspondences, normals and ways out
    hold only near the current surface; without it a control point could
    jump tens of centimetres and tangle the cage. The step is *damped*
-   (Levenberg-Marquardt: ``lam |P - P_k|^2`` added, ``lam`` the smallest
-   that keeps the farthest point within reach), not scaled: damping
-   shortens each control point's move by how weakly the fit holds it, so
+   (Levenberg-Marquardt with Marquardt's scaling: ``lam`` times the normal
+   matrix's diagonal added, ``lam`` the smallest that keeps the farthest
+   point within reach), not scaled as a whole: the coupled directions a
+   far-moving control point shares with its neighbours give way first, so
    one point the fit barely constrains no longer shortens every other
-   point's step;
+   point's step as much;
 6. repeat until the weighted mean distance stops improving by more than
    ``tolerance`` (m) and no probe is deeper in the body than
    ``max_penetration`` (3 mm at the probes leaves 2 mm for the surface
@@ -654,11 +655,12 @@ _DAMPING_TRIALS = 12
 
 
 def _damped_solve(A, rhs, lam: float, x0: np.ndarray, dense: bool) -> np.ndarray:
-    """``(A + lam I) x = rhs + lam x0``: the step's normal equations with ``lam |x - x0|^2`` added."""
+    """``(A + lam D) x = rhs + lam D x0``, ``D`` the diagonal of ``A``: the step's normal equations, damped (Marquardt)."""
+    D = A.diagonal()
     if dense:
-        return np.linalg.solve(A + lam * np.eye(len(rhs)), rhs + lam * x0) if lam else np.linalg.solve(A, rhs)
+        return np.linalg.solve(A + lam * np.diag(D), rhs + lam * D * x0) if lam else np.linalg.solve(A, rhs)
     if lam:
-        return spla.spsolve((A + lam * sp.identity(len(rhs), format="csc")).tocsc(), rhs + lam * x0)
+        return spla.spsolve((A + lam * sp.diags(D)).tocsc(), rhs + lam * D * x0)
     return spla.spsolve(A, rhs)
 
 
@@ -666,15 +668,17 @@ def _within_reach(A, rhs, P_m: np.ndarray, reach: float, lam0: float, dense: boo
     """The step's solution with no control point moving farther than ``reach``, and its damping ``lam``.
 
     The undamped (Gauss-Newton) solution when it stays within reach;
-    otherwise the Levenberg-Marquardt damping ``lam`` is searched, from the
-    last step's (``lam0``), by factors of 10 and then halving its logarithm,
-    until the farthest control point ends between 0.8 and 1 times
-    ``reach``. Damping shortens each direction by how weakly the fit holds
-    it: on the chair, the undamped step moves one or two seat control
-    points 15 times farther than the others, and scaling the whole step to
-    bring them within reach (as this fit once did) left every other point
-    a tenth of its step. The solution is stacked by coordinate; when no
-    trial ends within reach, the most damped one is scaled to it.
+    otherwise the Levenberg-Marquardt damping ``lam`` (times the normal
+    matrix's diagonal, Marquardt's scaling: independent of the weights'
+    and the unknowns' scales) is searched, from the last step's
+    (``lam0``), by factors of 10 and then halving its logarithm, until the
+    farthest control point ends between 0.8 and 1 times ``reach``. On the
+    chair the undamped step moves one or two seat control points 15 times
+    farther than the others; scaling the whole step to bring them within
+    reach (as this fit once did) left every other point a tenth of its
+    move, where damping gives way first along the directions the fit
+    holds weakly. The solution is stacked by coordinate; when no trial ends
+    within reach, the most damped one is scaled to it.
     """
     m = len(P_m)
     x0 = P_m.T.ravel()
@@ -686,7 +690,7 @@ def _within_reach(A, rhs, P_m: np.ndarray, reach: float, lam0: float, dense: boo
     if longest(x) <= reach:
         return x, 0.0
     lo, hi, found = 0.0, None, None
-    lam = lam0 if lam0 > 0.0 else float(A.diagonal().mean())
+    lam = lam0 if lam0 > 0.0 else 1.0
     for _ in range(_DAMPING_TRIALS):
         x = _damped_solve(A, rhs, lam, x0, dense)
         far = longest(x)
