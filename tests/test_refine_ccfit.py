@@ -110,45 +110,6 @@ def test_fit_is_deterministic():
     assert np.array_equal(a.vertices, b.vertices)
 
 
-def test_the_damped_step_keeps_every_point_within_reach_and_uses_it():
-    """A chain of control points, one the model barely holds wanting to move 20 times farther than the others.
-
-    The step (dense or sparse alike) keeps every point within reach and
-    uses most of it; a step the model wants within reach is taken whole.
-    """
-    import scipy.sparse as sp
-
-    from seatkit.refine.ccfit import _within_reach
-
-    rng = np.random.default_rng(3)
-    m = 12
-    P_m = rng.normal(size=(m, 3))
-    held = np.full(m, 1.0)
-    held[4] = 0.01
-    chain = np.eye(m) - 0.5 * (np.eye(m, k=1) + np.eye(m, k=-1))
-    A = np.kron(np.eye(3), 0.05 * chain.T @ chain + np.diag(held))
-    x0 = P_m.T.ravel()
-    goal = x0 + 0.05 * rng.choice([-1.0, 1.0], 3 * m)
-    goal[[4, 4 + m, 4 + 2 * m]] += 1.0
-    rhs = A @ goal  # the undamped step goes to goal
-
-    def moves(x):
-        return np.linalg.norm(x.reshape(3, m).T - P_m, axis=1)
-
-    assert moves(goal)[4] > 20 * np.delete(moves(goal), 4).max()
-    reach = 0.1
-    x, lam = _within_reach(A, rhs, P_m, reach, 0.0, True)
-    assert lam > 0.0
-    assert 0.8 * reach <= moves(x).max() <= reach * (1 + 1e-9)
-    # from another starting damping, and with the sparse solver: the same contract
-    for lam0, matrix, dense in ((lam * 1e3, A, True), (0.0, sp.csc_matrix(A), False)):
-        y, _ = _within_reach(matrix, rhs, P_m, reach, lam0, dense)
-        assert 0.8 * reach <= moves(y).max() <= reach * (1 + 1e-9)
-    x, lam = _within_reach(A, rhs, P_m, 10.0, 0.0, True)
-    assert lam == 0.0
-    assert np.allclose(x, goal)
-
-
 def test_unsupported_segments_give_solver_error():
     body, field = synthetic_body(10, segment=12)  # only the head
     with pytest.raises(SolverError, match="no supported body vertex"):

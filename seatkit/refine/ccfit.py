@@ -52,17 +52,11 @@ supported body regions without passing through the body. ICP-like:
    skin at the bottom of the crease is inside the furniture; a sole on the
    floor under a surface a few mm above it) weighs as much as a probe
    inside the body, until the surface is below it;
-5. a trust region: no control point moves more than ``max_step`` (or than
-   twice the current mean distance, while the surface is still far, as a
-   flat patch rising from the floor). Correspondences, normals and ways out
-   hold only near the current surface; without it a control point could
-   jump tens of centimetres and tangle the cage. The step is *damped*
-   (Levenberg-Marquardt with Marquardt's scaling: ``lam`` times the normal
-   matrix's diagonal added, ``lam`` the smallest that keeps the farthest
-   point within reach), not scaled as a whole: the coupled directions a
-   far-moving control point shares with its neighbours give way first, so
-   one point the fit barely constrains no longer shortens every other
-   point's step as much;
+5. a trust region: the step is shortened until no control point moves more
+   than ``max_step`` (or than the current mean distance, while the surface is
+   still far, as a flat patch rising from the floor). Correspondences,
+   normals and ways out hold only near the current surface; without it a
+   control point could jump tens of centimetres and tangle the cage;
 6. repeat until the weighted mean distance stops improving by more than
    ``tolerance`` (m) and no probe is deeper in the body than
    ``max_penetration`` (3 mm at the probes leaves 2 mm for the surface
@@ -138,7 +132,7 @@ CCFIT_OPTIONS: dict[str, Option] = {
     "max_distance": Option("number", "correspondences farther than this are ignored", 1.0, "m", 0.0, 100.0),
     "retreat": Option("bool", "probes inside the body leave it backwards along the surface normal", True),
     "retreat_agreement": Option("number", "... unless that way runs against the skin's nearest way out (cosine below minus this)", 0.25, "1", -1.0, 1.0),
-    "max_step": Option("number", "the farthest a control point moves in one iteration (or twice the mean distance, when larger)", 0.06, "m", 1e-6, 10.0),
+    "max_step": Option("number", "the farthest a control point moves in one iteration", 0.03, "m", 1e-6, 10.0),
     "max_iterations": Option("count", "iterations of the fit", 20, "", 0, 100000),
     "polish_iterations": Option("count", "extra iterations with denser penetration probes, when needed", 8, "", 0, 100000),
     "extra_iterations": Option("count", "more iterations of a phase while the penetration limit is not met and the depth still falls", 60, "", 0, 100000),
@@ -648,64 +642,6 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
     return None
 
 
-#: The trust region's reach per metre of mean distance (beside ``max_step``).
-_REACH_PER_DISTANCE = 2.0
-#: Damped solves tried per step to bring its farthest control point within reach.
-_DAMPING_TRIALS = 12
-
-
-def _damped_solve(A, rhs, lam: float, x0: np.ndarray, dense: bool) -> np.ndarray:
-    """``(A + lam D) x = rhs + lam D x0``, ``D`` the diagonal of ``A``: the step's normal equations, damped (Marquardt)."""
-    D = A.diagonal()
-    if dense:
-        return np.linalg.solve(A + lam * np.diag(D), rhs + lam * D * x0) if lam else np.linalg.solve(A, rhs)
-    if lam:
-        return spla.spsolve((A + lam * sp.diags(D)).tocsc(), rhs + lam * D * x0)
-    return spla.spsolve(A, rhs)
-
-
-def _within_reach(A, rhs, P_m: np.ndarray, reach: float, lam0: float, dense: bool) -> tuple[np.ndarray, float]:
-    """The step's solution with no control point moving farther than ``reach``, and its damping ``lam``.
-
-    The undamped (Gauss-Newton) solution when it stays within reach;
-    otherwise the Levenberg-Marquardt damping ``lam`` (times the normal
-    matrix's diagonal, Marquardt's scaling: independent of the weights'
-    and the unknowns' scales) is searched, from the last step's
-    (``lam0``), by factors of 10 and then halving its logarithm, until the
-    farthest control point ends between 0.8 and 1 times ``reach``. On the
-    chair the undamped step moves one or two seat control points 15 times
-    farther than the others; scaling the whole step to bring them within
-    reach (as this fit once did) left every other point a tenth of its
-    move, where damping gives way first along the directions the fit
-    holds weakly. The solution is stacked by coordinate; when no trial ends
-    within reach, the most damped one is scaled to it.
-    """
-    m = len(P_m)
-    x0 = P_m.T.ravel()
-
-    def longest(x):
-        return float(np.sqrt(((x - x0).reshape(3, m) ** 2).sum(axis=0)).max())
-
-    x = _damped_solve(A, rhs, 0.0, x0, dense)
-    if longest(x) <= reach:
-        return x, 0.0
-    lo, hi, found = 0.0, None, None
-    lam = lam0 if lam0 > 0.0 else 1.0
-    for _ in range(_DAMPING_TRIALS):
-        x = _damped_solve(A, rhs, lam, x0, dense)
-        far = longest(x)
-        if far <= reach:
-            found, hi = (x, lam), lam
-            if far >= 0.8 * reach:
-                break
-        else:
-            lo = lam
-        lam = lam * 10.0 if hi is None else (float(np.sqrt(lo * hi)) if lo > 0.0 else hi / 10.0)
-    if found is None:
-        return x0 + (reach / far) * (x - x0), lam
-    return found
-
-
 def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> ControlMesh:
     from seatkit.subdivision import Cage, build_operators
 
@@ -862,7 +798,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
     base_rhs = np.concatenate([fair_rhs[:, d] for d in range(3)])
     mu = p["point_to_point"]
 
-    def normal_equations(P, N, closest, w, pen, phase):
+    def solve_step(P, N, closest, w, pen, phase):
         P_m = P[cols]
         used = np.flatnonzero(w > 0)
         c = closest[used]
@@ -895,7 +831,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
                 A += QtQ
                 rhs += QQ.T @ (np.sqrt(wp2) * goal)
             rhs += base_rhs + (p["damping"] / n) * P_m.T.ravel()
-            return A, rhs
+            return np.linalg.solve(A, rhs)
         Ls = limit_moving[samples]
         R = sp.diags(np.sqrt(W)) @ Ls
         RR = sp.hstack([sp.diags(n_s[:, d]) @ R for d in range(3)]).tocsr()
@@ -907,7 +843,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
             A = A + QQ.T @ QQ
             rhs = rhs + QQ.T @ (np.sqrt(wp2) * goal)
         rhs = rhs + base_rhs + (p["damping"] / n) * P_m.T.ravel()
-        return A.tocsc(), rhs
+        return spla.spsolve(A.tocsc(), rhs)
 
     P = p0.copy()
     X, N, closest, dist, mean, near, depth = measure(P)
@@ -916,8 +852,6 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
     best = (P.copy(), mean, float(max(depth.max(), 0.0)))
     stall = 0
     iterations = 0
-    lam = 0.0  # the last damping (the next step's search starts from it)
-    damped = 0  # steps the trust region damped
     for phase, (probe, probe_moving, n_iter) in enumerate(phases):
         probe_normals = sample_probes[phase]
         if phase == 1:
@@ -982,24 +916,26 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
                         np.concatenate([gap[idx], np.full(len(held), p["clearance"])]),
                         np.concatenate([pen[4], w_pen / w_sum * g_boost]),
                     )
-            # the trust region: no control point moves farther than max_step,
-            # or than twice the mean distance while the surface is still far
-            # away (a flat patch rising from the floor); the correspondences,
-            # normals and the probes' ways out are only valid near the
-            # current surface
-            reach = max(p["max_step"], _REACH_PER_DISTANCE * history[-1])
             try:
-                A_k, rhs_k = normal_equations(P, N, closest, w, pen, phase)
-                solution, lam = _within_reach(A_k, rhs_k, P[cols], reach, lam, dense_step)
+                solution = solve_step(P, N, closest, w, pen, phase)
             except (RuntimeError, np.linalg.LinAlgError) as exc:  # singular factorisation
                 msg = f"catmull-clark-fit: the linear solve failed at iteration {iterations}: {exc}"
                 raise SolverError(msg) from exc
             if not np.all(np.isfinite(solution)):
                 msg = f"catmull-clark-fit: the fit diverged (non-finite control points at iteration {iterations})"
                 raise SolverError(msg)
-            damped += lam > 0.0
+            P_prev = P
             P = P.copy()
             P[cols] = solution.reshape(3, m).T
+            # a trust region: the correspondences, normals and the probes'
+            # ways out are only valid near the current surface, so the step
+            # is shortened until no control point moves farther than max_step
+            # (or than the mean distance, while the surface is still far away:
+            # a flat patch rising from the floor)
+            longest = float(np.linalg.norm(P - P_prev, axis=1).max())
+            reach = max(p["max_step"], history[-1])
+            if longest > reach:
+                P = P_prev + (reach / longest) * (P - P_prev)
             X, N, closest, dist, mean, near, depth = measure(P)
             history.append(mean)
             max_depth = float(max(depth.max(), 0.0))
@@ -1037,7 +973,6 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
         "supported_vertices": int(k_sup),
         "supported_segments": [list(s) for s in targets.segments],
         "iterations": int(iterations),
-        "damped_steps": int(damped),
         "history": history,
         "seconds": time.perf_counter() - start,
         "params": p,
