@@ -100,6 +100,13 @@ def test_fit_resolves_penetration():
     out = fit_cage(mesh, [body], [field])
     _, _, signed = _signed(out, body.vertices, level=4)
     assert (-signed).max() <= 0.005
+    # the report's record of each iteration: the share of the step the trust
+    # region let through, and the deepest probe, brought within the limit
+    report = out.meta["catmull-clark-fit"]
+    assert len(report["step_scale"]) == len(report["depth_history"]) == report["iterations"]
+    assert all(0.0 < s <= 1.0 for s in report["step_scale"])
+    assert report["before"]["max_penetration"] > 0.03
+    assert min(report["depth_history"]) <= report["params"]["max_penetration"]
 
 
 def test_fit_is_deterministic():

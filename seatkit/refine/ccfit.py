@@ -852,6 +852,8 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
     best = (P.copy(), mean, float(max(depth.max(), 0.0)))
     stall = 0
     iterations = 0
+    step_scale = []  # per iteration: the share of the solved step the trust region let through
+    depth_history = []  # per iteration: the deepest probe inside a body, m
     for phase, (probe, probe_moving, n_iter) in enumerate(phases):
         probe_normals = sample_probes[phase]
         if phase == 1:
@@ -936,9 +938,11 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
             reach = max(p["max_step"], history[-1])
             if longest > reach:
                 P = P_prev + (reach / longest) * (P - P_prev)
+            step_scale.append(min(1.0, reach / longest) if longest > 0.0 else 1.0)
             X, N, closest, dist, mean, near, depth = measure(P)
             history.append(mean)
             max_depth = float(max(depth.max(), 0.0))
+            depth_history.append(max_depth)
             ok = max_depth <= p["max_penetration"]
             best_ok = best[2] <= p["max_penetration"]
             # the closest iterate within the penetration limit; until one is, the shallowest
@@ -974,6 +978,8 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
         "supported_segments": [list(s) for s in targets.segments],
         "iterations": int(iterations),
         "history": history,
+        "step_scale": step_scale,
+        "depth_history": depth_history,
         "seconds": time.perf_counter() - start,
         "params": p,
     }
