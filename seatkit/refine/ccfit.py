@@ -472,7 +472,7 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     guard = False
     closest = None
     for round_ in range(_REPAIR_ROUNDS + 1):
-        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target}, guard=guard)
+        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target}, guard=guard, start_from=None if closest is None else closest.vertices)
         report = out.meta["catmull-clark-fit"]
         final = report["final_depth"]
         if final is None or max(final.values()) <= p["surface_limit"]:
@@ -642,7 +642,7 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
     return None
 
 
-def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> ControlMesh:
+def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_from: np.ndarray | None = None) -> ControlMesh:
     from seatkit.subdivision import Cage, build_operators
 
     start = time.perf_counter()
@@ -848,6 +848,9 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
     P = p0.copy()
     X, N, closest, dist, mean, near, depth = measure(P)
     before = {"mean_distance": mean, "max_penetration": float(max(depth.max(), 0.0))}
+    if start_from is not None:  # a refit: from an earlier fit's control points, still faired towards the cage's
+        P = np.array(start_from, dtype=np.float64)
+        X, N, closest, dist, mean, near, depth = measure(P)
     history = [mean]
     best = (P.copy(), mean, float(max(depth.max(), 0.0)))
     stall = 0
