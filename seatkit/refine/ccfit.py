@@ -845,14 +845,27 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
         rhs = rhs + base_rhs + (p["damping"] / n) * P_m.T.ravel()
         return spla.spsolve(A.tocsc(), rhs)
 
+    def guarded_inside(X, N):
+        """The guarded body vertices inside the furniture (the ray parity of the evaluation, on the fit's tessellation), their closest limit samples and distances to them."""
+        held = guarded[inside_furniture(Surface(X, N, ops.faces, p["level"]), guarded)] if len(guarded) else guarded
+        if not len(held):
+            return held, np.zeros(0, np.int64), np.zeros(0)
+        c_hit, g_dist, _ = surface_distances(X, N, held)
+        return held, c_hit, g_dist
+
+    def deepest(depth, inside):
+        """The depth an iterate is judged by: its deepest probe in a body or below the floor, and in a guarded fit its deepest guarded vertex inside the furniture."""
+        return float(max(depth.max(), inside[2].max(initial=0.0), 0.0))
+
     P = p0.copy()
     X, N, closest, dist, mean, near, depth = measure(P)
     before = {"mean_distance": mean, "max_penetration": float(max(depth.max(), 0.0))}
     if start_from is not None:  # a refit: from an earlier fit's control points, still faired towards the cage's
         P = np.array(start_from, dtype=np.float64)
         X, N, closest, dist, mean, near, depth = measure(P)
+    inside = guarded_inside(X, N)
     history = [mean]
-    best = (P.copy(), mean, float(max(depth.max(), 0.0)))
+    best = (P.copy(), mean, deepest(depth, inside))
     stall = 0
     iterations = 0
     for phase, (probe, probe_moving, n_iter) in enumerate(phases):
@@ -861,9 +874,10 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
             # polish: from the best iterate, with the denser probes
             P = best[0].copy()
             X, N, closest, dist, mean, near, depth = measure(P)
-            if depth.max() <= p["max_penetration"]:
+            inside = guarded_inside(X, N)
+            if deepest(depth, inside) <= p["max_penetration"]:
                 break
-            best = (P.copy(), mean, float(max(depth.max(), 0.0)))
+            best = (P.copy(), mean, deepest(depth, inside))
             history.append(mean)
             stall = 0
         since_deeper = 0
@@ -903,22 +917,19 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
             idx = idx[~on_floor]
             boost = 1.0 + np.minimum(depth[idx].clip(0) / p["clearance"], 4.0)
             pen = (idx, out[idx], foot[idx], gap[idx], w_pen / w_sum * boost)
-            if len(guarded):
-                # guarded body vertices inside the furniture (the ray parity
-                # of the evaluation, on the fit's tessellation): their closest
+            held, c_hit, g_dist = inside
+            if len(held):
+                # guarded body vertices inside the furniture: their closest
                 # limit sample is pushed back past them by the clearance,
                 # along minus its normal
-                held = guarded[inside_furniture(Surface(X, N, ops.faces, p["level"]), guarded)]
-                if len(held):
-                    c_hit, g_dist, _ = surface_distances(X, N, held)
-                    g_boost = 1.0 + np.minimum(g_dist / p["clearance"], 4.0)
-                    pen = (
-                        np.concatenate([idx, c_hit]),
-                        np.concatenate([out[idx], -N[c_hit]]),
-                        np.concatenate([foot[idx], held]),
-                        np.concatenate([gap[idx], np.full(len(held), p["clearance"])]),
-                        np.concatenate([pen[4], w_pen / w_sum * g_boost]),
-                    )
+                g_boost = 1.0 + np.minimum(g_dist / p["clearance"], 4.0)
+                pen = (
+                    np.concatenate([idx, c_hit]),
+                    np.concatenate([out[idx], -N[c_hit]]),
+                    np.concatenate([foot[idx], held]),
+                    np.concatenate([gap[idx], np.full(len(held), p["clearance"])]),
+                    np.concatenate([pen[4], w_pen / w_sum * g_boost]),
+                )
             try:
                 solution = solve_step(P, N, closest, w, pen, phase)
             except (RuntimeError, np.linalg.LinAlgError) as exc:  # singular factorisation
@@ -940,8 +951,9 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
             if longest > reach:
                 P = P_prev + (reach / longest) * (P - P_prev)
             X, N, closest, dist, mean, near, depth = measure(P)
+            inside = guarded_inside(X, N)
             history.append(mean)
-            max_depth = float(max(depth.max(), 0.0))
+            max_depth = deepest(depth, inside)
             ok = max_depth <= p["max_penetration"]
             best_ok = best[2] <= p["max_penetration"]
             # the closest iterate within the penetration limit; until one is, the shallowest
