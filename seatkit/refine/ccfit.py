@@ -471,15 +471,19 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     rounds = []
     guard = False
     closest = None
+    stalled = False  # the last refit started from the closest fit and came no closer: the next starts from the cage
     for round_ in range(_REPAIR_ROUNDS + 1):
-        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target}, guard=guard, start_from=None if closest is None else closest.vertices)
+        start_from = None if stalled else _refit_start(closest, guard, p["surface_limit"])
+        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target}, guard=guard, start_from=start_from)
         report = out.meta["catmull-clark-fit"]
         final = report["final_depth"]
         if final is None or max(final.values()) <= p["surface_limit"]:
             closest = out
             break
         rounds.append({"probe_target": target, "guard": guard, **final})
-        if closest is None or max(final.values()) < max(closest.meta["catmull-clark-fit"]["final_depth"].values()):
+        closer = closest is None or max(final.values()) < max(closest.meta["catmull-clark-fit"]["final_depth"].values())
+        stalled = start_from is not None and not closer
+        if closer:
             closest = out
         # a body part the cage does not support inside the furniture (a
         # hanging hand under the edge of the seat): the refits keep every
@@ -494,6 +498,21 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
         report["repair_rounds"] = rounds
         report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
     return closest
+
+
+def _refit_start(closest: ControlMesh | None, guard: bool, limit: float):
+    """Where a refit starts: None (the cage), or for a guarded refit the control points of the fit closest to the limit.
+
+    A guarded refit answers body vertices inside the furniture that the fit
+    does not pull to (a hand under the seat's edge): the fit it starts from
+    is right but where it closes over them. Not when that fit's own probes
+    stayed deeper in the body than ``limit``: it is caught in the body, and a
+    refit from it stays there. A refit with tighter probes alone starts from
+    the cage (from the fit, the probes it passed hold it where it is).
+    """
+    if closest is None or not guard or closest.meta["catmull-clark-fit"]["after"]["max_penetration"] > limit:
+        return None
+    return closest.vertices
 
 
 def push_out(mesh: ControlMesh, bodies: Sequence[Body]) -> ControlMesh | None:
