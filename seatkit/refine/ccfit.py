@@ -75,7 +75,7 @@ deeper than ``surface_limit`` (5 mm), it is refitted with a tighter probe
 target (and, when a body vertex lies too deep inside the furniture, with
 every body vertex guarded: one the fit does not pull to, a hand hanging
 under the edge of the seat, pushes the surface back past it like a probe
-inside the body). The fit returns the refit closest to the limit and
+inside the body; such a refit starts from the fit it answers). The fit returns the refit closest to the limit and
 judges nothing: the 5 mm guarantee is the design search's acceptance
 check (:mod:`seatkit.search`), which also offers :func:`push_out` (the
 offending spots' control points pushed away from the body, without the
@@ -449,17 +449,25 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
 
     The probes catch the surface inside the body at its samples; a body
     vertex can still lie a little deeper between them. When the final
-    surface exceeds the limit, the fit is run again from the same cage with
-    the probe target lowered by the excess (and 1 mm more), at most
-    ``_REPAIR_ROUNDS`` times. When a body vertex lies deeper inside the
-    furniture than the limit, the refits also *guard* the body vertices the
-    fit does not pull to (a hand hanging beside the seat, under its edge):
-    one inside the furniture (the evaluation's ray parity, on the fit's
-    tessellation, every iteration) pushes its closest limit sample back
-    past it by the clearance, as firmly as a probe inside the body. (The
-    closest sample's side alone calls about 2,000 vertices of a seated body
-    "behind" the surface, up to 23 cm deep, and those rows pushed the
-    surface into the body.)
+    surface exceeds the limit, the fit is run again with the probe target
+    lowered by the excess (and 1 mm more), at most ``_REPAIR_ROUNDS`` times.
+    When a body vertex lies deeper inside the furniture than the limit, the
+    refits also *guard* the body vertices the fit does not pull to (a hand
+    hanging beside the seat, under its edge): one inside the furniture (the
+    evaluation's ray parity, on the fit's tessellation, every iteration)
+    pushes its closest limit sample back past it by the clearance, as
+    firmly as a probe inside the body, and counts in the depth the fit
+    judges its iterates by. (The closest sample's side alone calls about
+    2,000 vertices of a seated body "behind" the surface, up to 23 cm deep,
+    and those rows pushed the surface into the body.)
+
+    A guarded refit starts from the fit closest to the limit (still faired
+    towards the cage), unless that fit's own probes stayed deeper in the
+    body than the limit (:func:`_refit_start`): from the cage it would
+    first repeat the approach to the body, about half its iterations, with
+    every guarded vertex tested on the way. A refit from the closest fit
+    that comes no closer is followed by one from the cage; any other refit
+    starts from the cage.
 
     Returns the first fit within the limit, else the one closest to it:
     the fit judges nothing. Its ``meta["catmull-clark-fit"]["final_depth"]``
