@@ -51,11 +51,11 @@ def main() -> None:
     fit_once, inside_furniture = ccfit._fit_once, ccfit.inside_furniture
     captured: list = []
 
-    def capture(mesh, bodies, pressures, params, *, guard=False):
+    def capture(mesh, bodies, pressures, params, *, guard=False, **kw):
         if guard:
-            captured.append((mesh, bodies, pressures, params))
+            captured.append((mesh, bodies, pressures, params, kw))
             raise _Captured
-        return fit_once(mesh, bodies, pressures, params, guard=guard)
+        return fit_once(mesh, bodies, pressures, params, guard=guard, **kw)
 
     calls: list = []
 
@@ -81,15 +81,15 @@ def main() -> None:
             if not captured:
                 print(f"{case}: no guarded refit", flush=True)
                 continue
-            mesh, bodies, pressures, params = captured[0]
+            mesh, bodies, pressures, params, kw = captured[0]
             with threadpool_limits(limits=1):
                 start = time.process_time()
-                out = fit_once(mesh, bodies, pressures, params, guard=True)
+                out = fit_once(mesh, bodies, pressures, params, guard=True, **kw)
                 refit = time.process_time() - start
                 calls.clear()
                 ccfit.inside_furniture = timed
                 try:
-                    fit_once(mesh, bodies, pressures, params, guard=True)
+                    fit_once(mesh, bodies, pressures, params, guard=True, **kw)
                 finally:
                     ccfit.inside_furniture = inside_furniture
             tests = list(calls)  # (the refit calls it for its guarded vertices only)

@@ -56,10 +56,10 @@ def main() -> None:
     fits: list = []
     fit_once, push_out = ccfit._fit_once, ccfit.push_out
 
-    def logged_fit(mesh, bodies, pressures, params, *, guard=False):
+    def logged_fit(mesh, bodies, pressures, params, *, guard=False, start_from=None):
         start = time.process_time()
-        out = fit_once(mesh, bodies, pressures, params, guard=guard)
-        fits.append({"kind": "fit", "guard": guard, "iterations": out.meta["catmull-clark-fit"]["iterations"], "cpu_s": time.process_time() - start})
+        out = fit_once(mesh, bodies, pressures, params, guard=guard, start_from=start_from)
+        fits.append({"kind": "fit", "guard": guard, "from_fit": start_from is not None, "iterations": out.meta["catmull-clark-fit"]["iterations"], "cpu_s": time.process_time() - start})
         return out
 
     def logged_push(mesh, bodies):

@@ -75,7 +75,7 @@ deeper than ``surface_limit`` (5 mm), it is refitted with a tighter probe
 target (and, when a body vertex lies too deep inside the furniture, with
 every body vertex guarded: one the fit does not pull to, a hand hanging
 under the edge of the seat, pushes the surface back past it like a probe
-inside the body). The fit returns the refit closest to the limit and
+inside the body; such a refit starts from the fit it answers). The fit returns the refit closest to the limit and
 judges nothing: the 5 mm guarantee is the design search's acceptance
 check (:mod:`seatkit.search`), which also offers :func:`push_out` (the
 offending spots' control points pushed away from the body, without the
@@ -449,17 +449,25 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
 
     The probes catch the surface inside the body at its samples; a body
     vertex can still lie a little deeper between them. When the final
-    surface exceeds the limit, the fit is run again from the same cage with
-    the probe target lowered by the excess (and 1 mm more), at most
-    ``_REPAIR_ROUNDS`` times. When a body vertex lies deeper inside the
-    furniture than the limit, the refits also *guard* the body vertices the
-    fit does not pull to (a hand hanging beside the seat, under its edge):
-    one inside the furniture (the evaluation's ray parity, on the fit's
-    tessellation, every iteration) pushes its closest limit sample back
-    past it by the clearance, as firmly as a probe inside the body. (The
-    closest sample's side alone calls about 2,000 vertices of a seated body
-    "behind" the surface, up to 23 cm deep, and those rows pushed the
-    surface into the body.)
+    surface exceeds the limit, the fit is run again with the probe target
+    lowered by the excess (and 1 mm more), at most ``_REPAIR_ROUNDS`` times.
+    When a body vertex lies deeper inside the furniture than the limit, the
+    refits also *guard* the body vertices the fit does not pull to (a hand
+    hanging beside the seat, under its edge): one inside the furniture (the
+    evaluation's ray parity, on the fit's tessellation, every iteration)
+    pushes its closest limit sample back past it by the clearance, as
+    firmly as a probe inside the body, and counts in the depth the fit
+    judges its iterates by. (The closest sample's side alone calls about
+    2,000 vertices of a seated body "behind" the surface, up to 23 cm deep,
+    and those rows pushed the surface into the body.)
+
+    A guarded refit starts from the fit closest to the limit (still faired
+    towards the cage), unless that fit's own probes stayed deeper in the
+    body than the limit (:func:`_refit_start`): from the cage it would
+    first repeat the approach to the body, about half its iterations, with
+    every guarded vertex tested on the way. A refit from the closest fit
+    that comes no closer is followed by one from the cage; any other refit
+    starts from the cage.
 
     Returns the first fit within the limit, else the one closest to it:
     the fit judges nothing. Its ``meta["catmull-clark-fit"]["final_depth"]``
@@ -471,15 +479,19 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     rounds = []
     guard = False
     closest = None
+    stalled = False  # the last refit started from the closest fit and came no closer: the next starts from the cage
     for round_ in range(_REPAIR_ROUNDS + 1):
-        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target}, guard=guard)
+        start_from = None if stalled else _refit_start(closest, guard, p["surface_limit"])
+        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target}, guard=guard, start_from=start_from)
         report = out.meta["catmull-clark-fit"]
         final = report["final_depth"]
         if final is None or max(final.values()) <= p["surface_limit"]:
             closest = out
             break
         rounds.append({"probe_target": target, "guard": guard, **final})
-        if closest is None or max(final.values()) < max(closest.meta["catmull-clark-fit"]["final_depth"].values()):
+        closer = closest is None or max(final.values()) < max(closest.meta["catmull-clark-fit"]["final_depth"].values())
+        stalled = start_from is not None and not closer
+        if closer:
             closest = out
         # a body part the cage does not support inside the furniture (a
         # hanging hand under the edge of the seat): the refits keep every
@@ -494,6 +506,21 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
         report["repair_rounds"] = rounds
         report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
     return closest
+
+
+def _refit_start(closest: ControlMesh | None, guard: bool, limit: float):
+    """Where a refit starts: None (the cage), or for a guarded refit the control points of the fit closest to the limit.
+
+    A guarded refit answers body vertices inside the furniture that the fit
+    does not pull to (a hand under the seat's edge): the fit it starts from
+    is right but where it closes over them. Not when that fit's own probes
+    stayed deeper in the body than ``limit``: it is caught in the body, and a
+    refit from it stays there. A refit with tighter probes alone starts from
+    the cage (from the fit, the probes it passed hold it where it is).
+    """
+    if closest is None or not guard or closest.meta["catmull-clark-fit"]["after"]["max_penetration"] > limit:
+        return None
+    return closest.vertices
 
 
 def push_out(mesh: ControlMesh, bodies: Sequence[Body]) -> ControlMesh | None:
@@ -642,7 +669,7 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
     return None
 
 
-def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> ControlMesh:
+def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_from: np.ndarray | None = None) -> ControlMesh:
     from seatkit.subdivision import Cage, build_operators
 
     start = time.perf_counter()
@@ -845,24 +872,41 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
         rhs = rhs + base_rhs + (p["damping"] / n) * P_m.T.ravel()
         return spla.spsolve(A.tocsc(), rhs)
 
+    def guarded_inside(X, N):
+        """The guarded body vertices inside the furniture (the ray parity of the evaluation, on the fit's tessellation), their closest limit samples and distances to them."""
+        held = guarded[inside_furniture(Surface(X, N, ops.faces, p["level"]), guarded)] if len(guarded) else guarded
+        if not len(held):
+            return held, np.zeros(0, np.int64), np.zeros(0)
+        c_hit, g_dist, _ = surface_distances(X, N, held)
+        return held, c_hit, g_dist
+
+    def deepest(depth, inside):
+        """The depth an iterate is judged by: its deepest probe in a body or below the floor, and in a guarded fit its deepest guarded vertex inside the furniture."""
+        return float(max(depth.max(), inside[2].max(initial=0.0), 0.0))
+
     P = p0.copy()
     X, N, closest, dist, mean, near, depth = measure(P)
     before = {"mean_distance": mean, "max_penetration": float(max(depth.max(), 0.0))}
+    if start_from is not None:  # a refit: from an earlier fit's control points, still faired towards the cage's
+        P = np.array(start_from, dtype=np.float64)
+        X, N, closest, dist, mean, near, depth = measure(P)
+    inside = guarded_inside(X, N)
     history = [mean]
-    best = (P.copy(), mean, float(max(depth.max(), 0.0)))
+    best = (P.copy(), mean, deepest(depth, inside))
     stall = 0
     iterations = 0
     step_scale = []  # per iteration: the share of the solved step the trust region let through
-    depth_history = []  # per iteration: the deepest probe inside a body, m
+    depth_history = []  # per iteration: the depth the iterate is judged by (its deepest probe in a body; in a guarded fit also its deepest guarded vertex inside the furniture), m
     for phase, (probe, probe_moving, n_iter) in enumerate(phases):
         probe_normals = sample_probes[phase]
         if phase == 1:
             # polish: from the best iterate, with the denser probes
             P = best[0].copy()
             X, N, closest, dist, mean, near, depth = measure(P)
-            if depth.max() <= p["max_penetration"]:
+            inside = guarded_inside(X, N)
+            if deepest(depth, inside) <= p["max_penetration"]:
                 break
-            best = (P.copy(), mean, float(max(depth.max(), 0.0)))
+            best = (P.copy(), mean, deepest(depth, inside))
             history.append(mean)
             stall = 0
         since_deeper = 0
@@ -902,22 +946,19 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
             idx = idx[~on_floor]
             boost = 1.0 + np.minimum(depth[idx].clip(0) / p["clearance"], 4.0)
             pen = (idx, out[idx], foot[idx], gap[idx], w_pen / w_sum * boost)
-            if len(guarded):
-                # guarded body vertices inside the furniture (the ray parity
-                # of the evaluation, on the fit's tessellation): their closest
+            held, c_hit, g_dist = inside
+            if len(held):
+                # guarded body vertices inside the furniture: their closest
                 # limit sample is pushed back past them by the clearance,
                 # along minus its normal
-                held = guarded[inside_furniture(Surface(X, N, ops.faces, p["level"]), guarded)]
-                if len(held):
-                    c_hit, g_dist, _ = surface_distances(X, N, held)
-                    g_boost = 1.0 + np.minimum(g_dist / p["clearance"], 4.0)
-                    pen = (
-                        np.concatenate([idx, c_hit]),
-                        np.concatenate([out[idx], -N[c_hit]]),
-                        np.concatenate([foot[idx], held]),
-                        np.concatenate([gap[idx], np.full(len(held), p["clearance"])]),
-                        np.concatenate([pen[4], w_pen / w_sum * g_boost]),
-                    )
+                g_boost = 1.0 + np.minimum(g_dist / p["clearance"], 4.0)
+                pen = (
+                    np.concatenate([idx, c_hit]),
+                    np.concatenate([out[idx], -N[c_hit]]),
+                    np.concatenate([foot[idx], held]),
+                    np.concatenate([gap[idx], np.full(len(held), p["clearance"])]),
+                    np.concatenate([pen[4], w_pen / w_sum * g_boost]),
+                )
             try:
                 solution = solve_step(P, N, closest, w, pen, phase)
             except (RuntimeError, np.linalg.LinAlgError) as exc:  # singular factorisation
@@ -940,8 +981,9 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False) -> Contro
                 P = P_prev + (reach / longest) * (P - P_prev)
             step_scale.append(min(1.0, reach / longest) if longest > 0.0 else 1.0)
             X, N, closest, dist, mean, near, depth = measure(P)
+            inside = guarded_inside(X, N)
             history.append(mean)
-            max_depth = float(max(depth.max(), 0.0))
+            max_depth = deepest(depth, inside)
             depth_history.append(max_depth)
             ok = max_depth <= p["max_penetration"]
             best_ok = best[2] <= p["max_penetration"]
