@@ -87,7 +87,7 @@ def test_kill_9_during_the_export_children_end_and_the_next_build_cleans_up(tmp_
         """
         import os, signal
         import seatkit.pipeline as pl
-        def write(result, exporters, registry, timer, *, overwrite, helper=None, spare=None):
+        def write(result, exporters, registry, timer, *, overwrite, helper=None, spare=None, early=None):
             with pl.staging_folder(pl.output_target(result.recipe), overwrite=overwrite):
                 print(*(h.pid() for h in (helper, spare) if h), flush=True)
                 os.kill(os.getpid(), signal.SIGKILL)
