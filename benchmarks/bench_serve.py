@@ -69,6 +69,27 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+def start_serve(port: int, folder: Path) -> subprocess.Popen:
+    """`seatkit serve --no-browser` on ``port`` in a fresh process, once it answers; exits with its error if it does not start."""
+    seatkit = shutil.which("seatkit") or sys.exit("seatkit is not installed (pip install '.[serve]')")
+    proc = subprocess.Popen(
+        [seatkit, "serve", "--no-browser", "--port", str(port), "--folder", str(folder)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 60
+    while True:
+        try:
+            httpx.get(f"http://127.0.0.1:{port}/api/status")
+            return proc
+        except httpx.TransportError:
+            if proc.poll() is not None or time.monotonic() > deadline:
+                proc.kill()
+                sys.exit(f"seatkit serve did not start: {proc.stderr.read() if proc.stderr else ''}")
+            time.sleep(0.1)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--moves", type=int, default=12)
@@ -79,23 +100,9 @@ def main() -> None:
     seatkit = shutil.which("seatkit") or sys.exit("seatkit is not installed (pip install '.[serve]')")
     port = _free_port()
     with tempfile.TemporaryDirectory() as tmp:
-        proc = subprocess.Popen(
-            [seatkit, "serve", "--no-browser", "--port", str(port), "--folder", str(Path(tmp) / "serve")],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        proc = start_serve(port, Path(tmp) / "serve")
         try:
             client = httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=120)
-            deadline = time.monotonic() + 60
-            while True:
-                try:
-                    client.get("/api/status")
-                    break
-                except httpx.TransportError:
-                    if proc.poll() is not None or time.monotonic() > deadline:
-                        sys.exit(f"seatkit serve did not start: {proc.stderr.read() if proc.stderr else ''}")
-                    time.sleep(0.1)
             server = psutil.Process(proc.pid)
 
             def cpu() -> float:

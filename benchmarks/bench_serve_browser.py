@@ -27,18 +27,14 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-import httpx
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_serve import _free_port  # noqa: E402
+from bench_serve import _free_port, start_serve  # noqa: E402
 
 CHROMIUM = "/usr/bin/chromium"
 FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-first-run"]
@@ -51,7 +47,6 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--moves", type=int, default=8)
     args = ap.parse_args()
-    seatkit = shutil.which("seatkit") or sys.exit("seatkit is not installed (pip install '.[serve]')")
     if not Path(CHROMIUM).exists():
         sys.exit(f"{CHROMIUM} is missing (Debian's chromium: bash tools/setup-system.sh --test)")
     from playwright.sync_api import sync_playwright
@@ -59,22 +54,8 @@ def main() -> None:
     port = _free_port()
     url = f"http://127.0.0.1:{port}"
     with tempfile.TemporaryDirectory() as tmp:
-        proc = subprocess.Popen(
-            [seatkit, "serve", "--no-browser", "--port", str(port), "--folder", str(Path(tmp) / "serve")],
-            stdout=subprocess.DEVNULL,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        proc = start_serve(port, Path(tmp) / "serve")
         try:
-            deadline = time.monotonic() + 60
-            while True:
-                try:
-                    httpx.get(f"{url}/api/status")
-                    break
-                except httpx.TransportError:
-                    if proc.poll() is not None or time.monotonic() > deadline:
-                        sys.exit(f"seatkit serve did not start: {proc.stderr.read() if proc.stderr else ''}")
-                    time.sleep(0.1)
             print(f"load average at the start: {' '.join(f'{x:.1f}' for x in os.getloadavg())} ({os.cpu_count()} cores)")
             with sync_playwright() as pw:
                 browser = pw.chromium.launch(executable_path=CHROMIUM, args=FLAGS)
