@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from seatkit.geometry.closest import row_norms
+
 __all__ = [
     "Plane",
     "pca_normal",
@@ -39,9 +41,8 @@ _EPS = 1e-12
 def unit(v: np.ndarray) -> np.ndarray:
     """Rows of ``v`` (..., 3) scaled to unit length (zero rows stay zero)."""
     v = np.asarray(v)
-    # np.linalg.norm(v, axis=-1, keepdims=True) of a real array, without its argument handling (the same numbers)
-    x = v if v.dtype.kind == "f" else v.astype(np.float64)
-    n = np.sqrt(np.add.reduce(x * x, axis=-1, keepdims=True))
+    # np.linalg.norm(v, axis=-1, keepdims=True) of a real array, to the bit (row_norms)
+    n = row_norms(v if v.dtype.kind == "f" else v.astype(np.float64))[..., None]
     return v / np.maximum(n, _EPS)
 
 
