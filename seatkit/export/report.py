@@ -606,9 +606,11 @@ def render_pngs(result, directory, roles=None, early=None) -> dict[str, Path]:
     written as they are when they show this result's bodies and importance.
     """
     directory = Path(directory)
-    ready = {}
-    if early and early.get("key") == _importance_key(result):
-        ready = {role: data for role, data in early["png"].items() if roles is None or role in roles}
+    # pictures drawn ahead that this call writes, when they show this result's bodies
+    # (the digest only where one is wanted: most parts have none)
+    ready = {role: data for role, data in (early or {}).get("png", {}).items() if roles is None or role in roles}
+    if ready and early.get("key") != _importance_key(result):
+        ready = {}
     if roles is not None and set(roles) <= set(ready):  # nothing left to draw
         return {role: write_bytes_atomic(directory / PNG_FILES[role], ready[role]) for role in PNG_FILES if role in ready}
     scene = _scene(result)
