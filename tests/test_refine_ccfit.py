@@ -175,3 +175,28 @@ def test_fingertips_through_the_thigh_still_get_a_chair_within_the_limit(tmp_pat
     ours = result.metrics["ours"][0]
     assert ours["supported"] and ours["max_penetration_m"] <= 0.005 and ours["max_body_depth_m"] <= 0.005
     assert ours["avg_distance_m"] < result.metrics["baseline"][0]["avg_distance_m"]
+
+
+def test_the_step_observer_sees_the_steps_the_fit_takes_and_changes_nothing():
+    # benchmarks/ccfit_steps.py reads each solved step through ccfit._observe:
+    # what it reports must be the fit's own steps, and looking must not move the fit
+    from seatkit.refine import ccfit
+
+    body, field = synthetic_body(25)
+    mesh = flat_cage(height=0.40)
+    plain = fit_cage(mesh, [body], [field])
+    seen = []
+    ccfit._observe = lambda **state: seen.append(state)
+    try:
+        watched = fit_cage(mesh, [body], [field])
+    finally:
+        ccfit._observe = None
+    assert np.array_equal(plain.vertices, watched.vertices)
+    report = watched.meta["catmull-clark-fit"]
+    assert len(seen) == report["iterations"]
+    for state, share in zip(seen, report["step_scale"]):
+        requested = np.linalg.norm(state["solved"] - state["P"], axis=1).max()
+        assert share == pytest.approx(min(1.0, state["reach"] / requested))
+        # the same rows solved again give the same step
+        again = state["solve"](state["w"], state["pen"]).reshape(3, -1).T
+        assert np.allclose(again, state["solved"][state["cols"]], atol=1e-9)

@@ -147,6 +147,10 @@ CCFIT_DEFAULTS: dict[str, Any] = defaults(CCFIT_OPTIONS)
 #: Iterations without a deeper-probe improvement after which the extra iterations stop.
 _DEPTH_PATIENCE = 5
 
+#: When set, called (keyword arguments) after every step's solve with that step's state, for
+#: benchmarks/ccfit_steps.py: where the solved step goes, and which rows ask for it. None in a build.
+_observe = None
+
 
 @dataclass(frozen=True)
 class FitTargets:
@@ -977,6 +981,27 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
             # a flat patch rising from the floor)
             longest = float(np.linalg.norm(P - P_prev, axis=1).max())
             reach = max(p["max_step"], history[-1])
+            if _observe is not None:
+                _observe(
+                    P=P_prev,
+                    solved=P,
+                    cols=cols,
+                    reach=reach,
+                    limit=limit,
+                    X=X,
+                    N=N,
+                    N_probe=probe_normals @ N,
+                    depth=depth,
+                    depth_samples=depth if probe is limit else None,
+                    w=w,
+                    w_base=w_base,
+                    w_sum=w_sum,
+                    dist=dist,
+                    pen=pen,
+                    fairness_trace=3.0 * float(fair.diagonal().sum()),
+                    solve=lambda w_, pen_, P_=P_prev, N_=N, c_=closest, ph_=phase: solve_step(P_, N_, c_, w_, pen_, ph_),
+                    measure=_measure,
+                )
             if longest > reach:
                 P = P_prev + (reach / longest) * (P - P_prev)
             step_scale.append(min(1.0, reach / longest) if longest > 0.0 else 1.0)
