@@ -7,7 +7,9 @@ solve). Per step it prints:
 
 - the solved step's requested move per moving control point (longest, 90th
   percentile, median) against the trust region's reach, and the control
-  points that ask most with the cage faces they belong to;
+  points that ask most with the cage faces they belong to and how firmly
+  the rows hold them against the fairness (the traces of their diagonal
+  blocks in the normal equations);
 - the motion that step asks of the limit surface, along its normals and
   across them (sliding), at the limit samples;
 - the weight of each kind of row in the normal equations (supported
@@ -93,8 +95,22 @@ def report(i: int, s: dict, labels: dict) -> None:
         f"reach {reach * 100:.1f} cm (share let through {min(1.0, reach / L.max()):.3f}); "
         f"{int((L > reach).sum())} of {cols.size} ask more than the reach"
     )
+    # how firmly the rows hold each control point against the fairness: the traces of
+    # their diagonal blocks in the normal equations (targets on their closest samples,
+    # along the normal and point to point; probes along their ways out)
+    w, w_sum, closest = s["w"], s["w_sum"], s["closest"]
+    per_sample = np.bincount(closest[w > 0], weights=w[w > 0] / w_sum, minlength=s["limit"].shape[0])
+    lim_sq = s["limit"].multiply(s["limit"]).tocsr()
+    held = (1.0 + 3.0 * s["point_to_point"]) * (lim_sq.T @ per_sample)
+    idx, wp = s["pen"][0], s["pen"][4]
+    held += s["probe"][idx].multiply(s["probe"][idx]).T @ wp
+    ratio = held[cols] / np.maximum(s["fairness_diag"], 1e-300)  # per moving point
     top = np.argsort(-L)[:6]
-    print("  asking most: " + ", ".join(f"{cols[j]} ({L[j] * 100:.0f} cm, {'/'.join(sorted(labels.get(int(cols[j]), ['?'])))})" for j in top))
+    print(
+        "  asking most (rows' hold / fairness's): "
+        + ", ".join(f"{cols[j]} ({L[j] * 100:.0f} cm, {ratio[j]:.1f}x, {'/'.join(sorted(labels.get(int(cols[j]), ['?'])))})" for j in top)
+        + f"; the median point {np.median(ratio):.0f}x"
+    )
     dX = s["limit"] @ (solved - P)
     along = np.abs(np.einsum("ij,ij->i", dX, s["N"]))
     across = np.linalg.norm(dX - np.einsum("ij,ij->i", dX, s["N"])[:, None] * s["N"], axis=1)
@@ -102,7 +118,7 @@ def report(i: int, s: dict, labels: dict) -> None:
         f"  limit samples' motion: along the normal median {np.median(along) * 1000:.1f} mm, max {along.max() * 100:.1f} cm; "
         f"across it (sliding) median {np.median(across) * 1000:.1f} mm, max {across.max() * 100:.1f} cm"
     )
-    w, w_base, w_sum, dist = s["w"], s["w_base"], s["w_sum"], s["dist"]
+    w_base, dist = s["w_base"], s["dist"]
     idx, g, foot, gap, wp = s["pen"][:5]
     behind = w > w_base
     retreat = np.einsum("kc,kc->k", g, s["N_probe"][idx]) < -0.99
@@ -110,7 +126,7 @@ def report(i: int, s: dict, labels: dict) -> None:
     print(
         f"  row weights (sum, the targets' importance sum is 1): targets {w[~behind].sum() / w_sum:.2f} ({int((w[~behind] > 0).sum())}), "
         f"targets behind the surface {w[behind].sum() / w_sum:.1f} ({int(behind.sum())}), "
-        f"probes {wp.sum():.1f} ({idx.size}, {int(inside.sum())} inside); fairness {s['fairness_trace']:.3f} (trace)"
+        f"probes {wp.sum():.1f} ({idx.size}, {int(inside.sum())} inside); fairness {s['fairness_diag'].sum():.3f} (trace)"
     )
     far = dist > 0.05
     groups = {
@@ -165,7 +181,7 @@ def picture(path: str, s: dict, mesh, body) -> None:
         ax.set_title(f"{name}: the first solved step, true length (reach {s['reach'] * 100:.1f} cm)")
         ax.legend(loc="lower left", fontsize=8)
     fig.colorbar(sc, ax=axes, label="requested move of the control point, cm")
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=72)
     print(f"\nwrote {path}")
 
 

@@ -998,7 +998,10 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
                     w_sum=w_sum,
                     dist=dist,
                     pen=pen,
-                    fairness_trace=3.0 * float(fair.diagonal().sum()),
+                    closest=closest,
+                    point_to_point=mu,
+                    probe=probe,
+                    fairness_diag=3.0 * fair.diagonal(),
                     solve=lambda w_, pen_, P_=P_prev, N_=N, c_=closest, ph_=phase: solve_step(P_, N_, c_, w_, pen_, ph_),
                     measure=_measure,
                 )
