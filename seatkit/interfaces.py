@@ -234,7 +234,19 @@ class Exporter(Protocol):
     passes what it returned (pickled) to ``export`` and ``export_part`` as
     the keyword ``early`` (None when it did not run or failed). The
     exporter must use it only where it still fits the result it exports
-    (a seat height set, or sitters, move the bodies later).
+    (a seat height set, or sitters, move the bodies later). An exporter
+    whose ``export`` reads only the design may say ``design_only = True``
+    (optional, default false), and one with parts may list the parts that
+    do in ``design_parts``: the design is the recipe, the bodies and their
+    importance pressure, both cages, the surface, the frames and, where
+    the recipe compares with a baseline, the baseline (``result.baseline``);
+    not the evaluation of ours (``metrics``, ``contact_pressures``,
+    ``interface_pressures``, ``timings``, ``structure``,
+    ``shell_thickness_m``: None or empty there). A build with helper
+    processes runs that work in its export worker as soon as the design
+    is made (and the baseline fitted), on a pickled copy, while it
+    evaluates the design; the files must be those ``export`` writes from
+    the whole result.
     """
 
     name: str

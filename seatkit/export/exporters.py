@@ -74,6 +74,8 @@ class UsdExporter:
         self.description = f"cage.{fmt} ({kind} USD): Catmull-Clark cage with creases, bodies coloured by pressure"
 
     prepare_ahead = True
+    #: Writes the cage, the bodies and their importance: the design alone.
+    design_only = True
 
     def prepare(self) -> None:
         """Import usd-core (and load its plugins), ahead of :meth:`export`."""
@@ -100,6 +102,7 @@ class ObjCageExporter:
     description = "cage.obj: the Catmull-Clark control mesh (creases only in USD)"
 
     prepare_ahead = False
+    design_only = True
 
     def prepare(self) -> None:
         """Nothing to prepare: this exporter imports nothing big."""
@@ -120,6 +123,7 @@ class SurfaceExporter:
         self.formats = tuple(formats)
 
     prepare_ahead = False
+    design_only = True
 
     def prepare(self) -> None:
         """Nothing to prepare: this exporter imports nothing big."""

@@ -1042,6 +1042,8 @@ class ReportPngExporter:
     #: its own process, beside the other exporters.
     runs_apart = True
     parts = len(PNG_PARTS)
+    #: ``cage.png`` shows the body and the cage alone: drawn beside the evaluation.
+    design_parts = (PNG_PARTS.index(("report_cage_png",)),)
 
     def prepare(self) -> None:
         """Nothing to prepare: this exporter imports nothing big."""
