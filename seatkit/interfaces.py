@@ -238,15 +238,16 @@ class Exporter(Protocol):
     whose ``export`` reads only the design may say ``design_only = True``
     (optional, default false), and one with parts may list the parts that
     do in ``design_parts``: the design is the recipe, the bodies and their
-    importance pressure, both cages, the surface, the frames and, where
-    the recipe compares with a baseline, the baseline (``result.baseline``);
-    not the evaluation of ours (``metrics``, ``contact_pressures``,
-    ``interface_pressures``, ``timings``, ``structure``,
-    ``shell_thickness_m``: None or empty there). A build with helper
-    processes runs that work in its export worker as soon as the design
-    is made (and the baseline fitted), on a pickled copy, while it
-    evaluates the design; the files must be those ``export`` writes from
-    the whole result.
+    importance pressure, both cages, the surface and the frames; not the
+    evaluation (``metrics``, ``contact_pressures``,
+    ``interface_pressures``, ``baseline``, ``timings``, ``structure``,
+    ``shell_thickness_m``: None or empty there). One that reads the
+    baseline's design too (``result.baseline``: its cage and surface)
+    says ``reads_baseline = True``. A build with helper processes runs
+    that work in its export worker as soon as the design is made (and,
+    for ``reads_baseline``, the baseline fitted), on a pickled copy,
+    while it evaluates the design; the files must be those ``export``
+    writes from the whole result.
     """
 
     name: str

@@ -186,10 +186,10 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
     """The stages from the bodies to the evaluation: the build's result, nothing written.
 
     ``early(recipe, bodies, pressures)`` is called once the importance
-    pressures are solved (:class:`_Early`); ``designed(result, baseline)``
-    once the design is made (its cages and surface), before it is
-    evaluated, where the baseline's design is fitted by then or none is
-    wanted (:class:`_Designed`).
+    pressures are solved (:class:`_Early`); ``designed(result, baseline,
+    complete)`` once the design is made (its cages and surface), before it
+    is evaluated, with the baseline's design where it is fitted by then
+    (:class:`_Designed`).
 
     With a backrest recline set (the ``seat`` step's ``recline``), a built
     backrest more than :data:`~seatkit.template.seat.RECLINE_TOLERANCE_DEG`
@@ -298,16 +298,17 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
 
 def _hand_over(designed, result: BuildResult, baseline, job) -> None:
-    """``designed(result, baseline)`` when the design is all there: where the recipe compares with a baseline, only once it is fitted (the pictures frame both designs)."""
+    """``designed(result, baseline, complete)``: ``complete`` where the recipe compares with no baseline or its baseline is fitted by now (``baseline``, its design), else False."""
+    if not _wants_baseline(result.recipe):
+        designed(result, None, True)
+        return
     base = None
-    if _wants_baseline(result.recipe):
-        if baseline is None or not job.done():  # fitted again in the evaluation, or not yet: the export stage does it all
-            return
+    if baseline is not None and job.done():  # else fitted again in the evaluation, or not yet
         try:
             base = baseline()
         except Exception:  # noqa: BLE001  (the evaluation raises it, where it did before)
-            return
-    designed(result, base)
+            base = None
+    designed(result, base, base is not None)
 
 
 def _seat_sitters(recipe, bodies, pressures, registry) -> tuple[list, list, list]:
@@ -407,10 +408,12 @@ class _Early:
         return {"early": self.payload(index, wait=wait)} if index in self._exporters else {}
 
 
-def _design_tasks(exporters: list) -> list[tuple[int, int | None]]:
-    """``(exporter index, part)`` of the work that needs only the design: exporters with ``design_only`` (whole: part None) and the ``design_parts`` of the others."""
+def _design_tasks(exporters: list, *, baseline: bool = True) -> list[tuple[int, int | None]]:
+    """``(exporter index, part)`` of the work that needs only the design: exporters with ``design_only`` (whole: part None) and the ``design_parts`` of the others; without ``baseline``, not that of the exporters that read the baseline's design too (``reads_baseline``)."""
     tasks = []
     for i, exporter in enumerate(exporters):
+        if not baseline and getattr(exporter, "reads_baseline", False):
+            continue
         if getattr(exporter, "design_only", False):
             tasks.append((i, None))
         elif _parts(exporter) != [None]:
@@ -422,8 +425,10 @@ class _Designed:
     """The exporters' work that needs only the design (``design_only``, ``design_parts``), run beside its evaluation.
 
     :meth:`submit` is called with the build's result once its cages and
-    surface are made, before the evaluation, and the baseline's design
-    where the recipe compares with one (once it is fitted): it opens the
+    surface are made, before the evaluation, with the baseline's design
+    where the recipe compares with one and it is fitted by then
+    (``complete``; if it is not, the work of the exporters that read it,
+    ``reads_baseline``, is left to the export stage): it opens the
     staging folder (``open_staging``) and hands that work to ``helper``
     (the export worker, which by then has nothing else to do but the
     ``export_early`` work it may have been given), on a copy of the designs
@@ -442,8 +447,8 @@ class _Designed:
         self.staging: Path | None = None
         self._job = None
 
-    def submit(self, result: BuildResult, baseline=None) -> None:
-        tasks = _design_tasks(self._exporters) if self._helper is not None else []
+    def submit(self, result: BuildResult, baseline=None, complete: bool = True) -> None:
+        tasks = _design_tasks(self._exporters, baseline=complete) if self._helper is not None else []
         if self._job is not None or not tasks:
             return
         self.staging = self._open()
