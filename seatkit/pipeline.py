@@ -554,8 +554,9 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
     The work ``designed`` handed to the export helper before the evaluation
     (:class:`_Designed`: the exporters with ``design_only``, the
     ``design_parts`` of others) is not done again: its files are in the
-    staging folder it opened, which this stage goes on with; this process
-    then takes the parts left before the export helper does.
+    staging folder it opened, which this stage goes on with; where it held
+    a part, this process takes the parts left before the export helper
+    does.
     """
     from seatkit.io import mark_complete
 
@@ -577,10 +578,11 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
         with timer.stage("export"):
             job = helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture, [early.keywords(i) for i in ahead]) if ahead else None
             # the parts run apart, in turn: the spare helper, the export helper, this process (this
-            # process before the export helper when that one has written the design's files); without
-            # an idle spare helper (a busy machine), all in this process
+            # process before the export helper when that one has drawn a part beside the evaluation);
+            # without an idle spare helper (a busy machine), all in this process
             others = [helper] if helper is not None else []
-            places = [None] if idle is None else [idle, None, *others] if handed else [idle, *others, None]
+            drew = any(part is not None for _, part in handed)
+            places = [None] if idle is None else [idle, None, *others] if drew else [idle, *others, None]
             left = [(i, part) for i in apart for part in _parts(exporters[i]) if (i, part) not in handed]
             tasks = [(i, part, places[k % len(places)]) for k, (i, part) in enumerate(left)]
             remote = [(i, part, place, place.submit(_run_part, exporters[i], result, staging, capture, part, early.keywords(i))) for i, part, place in tasks if place is not None]
