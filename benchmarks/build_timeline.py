@@ -14,8 +14,11 @@ lines show what the build's critical path does and when it waits for a
 helper (a ``done`` after its own work has ended). ``--phases`` prints only
 the main process's CPU at the start of the first stage, of the export stage,
 at its end and at the end of the command, the export stage's wall time and
-the CPU the helpers spent in exporter calls, in the export stage and before
-it (one line, for comparing two versions of the code run the same way).
+that from the end of the surface stage to the end of the export stage, and
+the CPU the helpers spent in exporter calls: in the export stage, before it
+(the design's files, written beside the evaluation) and in
+``export_early`` (one line, for comparing two versions of the code run the
+same way).
 """
 
 from __future__ import annotations
@@ -49,30 +52,33 @@ def log(what: str) -> None:
         print(f"  [{os.getpid()}] {time.perf_counter() - T0:7.3f} s  cpu {_cpu():6.3f} s  {what}", file=sys.stderr, flush=True)
         if HELPER_LOG is not None:
             with open(HELPER_LOG, "a") as fh:
-                fh.write(f"{os.getpid()}\t{_cpu()}\t{what}\n")
+                fh.write(f"{os.getpid()}\t{_cpu()}\t{what}\t{time.perf_counter() - T0}\n")
 
 
-def _helpers_exporting_cpu() -> tuple[float, float]:
-    """The helpers' CPU in exporter calls: ``export``/``export_part`` (the export stage) and ``export_early`` (before it)."""
-    stage = early = 0.0
+def _helpers_exporting_cpu(export_start: float) -> tuple[float, float, float]:
+    """The helpers' CPU in exporter calls: ``export``/``export_part`` in the export stage, before it (the design's files, beside the evaluation), and ``export_early``."""
+    stage = design = early = 0.0
     started: dict = {}
     if HELPER_LOG is None or not HELPER_LOG.exists():
-        return stage, early
+        return stage, design, early
     for line in HELPER_LOG.read_text().splitlines():
-        pid, cpu, what = line.split("\t")
+        pid, cpu, what, wall = line.split("\t")
         kind, _, name = what.partition(" ")
         method = name.rpartition(".")[2]
         if method not in ("export", "export_part", "export_early"):
             continue
         if kind == "start":
-            started[pid, name] = float(cpu)
+            started[pid, name] = (float(cpu), float(wall))
         elif kind == "end" and (pid, name) in started:
-            spent = float(cpu) - started.pop((pid, name))
+            cpu0, wall0 = started.pop((pid, name))
+            spent = float(cpu) - cpu0
             if method == "export_early":
                 early += spent
+            elif wall0 < export_start:
+                design += spent
             else:
                 stage += spent
-    return stage, early
+    return stage, design, early
 
 
 def _instrument() -> None:
@@ -151,15 +157,17 @@ def main() -> None:
             except SystemExit as e:
                 code = e.code
         log("command done")
-        stage, early = _helpers_exporting_cpu()
+        stage, design, early = _helpers_exporting_cpu(_at("stage> export", wall=True))
     if code not in (0, None):
         sys.exit(f"the build failed (exit status {code})")
     if args.phases:
         first = _at("stage> bodies")
         export, exported, done = _at("stage> export"), _at("stage< export"), _at("command done")
         export_wall = _at("stage< export", wall=True) - _at("stage> export", wall=True)
+        surface_to_end = _at("stage< export", wall=True) - _at("stage< surface", wall=True)
         print(f"main process CPU: start-up {first:.3f} s, design {export - first:.3f} s, export {exported - export:.3f} s, after it {done - exported:.3f} s, in all {done:.3f} s; "
-              f"the export stage's wall time {export_wall:.3f} s; the helpers' CPU in exporters {stage:.3f} s, before the export stage {early:.3f} s")
+              f"wall: the export stage {export_wall:.3f} s, from the surface to its end {surface_to_end:.3f} s; "
+              f"the helpers' CPU in exporters {stage:.3f} s, before the export stage {design:.3f} s (the design's files) and {early:.3f} s (export_early)")
         return
     print(f"{'wall':>8} {'cpu':>8}  main process (helpers' lines on stderr, as they happen)")
     for wall, cpu, what in LOG:

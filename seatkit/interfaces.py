@@ -234,7 +234,20 @@ class Exporter(Protocol):
     passes what it returned (pickled) to ``export`` and ``export_part`` as
     the keyword ``early`` (None when it did not run or failed). The
     exporter must use it only where it still fits the result it exports
-    (a seat height set, or sitters, move the bodies later).
+    (a seat height set, or sitters, move the bodies later). An exporter
+    whose ``export`` reads only the design may say ``design_only = True``
+    (optional, default false), and one with parts may list the parts that
+    do in ``design_parts``: the design is the recipe, the bodies and their
+    importance pressure, both cages, the surface and the frames; not the
+    evaluation (``metrics``, ``contact_pressures``,
+    ``interface_pressures``, ``baseline``, ``timings``, ``structure``,
+    ``shell_thickness_m``: None or empty there). One that reads the
+    baseline's design too (``result.baseline``: its cage and surface)
+    says ``reads_baseline = True``. A build with helper processes runs
+    that work in its export worker as soon as the design is made (and,
+    for ``reads_baseline``, the baseline fitted), on a pickled copy,
+    while it evaluates the design; the files must be those ``export``
+    writes from the whole result.
     """
 
     name: str

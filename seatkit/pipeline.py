@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import itertools
 from concurrent.futures import wait
-from contextlib import ExitStack, nullcontext
+from contextlib import ExitStack, contextmanager, nullcontext
 from pathlib import Path
+from typing import Iterator
 
 from seatkit.errors import UnsupportedPoseError
 from seatkit.export.report_json import REPORT_EXPORTER
@@ -123,9 +124,14 @@ def build(recipe, *, pm=None, progress=None, write: bool = True, overwrite: bool
             # the exporters' work that needs only the bodies and their importance, in a helper
             # idle then (the baseline's, until the template is fitted; else the export worker)
             early = _Early(exporters, baseline_helper or export_helper)
-            result = _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper, early=early.submit)
+            # the exporters' work that needs only the design, in the export worker
+            # beside the evaluation (not where that worker computes the interface
+            # pressure: a recipe without a baseline)
+            beside = export_helper if baseline_helper is not None or not _wants_interface(recipe) else None
+            designed = _Designed(exporters, beside, early, lambda: helpers.enter_context(_staging(output_target(recipe), overwrite, (export_helper, baseline_helper))))
+            result = _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper, early=early.submit, designed=designed.submit)
             if write:
-                _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper, spare=baseline_helper, early=early)
+                _write(result, exporters, registry, timer, overwrite=overwrite, helper=export_helper, spare=baseline_helper, early=early, designed=designed)
     return result
 
 
@@ -157,6 +163,10 @@ def _wants_baseline(recipe) -> bool:
     return bool(recipe["evaluate"]["enabled"] and recipe["evaluate"]["baseline"])
 
 
+def _wants_interface(recipe) -> bool:
+    return bool(recipe["evaluate"]["enabled"] and recipe["evaluate"].get("interface_pressure", True))
+
+
 def _helper_context():
     from seatkit.workers import helper_context
 
@@ -172,11 +182,14 @@ def _helper(stack: ExitStack, what: str, exporters: list, wanted: bool, context=
     return stack.enter_context(Helper(what, exporters, context))
 
 
-def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper, export_helper=None, early=None, recline_offset: float = 0.0, recline_builds: int = 1) -> BuildResult:
+def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper, export_helper=None, early=None, designed=None, recline_offset: float = 0.0, recline_builds: int = 1) -> BuildResult:
     """The stages from the bodies to the evaluation: the build's result, nothing written.
 
     ``early(recipe, bodies, pressures)`` is called once the importance
-    pressures are solved (:class:`_Early`).
+    pressures are solved (:class:`_Early`); ``designed(result, baseline,
+    complete)`` once the design is made (its cages and surface), before it
+    is evaluated, with the baseline's design where it is fitted by then
+    (:class:`_Designed`).
 
     With a backrest recline set (the ``seat`` step's ``recline``), a built
     backrest more than :data:`~seatkit.template.seat.RECLINE_TOLERANCE_DEG`
@@ -257,12 +270,14 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
         got, want = recline
         if recline_builds < RECLINE_BUILDS:
             again = recline_offset + want - got
-            return _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper, early=early, recline_offset=again, recline_builds=recline_builds + 1)
+            return _design(recipe, registry, timer, write=write, baseline_helper=baseline_helper, export_helper=export_helper, early=early, designed=designed, recline_offset=again, recline_builds=recline_builds + 1)
         from seatkit.errors import RecipeError
 
         raise RecipeError(f"template_params.steps.seat.recline: the built backrest reclines {got:.1f} deg, not {want:g} deg (within {RECLINE_TOLERANCE_DEG:g} deg), after the trunk was reclined to meet it; allowed: -10 to 50 deg, try one nearer the pose's own")
 
     result = BuildResult(recipe, bodies, pressures, initial_mesh=initial, control_mesh=mesh, surface=surface, timings=timer.timings, frames=frames)
+    if designed is not None:
+        _hand_over(designed, result, baseline, job if baseline is not None else None)
     if recipe["evaluate"]["enabled"]:
         # the interface pressure in the baseline's helper when it is idle; in the
         # export worker only where there is no baseline (a busy baseline helper
@@ -280,6 +295,20 @@ def _design(recipe, registry, timer: StageTimer, *, write: bool, baseline_helper
 
             run_structure(result)
     return result
+
+
+def _hand_over(designed, result: BuildResult, baseline, job) -> None:
+    """``designed(result, baseline, complete)``: ``complete`` where the recipe compares with no baseline or its baseline is fitted by now (``baseline``, its design), else False."""
+    if not _wants_baseline(result.recipe):
+        designed(result, None, True)
+        return
+    base = None
+    if baseline is not None and job.done():  # else fitted again in the evaluation, or not yet
+        try:
+            base = baseline()
+        except Exception:  # noqa: BLE001  (the evaluation raises it, where it did before)
+            base = None
+    designed(result, base, base is not None)
 
 
 def _seat_sitters(recipe, bodies, pressures, registry) -> tuple[list, list, list]:
@@ -364,18 +393,99 @@ class _Early:
         partial = BuildResult(recipe, list(bodies), list(pressures))
         self._jobs = {i: self._helper.submit(_run_early, e, partial) for i, e in self._exporters.items()}
 
-    def payload(self, index: int):
+    def payload(self, index: int, *, wait: bool = True):
+        """What exporter ``index``'s ``export_early`` returned; None where it did not run, failed, or (without ``wait``) is not done yet."""
         job = self._jobs.get(index)
-        if job is None:
+        if job is None or (not wait and not job.done()):
             return None
         try:
             return self._helper.result(job)
         except Exception:  # noqa: BLE001  (the exporter does the work itself, and reports its own error)
             return None
 
-    def keywords(self, index: int) -> dict:
+    def keywords(self, index: int, *, wait: bool = True) -> dict:
         """``{"early": payload}`` for an exporter that has ``export_early``, else nothing."""
-        return {"early": self.payload(index)} if index in self._exporters else {}
+        return {"early": self.payload(index, wait=wait)} if index in self._exporters else {}
+
+
+def _design_tasks(exporters: list, *, baseline: bool = True) -> list[tuple[int, int | None]]:
+    """``(exporter index, part)`` of the work that needs only the design: exporters with ``design_only`` (whole: part None) and the ``design_parts`` of the others; without ``baseline``, not that of the exporters that read the baseline's design too (``reads_baseline``)."""
+    tasks = []
+    for i, exporter in enumerate(exporters):
+        if not baseline and getattr(exporter, "reads_baseline", False):
+            continue
+        if getattr(exporter, "design_only", False):
+            tasks.append((i, None))
+        elif _parts(exporter) != [None]:
+            tasks += [(i, part) for part in _parts(exporter) if part in tuple(getattr(exporter, "design_parts", ()) or ())]
+    return tasks
+
+
+class _Designed:
+    """The exporters' work that needs only the design (``design_only``, ``design_parts``), run beside its evaluation.
+
+    :meth:`submit` is called with the build's result once its cages and
+    surface are made, before the evaluation, with the baseline's design
+    where the recipe compares with one and it is fitted by then
+    (``complete``; if it is not, the work of the exporters that read it,
+    ``reads_baseline``, is left to the export stage): it opens the
+    staging folder (``open_staging``) and hands that work to ``helper``
+    (the export worker, which by then has nothing else to do but the
+    ``export_early`` work it may have been given), on a copy of the designs
+    alone, so that the files are written while this process evaluates the
+    design. :meth:`files` gives them to the export stage, which does the
+    rest. Without a helper nothing is handed over and the export stage
+    does it all, as in one process.
+    """
+
+    def __init__(self, exporters: list, helper, early: _Early, open_staging):
+        self._exporters = exporters
+        self._helper = helper
+        self._early = early
+        self._open = open_staging
+        self.tasks: list[tuple[int, int | None]] = []
+        self.staging: Path | None = None
+        self._job = None
+
+    def submit(self, result: BuildResult, baseline=None, complete: bool = True) -> None:
+        tasks = _design_tasks(self._exporters, baseline=complete) if self._helper is not None else []
+        if self._job is not None or not tasks:
+            return
+        self.staging = self._open()
+        design = BuildResult(result.recipe, list(result.bodies), list(result.pressures), initial_mesh=result.initial_mesh, control_mesh=result.control_mesh, surface=result.surface, frames=list(result.frames or []), baseline=baseline)
+        exporters = [self._exporters[i] for i, _ in tasks]
+        keywords = [self._early.keywords(i, wait=False) for i, _ in tasks]  # what is drawn by now: no wait here
+        self._job = self._helper.submit(_run_design, exporters, design, self.staging, [part for _, part in tasks], keywords)
+        self.tasks = tasks
+
+    def jobs(self) -> list:
+        """The job handed to the helper, if any (to wait for)."""
+        return [self._job] if self._job is not None else []
+
+    def files(self) -> dict:
+        """``{(exporter index, part): its files}`` of the work handed over (its error re-raised)."""
+        if self._job is None:
+            return {}
+        return dict(zip(self.tasks, self._helper.result(self._job)))
+
+
+def _run_design(exporters: list, result: BuildResult, directory: Path, parts: list, keywords: list) -> list[dict]:
+    """The design-only work of :class:`_Designed` (a helper's job): each exporter whole (part None) or one part, its ``{role: path}``."""
+    capture = _capture_result(result)
+    return [_run_part(exporter, result, directory, capture, part, kw) for exporter, part, kw in zip(exporters, parts, keywords)]
+
+
+@contextmanager
+def _staging(target: Path, overwrite: bool, helpers) -> Iterator[Path]:
+    """The build's staging folder (:func:`seatkit.output.staging_folder`), opened before the export stage: on an error the helpers are stopped before it is removed, so that none writes into it after."""
+    with staging_folder(target, overwrite=overwrite) as staging:
+        try:
+            yield staging
+        except BaseException:
+            for helper in helpers:
+                if helper is not None:
+                    helper.close(stop=True)
+            raise
 
 
 def _run_early(exporter, result: BuildResult):
@@ -428,7 +538,7 @@ def _capture_result(result: BuildResult) -> BuildResult | None:
     return result_in_capture_frame(result)
 
 
-def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *, overwrite: bool, helper=None, spare=None, early: _Early | None = None) -> None:
+def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *, overwrite: bool, helper=None, spare=None, early: _Early | None = None, designed: _Designed | None = None) -> None:
     """Run the exporters into a staging folder, report.json last, and move the folder into place.
 
     With an export ``helper``, the exporters whose ``prepare_ahead`` is true
@@ -441,39 +551,60 @@ def _write(result: BuildResult, exporters: list, registry, timer: StageTimer, *,
     process (after the others). The files of all are listed in recipe
     order, an exporter's parts as its ``export`` lists them (``join_parts``).
     An exporter with ``export_early`` gets what it returned (``early``).
+    The work ``designed`` handed to the export helper before the evaluation
+    (:class:`_Designed`: the exporters with ``design_only``, the
+    ``design_parts`` of others) is not done again: its files are in the
+    staging folder it opened, which this stage goes on with; where it held
+    a part, this process takes the parts left before the export helper
+    does.
     """
     from seatkit.io import mark_complete
 
     early = early if early is not None else _Early([], None)
-
+    handed = set(designed.tasks) if designed is not None else set()
+    whole = {i for i, part in handed if part is None}  # done at design time, whole
     target = output_target(result.recipe)
     report = registry.get("exporter", REPORT_EXPORTER)
-    ahead = [i for i, e in enumerate(exporters) if e.prepare_ahead] if helper is not None else []
-    apart = []
-    if spare is not None and spare.idle():
-        apart = [i for i, e in enumerate(exporters) if i not in ahead and getattr(e, "runs_apart", False)]
+    ahead = [i for i, e in enumerate(exporters) if e.prepare_ahead and not any(t[0] == i for t in handed)] if helper is not None else []
+    idle = spare if spare is not None and spare.idle() else None
+    # run apart: with an idle spare helper those that say so; an exporter with parts done at design time, always (its other parts)
+    apart = [
+        i for i, e in enumerate(exporters)
+        if i not in ahead and i not in whole and ((idle is not None and getattr(e, "runs_apart", False)) or any((i, part) in handed for part in _parts(e)))
+    ]
     capture = _capture_result(result)
-    with staging_folder(target, overwrite=overwrite) as staging:
+    staged = designed.staging if designed is not None else None
+    with nullcontext(staged) if staged is not None else staging_folder(target, overwrite=overwrite) as staging:
         with timer.stage("export"):
             job = helper.submit(_run_exporters, [exporters[i] for i in ahead], result, staging, capture, [early.keywords(i) for i in ahead]) if ahead else None
-            # the parts run apart, in turn: the spare helper, the export helper, this process
-            places = [spare] + ([helper] if helper is not None else []) + [None]
-            tasks = [(i, part, places[k % len(places)]) for k, (i, part) in enumerate((i, part) for i in apart for part in _parts(exporters[i]))]
+            # the parts run apart, in turn: the spare helper, the export helper, this process (this
+            # process before the export helper when that one has drawn a part beside the evaluation);
+            # without an idle spare helper (a busy machine), all in this process
+            others = [helper] if helper is not None else []
+            drew = any(part is not None for _, part in handed)
+            places = [None] if idle is None else [idle, None, *others] if drew else [idle, *others, None]
+            left = [(i, part) for i in apart for part in _parts(exporters[i]) if (i, part) not in handed]
+            tasks = [(i, part, places[k % len(places)]) for k, (i, part) in enumerate(left)]
             remote = [(i, part, place, place.submit(_run_part, exporters[i], result, staging, capture, part, early.keywords(i))) for i, part, place in tasks if place is not None]
             done: dict[int, dict] = {i: {} for i in apart}  # exporter index -> {part: its files}
             written = {}
             try:
                 for i, exporter in enumerate(exporters):
-                    if i not in ahead and i not in apart:
+                    if i not in ahead and i not in apart and i not in whole:
                         written[i] = _run_part(exporter, result, staging, capture, None, early.keywords(i))
                 for i, part, place in tasks:
                     if place is None:
                         done[i][part] = _run_part(exporters[i], result, staging, capture, part, early.keywords(i))
                 report.prepare()  # while the helpers finish
             finally:  # the helpers' files are in the staging folder before it is moved or deleted
-                wait([job] * (job is not None) + [r[3] for r in remote])
+                wait([job] * (job is not None) + [r[3] for r in remote] + (designed.jobs() if designed is not None else []))
             if job is not None:
                 written.update(zip(ahead, helper.result(job)))
+            for (i, part), files in (designed.files() if designed is not None else {}).items():
+                if part is None:
+                    written[i] = files
+                else:
+                    done[i][part] = files
             for i, part, place, part_job in remote:
                 done[i][part] = place.result(part_job)
             for i in apart:

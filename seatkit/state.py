@@ -235,6 +235,7 @@ class DesignExporter:
     description = "design.npz: the recipe, posed bodies and cages (for seatkit evaluate)"
 
     prepare_ahead = False
+    design_only = True
 
     def prepare(self) -> None:
         """Nothing to prepare: this exporter imports nothing big."""

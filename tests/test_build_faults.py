@@ -85,10 +85,12 @@ def test_kill_9_during_the_export_children_end_and_the_next_build_cleans_up(tmp_
     # staging folder exists, after printing the worker's process id
     killed = _run_cli(
         """
-        import os, signal
+        import contextlib, os, signal
         import seatkit.pipeline as pl
-        def write(result, exporters, registry, timer, *, overwrite, helper=None, spare=None, early=None):
-            with pl.staging_folder(pl.output_target(result.recipe), overwrite=overwrite):
+        def write(result, exporters, registry, timer, *, overwrite, helper=None, spare=None, early=None, designed=None):
+            # the staging folder the design's files went into before the evaluation, else a new one
+            staged = designed.staging if designed is not None else None
+            with contextlib.nullcontext() if staged else pl.staging_folder(pl.output_target(result.recipe), overwrite=overwrite):
                 print(*(h.pid() for h in (helper, spare) if h), flush=True)
                 os.kill(os.getpid(), signal.SIGKILL)
         pl._write = write

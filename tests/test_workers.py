@@ -338,6 +338,154 @@ def test_a_failing_exporter_leaves_no_output_folder_and_no_process(tmp_path, pro
     assert _children() == []
 
 
+# ------------------------------------------------- the design's files, beside the evaluation
+
+#: The template's cage (quick), evaluated without a baseline or the interface pressure: the
+#: design's files are written as soon as it is made, beside the evaluation.
+FULL = {"template": "chair", "refiners": [], "evaluate": {"enabled": True, "baseline": None, "interface_pressure": False}}
+
+
+@needs_proc
+@pytest.mark.parametrize(
+    "recipe",
+    [
+        {"template": "chair"},  # the default build: refined, evaluated against the baseline (framed in the pictures too)
+        FULL,
+    ],
+    ids=["default", "no-baseline"],
+)
+def test_a_build_with_helpers_writes_every_default_file_as_one_process_does(tmp_path, recipe, monkeypatch):
+    """The design's files written beside the evaluation, the pictures in three processes: the same bytes as in one process."""
+    import seatkit.pipeline as pipeline
+
+    hand_over = pipeline._hand_over
+
+    def on_a_quiet_machine(designed, result, baseline, job):  # the baseline fitted before our surface, as there
+        if job is not None:
+            job.result()
+        hand_over(designed, result, baseline, job)
+
+    monkeypatch.setattr(pipeline, "_hand_over", on_a_quiet_machine)
+    seatkit.build(dict(recipe, output=str(tmp_path / "one")), processes=False)
+    seatkit.build(dict(recipe, output=str(tmp_path / "three")), processes=True)
+    _same_design_files(tmp_path / "one", tmp_path / "three")
+    files = [json.loads((tmp_path / d / "report.json").read_text())["files"] for d in ("one", "three")]
+    assert list(files[0]) == list(files[1])  # in recipe order, whichever process wrote them
+    assert {"usd", "cage_obj", "surface_obj", "design", "report_cage_png", "report_surface_png", "report_html"} <= set(files[0])
+    assert [p.name for p in tmp_path.iterdir()] and not [p for p in tmp_path.iterdir() if ".staging-" in p.name]
+    assert _children() == []
+
+
+class _DesignOnly:
+    """A third-party exporter that needs only the design: the cage's size and the evaluation it saw."""
+
+    description = "counts"
+    prepare_ahead = False
+    design_only = True
+
+    def __init__(self, name, fail=None):
+        self.name = name
+        self.fail = fail
+
+    def prepare(self):
+        return None
+
+    def export(self, result, directory):
+        if self.fail == "error":
+            raise SeatkitError(f"exporter {self.name} failed")
+        if self.fail == "die" and os.getpid() != int(os.environ["SEATKIT_TEST_BUILD_PID"]):
+            os._exit(3)  # the worker dies (out of memory, a signal from outside)
+        path = Path(directory) / f"{self.name}.txt"
+        path.write_text(f"{len(result.control_mesh.vertices)} {len(result.surface.vertices)} {len(result.bodies)}\n")
+        return {self.name: path}
+
+
+class _DesignParts:
+    """A third-party exporter in two parts, the first of which needs only the design."""
+
+    name = "two-parts"
+    description = "two parts"
+    prepare_ahead = False
+    runs_apart = True
+    parts = 2
+    design_parts = (0,)
+
+    def prepare(self):
+        return None
+
+    def export(self, result, directory):
+        return {**self.export_part(result, directory, 0), **self.export_part(result, directory, 1)}
+
+    def export_part(self, result, directory, part):
+        path = Path(directory) / f"part{part}.txt"
+        # part 1 shows the evaluation, which the design-only part 0 must not need
+        path.write_text(f"{len(result.control_mesh.vertices)}\n" if part == 0 else f"{result.metrics['ours'][0]['supported']}\n")
+        return {f"part{part}": path}
+
+
+class _DesignPlugin:
+    @seatkit.hookimpl
+    def seatkit_register_exporters(self):
+        return [_DesignOnly("counts"), _DesignOnly("fails", "error"), _DesignOnly("dies", "die"), _DesignParts()]
+
+
+@pytest.fixture
+def design_pm():
+    from seatkit.plugins import get_plugin_manager
+
+    pm = get_plugin_manager(autoload=False)
+    pm.register_plugin(_DesignPlugin(), "test-design-exporters")
+    return pm
+
+
+@needs_proc
+def test_a_plugin_exporter_that_needs_only_the_design_writes_the_same_files_with_helpers(tmp_path, design_pm):
+    exporters = ["usd", "counts", "two-parts", "report-html"]
+    for processes, out in ((True, "a"), (False, "b")):
+        seatkit.build(dict(FULL, exporters=exporters, output=str(tmp_path / out)), pm=design_pm, processes=processes)
+    for name in ("counts.txt", "part0.txt", "part1.txt", "cage.usda"):
+        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+    assert (tmp_path / "a" / "part1.txt").read_text() == "True\n"
+    files = json.loads((tmp_path / "a" / "report.json").read_text())["files"]
+    assert list(files) == list(json.loads((tmp_path / "b" / "report.json").read_text())["files"])
+    assert list(files)[:4] == ["usd", "counts", "part0", "part1"]
+    assert _children() == []
+
+
+@needs_proc
+@pytest.mark.parametrize("processes", [True, False])
+def test_a_failing_design_exporter_is_one_error_and_leaves_no_output_and_no_process(tmp_path, design_pm, processes):
+    recipe = dict(FULL, exporters=["usd", "fails", "obj"], output=str(tmp_path / "out"))
+    with pytest.raises(SeatkitError, match="^exporter fails failed$"):
+        seatkit.build(recipe, pm=design_pm, processes=processes)
+    assert list(tmp_path.iterdir()) == []  # neither the folder nor its staging folder
+    assert _children() == []
+
+
+@needs_proc
+def test_a_helper_that_dies_writing_the_design_is_one_clear_error(tmp_path, design_pm, monkeypatch):
+    monkeypatch.setenv("SEATKIT_TEST_BUILD_PID", str(os.getpid()))
+    recipe = dict(FULL, exporters=["usd", "dies", "obj"], output=str(tmp_path / "out"))
+    with pytest.raises(WorkerLost, match="^the export process ended before sending its result"):
+        seatkit.build(recipe, pm=design_pm, processes=True)
+    assert list(tmp_path.iterdir()) == []
+    assert _children() == []
+
+
+@needs_proc
+def test_an_evaluation_that_fails_while_the_design_is_written_leaves_no_output_and_no_process(tmp_path, monkeypatch):
+    import seatkit.pipeline as pipeline
+
+    def fails(*args, **kwargs):
+        raise SeatkitError("the evaluation failed")
+
+    monkeypatch.setattr(pipeline, "evaluate_result", fails)
+    with pytest.raises(SeatkitError, match="^the evaluation failed$"):
+        seatkit.build(dict(FULL, output=str(tmp_path / "out")), processes=True)
+    assert list(tmp_path.iterdir()) == []  # the staging folder the design's files went into is gone
+    assert _children() == []
+
+
 def test_a_script_without_a_main_guard_builds_once_by_default(tmp_path):
     # multiprocessing imports the main script again in a forkserver/spawn
     # worker: by default a script's build stays in its process, so a script

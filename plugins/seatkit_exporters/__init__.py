@@ -8,10 +8,9 @@ from seatkit import hookimpl
 @hookimpl
 def seatkit_register_exporters():
     """Register every built-in exporter."""
-    from seatkit.export.exporters import builtin_exporters
+    from seatkit.export.exporters import StructureExporter, builtin_exporters
     from seatkit.export.report import report_exporters
     from seatkit.export.report_json import ReportJsonExporter
     from seatkit.state import DesignExporter
-    from seatkit.structure.build import StructureExporter
 
     return builtin_exporters() + [DesignExporter()] + report_exporters() + [StructureExporter(), ReportJsonExporter()]

@@ -19,6 +19,8 @@ shell      ``shell.stl``: a watertight solid of the limit surface,
            ``shell_thickness`` m thick (recipe key, default 0.02 m)
 body-ply   ``body.ply`` (``body-1.ply`` ...): each posed body, vertex colours
            from its pressure
+structure  ``structure.json/.png``: the shell's structural analysis
+           (:mod:`seatkit.structure.build`, imported only when it runs)
 =========  =====================================================================
 """
 
@@ -33,6 +35,7 @@ __all__ = [
     "BodyPlyExporter",
     "ObjCageExporter",
     "ShellExporter",
+    "StructureExporter",
     "SurfaceExporter",
     "UsdExporter",
     "builtin_exporters",
@@ -74,6 +77,8 @@ class UsdExporter:
         self.description = f"cage.{fmt} ({kind} USD): Catmull-Clark cage with creases, bodies coloured by pressure"
 
     prepare_ahead = True
+    #: Writes the cage, the bodies and their importance: the design alone.
+    design_only = True
 
     def prepare(self) -> None:
         """Import usd-core (and load its plugins), ahead of :meth:`export`."""
@@ -100,6 +105,7 @@ class ObjCageExporter:
     description = "cage.obj: the Catmull-Clark control mesh (creases only in USD)"
 
     prepare_ahead = False
+    design_only = True
 
     def prepare(self) -> None:
         """Nothing to prepare: this exporter imports nothing big."""
@@ -120,6 +126,7 @@ class SurfaceExporter:
         self.formats = tuple(formats)
 
     prepare_ahead = False
+    design_only = True
 
     def prepare(self) -> None:
         """Nothing to prepare: this exporter imports nothing big."""
@@ -183,6 +190,26 @@ class BodyPlyExporter:
             role = "body_ply" if i == 0 else f"body_ply_{i}"
             out[role] = write_body_ply(body, pressure, Path(directory) / f"{stem}.ply", interface=interface[i])
         return out
+
+
+class StructureExporter:
+    """``structure.json`` and ``structure.png``: will the shell hold its people (docs/structure.md)."""
+
+    name = "structure"
+    description = "structure.json/.png: stress, safety factor and deflection of the shell under its people (FEM)"
+    #: Runs in the build's process: the analysis it may run needs the result's evaluation, not a pickled copy.
+    prepare_ahead = False
+
+    def prepare(self) -> None:
+        """Nothing to prepare: scikit-fem is imported when an analysis runs."""
+
+    def export(self, result, directory: Path) -> dict[str, Path]:
+        from seatkit.structure.build import _title, analyse_result, write_structure
+
+        analysis = result.structure
+        if analysis is None:  # listed as an exporter without the build step: analyse now
+            analysis = analyse_result(result)
+        return write_structure(analysis, directory, title=_title(result))
 
 
 def builtin_exporters() -> list:

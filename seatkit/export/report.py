@@ -1042,6 +1042,10 @@ class ReportPngExporter:
     #: its own process, beside the other exporters.
     runs_apart = True
     parts = len(PNG_PARTS)
+    #: ``cage.png`` shows the body and the cage alone: drawn beside the evaluation,
+    #: once the baseline is fitted (the views frame both designs).
+    design_parts = (PNG_PARTS.index(("report_cage_png",)),)
+    reads_baseline = True
 
     def prepare(self) -> None:
         """Nothing to prepare: this exporter imports nothing big."""

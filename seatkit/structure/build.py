@@ -38,7 +38,7 @@ from seatkit.structure.analysis import (
 )
 from seatkit.structure.materials import MATERIALS
 
-__all__ = ["DEFAULTS", "OPTIONS", "SCHEMA", "StructureExporter", "enable", "run_structure", "settings", "write_structure"]
+__all__ = ["DEFAULTS", "OPTIONS", "SCHEMA", "enable", "run_structure", "settings", "write_structure"]
 
 DEFAULT_MATERIAL = "birch-plywood"
 DEFAULT_THICKNESS = 0.02
@@ -135,24 +135,6 @@ def write_structure(analysis: Analysis, directory, *, title: str = "") -> dict[s
     json_path = write_text_atomic(directory / "structure.json", json.dumps(jsonable(analysis.summary), indent=1) + "\n")
     png = write_stress_png(analysis, directory / "structure.png", title=title)
     return {"structure_json": Path(json_path), "structure_png": png}
-
-
-class StructureExporter:
-    """``structure.json`` and ``structure.png``: will the shell hold its people (docs/structure.md)."""
-
-    name = "structure"
-    description = "structure.json/.png: stress, safety factor and deflection of the shell under its people (FEM)"
-    #: Runs in the build's process: the analysis it may run needs the result's evaluation, not a pickled copy.
-    prepare_ahead = False
-
-    def prepare(self) -> None:
-        """Nothing to prepare: scikit-fem is imported when an analysis runs."""
-
-    def export(self, result, directory: Path) -> dict[str, Path]:
-        analysis = result.structure
-        if analysis is None:  # listed as an exporter without the build step: analyse now
-            analysis = analyse_result(result)
-        return write_structure(analysis, directory, title=_title(result))
 
 
 def _title(result) -> str:
