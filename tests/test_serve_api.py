@@ -546,6 +546,45 @@ def test_a_baseline_asked_for_after_a_newer_request_is_skipped(client, designer)
     assert client.get("/api/status").json()["stage"] == "idle"
 
 
+def test_a_move_while_the_baseline_is_fitted_stops_the_baseline(designer, monkeypatch):
+    """The page fits the baseline when the sliders rest; a slider move made while it runs stops it (409) and is designed, newest wins."""
+    seq_a = designer.new_request()
+    a = designer.design(designer.prepare({"bodies": [{"pose": "reclined-sitting"}], "seed": 61}), seq_a, "req-61a")
+    flat = designer.registry.get("template", a.recipe["evaluate"]["baseline"])
+    started, go = threading.Event(), threading.Event()
+    fit = flat.fit
+
+    def gated(*args, **kwargs):  # the baseline is running when the move arrives
+        started.set()
+        assert go.wait(timeout=120)
+        return fit(*args, **kwargs)
+
+    monkeypatch.setattr(flat, "fit", gated)
+    out = {}
+
+    def baseline():
+        try:
+            out["baseline"] = designer.baseline(a, seq_a)
+        except Superseded as e:
+            out["stopped"] = str(e)
+
+    t = threading.Thread(target=baseline)
+    t.start()
+    assert started.wait(timeout=120)
+    seq_b = designer.new_request()  # the move: a newer request, while the baseline is being fitted
+    go.set()
+    b = designer.design(designer.prepare({"bodies": [{"pose": "reclined-sitting"}], "seed": 62}), seq_b, "req-61b", evaluate=False)
+    t.join(timeout=240)
+    assert not t.is_alive()
+    assert "stopped" in out and "baseline" not in out, out  # the baseline gave way to the move
+    assert a.baseline is None and b.seq == seq_b and b.id != a.id
+    assert designer.status["stage"] == "idle"
+    # asked again once nothing newer has arrived, it is fitted
+    monkeypatch.setattr(flat, "fit", fit)
+    seq_c = designer.new_request()
+    assert designer.baseline(a, seq_c)
+
+
 def test_the_evaluation_can_follow_the_design(client, designer, default_design):
     """``evaluate=0`` answers with the design alone; ``/evaluate`` adds the same figures and colours as one request."""
     recipe = {"bodies": [{"pose": "reclined-sitting"}], "seed": 43}

@@ -28,10 +28,12 @@ at once).
 
 Supersession: every design request takes a sequence number. Designs run
 one at a time under a lock; a request that is no longer the newest when it
-gets the lock, or at the start of any stage of its build (the pipeline's
-``progress`` callback), stops with :class:`Superseded`, so a newer request
-never waits for a stale one to finish and a stale result is never
-returned as the newest.
+gets the lock, at the start of any stage of its build (the pipeline's
+``progress`` callback) or between the surface fit's iterations
+(:func:`seatkit.stages.checkpoint`), stops with :class:`Superseded`, so a
+newer request never waits for a stale one to finish and a stale result is
+never returned as the newest. The flat-patch baseline the page asks for
+when the sliders rest stops the same way.
 """
 
 from __future__ import annotations
@@ -615,6 +617,7 @@ class Designer:
             The build's own errors (an unsupported pose, an infeasible support).
         """
         from seatkit.pipeline import build
+        from seatkit.stages import stoppable
 
         ident = Path(recipe["output"]).name
         with self._state:
@@ -634,7 +637,8 @@ class Designer:
                 start = time.perf_counter()
                 fast = copy.deepcopy(recipe)
                 fast["evaluate"]["enabled"] = False
-                result = build(fast, pm=self._plugins, progress=lambda s: self._check(seq, s), write=False, processes=False)
+                with stoppable(lambda: self._check(seq, "its next iteration", report=False)):
+                    result = build(fast, pm=self._plugins, progress=lambda s: self._check(seq, s), write=False, processes=False)
                 designed = time.perf_counter()
                 result.recipe = recipe
                 seconds = {"design": designed - start}
@@ -708,11 +712,16 @@ class Designer:
         """Fit and evaluate the recipe's baseline (default flat-patch) for a design, once; ``None`` without one.
 
         With ``seq``, stops (:class:`Superseded`) when a newer design request
-        has arrived before it starts: the page asks for the baseline after
-        showing a design, and a newer slider move comes first.
+        has arrived, before it starts or while it runs (at the start of each
+        of its parts and between the surface fit's iterations): the page asks
+        for the baseline when the sliders rest, and a slider move made
+        meanwhile comes first, without waiting for the baseline to finish.
         """
+        from contextlib import nullcontext
+
         from seatkit.evaluate import design_segments
         from seatkit.pipeline import fit_baseline
+        from seatkit.stages import StageTimer, stoppable
 
         ev = design.recipe["evaluate"]
         if not (ev["enabled"] and ev["baseline"]):
@@ -726,7 +735,12 @@ class Designer:
                     self._check(seq, "baseline")
                 try:
                     result = design.result
-                    base = fit_baseline(design.recipe, result.bodies, result.pressures, self.registry, design_segments(result.initial_mesh))
+                    progress = (lambda s: self._check(seq, s)) if seq is not None else None
+                    stop = stoppable(lambda: self._check(seq, "the baseline's next iteration", report=False)) if seq is not None else nullcontext()
+                    with stop:
+                        base = fit_baseline(
+                            design.recipe, result.bodies, result.pressures, self.registry, design_segments(result.initial_mesh), StageTimer(progress)
+                        )
                 finally:
                     if seq is not None:
                         self._idle(seq)
