@@ -10,9 +10,10 @@ before it draws the new design, the meshes included); then POST
 colours and our Table 1 figures). It reads the server process's CPU time
 (psutil) around each move: on a loaded machine the wall time is mostly
 waiting for a core, the CPU time is what the move costs. Meanwhile it polls
-GET /api/status every 50 ms as the page does (every 100 ms) and fetches each
-preview the page draws when it appears (the posed body; the template's cage
-and its surface), timing when the page could draw it; with --no-previews it
+GET /api/status as the page does (``?since=VERSION``: answered when the
+status changes) and fetches each preview the page draws when it appears
+(the posed body; then the template's cage and its surface, without the
+bodies again), timing when the page could draw it; with --no-previews it
 fetches none (the previews' cost is the difference). Prints the medians, the
 stages of the design (from the report) and what the server reports as cached.
 
@@ -134,14 +135,18 @@ def main() -> None:
                 worker = threading.Thread(target=post)
                 worker.start()
                 seen: dict = {}
+                version = ""
                 while worker.is_alive():
-                    st = client.get("/api/status").json()
+                    st = client.get("/api/status", params={"since": version}).json()  # answered when the status changes
+                    if "version" not in st:  # a server that answers at once: asked every 50 ms
+                        time.sleep(0.05)
+                    version = st.get("version", "")
                     stage = st.get("preview")
                     if not args.no_previews and st.get("request") == request and stage in PREVIEWS and stage not in seen:
-                        p = client.get("/api/preview", params={"request": request})
+                        # the bodies once: the template's preview of the same request without them
+                        p = client.get("/api/preview", params={"request": request, "bodies": 0 if seen else 1})
                         if p.status_code == 200:
                             seen[p.json()["stage"]] = time.perf_counter() - t
-                    time.sleep(0.05)
                 worker.join()
                 r = answer["r"]
                 trips.append(time.perf_counter() - t)

@@ -531,6 +531,10 @@ def test_a_preview_is_always_of_its_own_request(designer):
     assert not np.allclose(body, a.result.bodies[0].vertices, atol=1e-3)
     cage = _decode(p["cage"]["positions"], "<f4").reshape(-1, 3)
     np.testing.assert_allclose(cage, b.result.initial_mesh.vertices, atol=1e-6)
+    # without the bodies (the page has drawn them from the posed preview): the same cage and surface
+    lean = designer.preview("req-51b", bodies=False)
+    assert lean["bodies"] is None and lean["stage"] == p["stage"]
+    assert lean["cage"] == p["cage"] and lean["surface"] == p["surface"]
 
 
 def test_a_baseline_asked_for_after_a_newer_request_is_skipped(client, designer):
@@ -583,6 +587,34 @@ def test_a_move_while_the_baseline_is_fitted_stops_the_baseline(designer, monkey
     monkeypatch.setattr(flat, "fit", fit)
     seq_c = designer.new_request()
     assert designer.baseline(a, seq_c)
+
+
+def test_the_status_is_answered_when_it_changes(client, designer):
+    """``GET /api/status?since=V`` answers once the status is no longer version V: each stage of a running design, then idle."""
+    import asyncio
+
+    now = client.get("/api/status").json()
+    assert now["stage"] == "idle"
+    # nothing changes: answered after the wait, as it was
+    same = asyncio.run(designer.status_after(now["version"], wait=0.2))
+    assert same["version"] == now["version"] and same["stage"] == "idle"
+    seq = designer.new_request()
+    recipe = designer.prepare({"bodies": [{"pose": "reclined-sitting"}], "seed": 71})
+    t = threading.Thread(target=lambda: designer.design(recipe, seq, "req-71", evaluate=False))
+    t.start()
+    stages, version = [], now["version"]
+    while True:
+        st = client.get("/api/status", params={"since": version}).json()
+        assert st["version"] != version or not t.is_alive()
+        version = st["version"]
+        stages.append(st["stage"])
+        if st["stage"] == "idle" and not t.is_alive():
+            break
+    t.join()
+    assert stages[-1] == "idle" and {"pressure", "template", "refine:catmull-clark-fit"} & set(stages), stages  # the design's stages seen
+    # the version is a count in digits (as a sequence number)
+    r = client.get("/api/status", params={"since": "\u00b2"})
+    assert r.status_code == 422 and "since" in r.json()["error"]
 
 
 def test_the_evaluation_can_follow_the_design(client, designer, default_design):

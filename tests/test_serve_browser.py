@@ -7,7 +7,8 @@ resolver that maps every host but the loopback to nothing, and a route that
 aborts, and records, every request not to the app; the test fails on any.
 The path: the first design, a body, its mass and height, rapid slider moves
 and one let rest, the switch to the bench, three different people, a
-refused pose, the files; no console error or warning at any point.
+refused pose, the files, a supported pose again; no console error or
+warning at any point.
 
 Set ``SEATKIT_SERVE_SCREENSHOTS=FOLDER`` to keep the screenshots
 (``serve-chair.png`` is docs/images/serve.png).
@@ -289,6 +290,16 @@ def test_the_designers_path_offline(server, tmp_path):
         assert all(f"/files/{bench['id']}/" in h for h in hrefs), hrefs
         for h in hrefs:
             assert page.request.get(url + h).status == 200, h
+
+        # a supported pose again: the new design replaces the greyed one, in its pressure colours (not greyed)
+        n = page.evaluate("() => window.seatkit.designsShown")
+        page.select_option("#pose-select", "upright-sitting")
+        _wait_design(page, n, "after the refusal")
+        assert not page.evaluate("() => document.body.classList.contains('stale')")
+        assert page.locator("#refusal").is_hidden()
+        page.locator('#view-options button:text-is("below")').click()
+        page.wait_for_timeout(300)
+        assert _warm_share(page) > 0.001
         context.close()
     assert not foreign, f"requests left localhost: {foreign}"
     assert not page_errors, page_errors

@@ -76,6 +76,10 @@ MAX_REFINERS = 8
 #: Most names a recipe's ``pressure.exclude`` may list.
 MAX_EXCLUDE = 64
 
+#: Longest a status request with ``since`` waits for a change, s; and how often it looks, s.
+STATUS_WAIT = 5.0
+STATUS_TICK = 0.02
+
 #: The slider joints: (key, label, segment, axis, sign). The slider shows
 #: ``sign * angle`` in degrees, so that flexion is positive on both sides.
 #: ``trunk-recline`` is the root's rotation about X (tilting the whole body
@@ -283,7 +287,7 @@ class Designer:
         self._state = threading.Lock()
         self._latest = 0
         self._designs: OrderedDict[str, Design] = OrderedDict()
-        self.status: dict = {"seq": 0, "stage": "idle", "started": None}
+        self.status: dict = {"seq": 0, "stage": "idle", "started": None, "version": 0}  # version: +1 at each change (:meth:`status_after`)
         self._observing: tuple[int, str] | None = None  # (seq, request id) of the running design
         self._preview: dict = {}
         self.hits = 0  # designs answered from memory
@@ -559,6 +563,7 @@ class Designer:
                 "stage": stage,
                 "started": self.status.get("started") if same else time.time(),
                 "preview": self._preview.get("stage") if self._preview.get("seq") == seq else None,
+                "version": self.status["version"] + 1,
             }
 
     def _observe(self, stage: str, **parts) -> None:
@@ -570,9 +575,9 @@ class Designer:
             if self._preview.get("seq") != seq:
                 self._preview = {"seq": seq, "request": request}
             self._preview.update(parts, stage=stage)
-            self.status["preview"] = stage
+            self.status = {**self.status, "preview": stage, "version": self.status["version"] + 1}
 
-    def preview(self, request: str) -> dict | None:
+    def preview(self, request: str, *, bodies: bool = True) -> dict | None:
         """What the running (or last) design of ``request`` has made so far, as :meth:`view` draws it; None if nothing yet.
 
         After the pressure (stage ``posed``): the posed bodies, coloured by
@@ -580,6 +585,9 @@ class Designer:
         template (stage ``template``): the same bodies, the template's cage
         and its limit surface at the recipe's level. Each is made from the
         objects the running design made, when asked (a few milliseconds).
+        With ``bodies=False`` the bodies are left out (``None``): the page
+        asks so for the template's preview once it has drawn the posed
+        bodies of the same request, which are the same.
         """
         from seatkit.subdivision import limit_surface
 
@@ -587,8 +595,8 @@ class Designer:
             p = dict(self._preview)
         if not request or p.get("request") != request or "bodies" not in p:
             return None
-        bodies = [self._body_view(b, f.pressure, "importance") for b, f in zip(p["bodies"], p["pressures"])]
-        out = {"seq": p["seq"], "stage": p["stage"], "bodies": bodies, "surface": None, "cage": None}
+        views = [self._body_view(b, f.pressure, "importance") for b, f in zip(p["bodies"], p["pressures"])] if bodies else None
+        out = {"seq": p["seq"], "stage": p["stage"], "bodies": views, "surface": None, "cage": None}
         mesh = p.get("mesh")
         if mesh is not None:
             level = p.get("level", 3)
@@ -599,7 +607,25 @@ class Designer:
     def _idle(self, seq: int) -> None:
         with self._state:
             if self.status.get("seq") == seq:
-                self.status = {"seq": seq, "stage": "idle", "started": None}
+                self.status = {"seq": seq, "stage": "idle", "started": None, "version": self.status["version"] + 1}
+
+    async def status_after(self, version: int | None, wait: float | None = None, *, disconnected=None) -> dict:
+        """The status once its ``version`` differs from ``version`` (at once without one), or after ``wait`` seconds as it is.
+
+        The page asks for the status while a design runs: answered when
+        something changes (a stage starts, a preview is made, the design
+        ends) rather than asked again and again. ``wait`` defaults to
+        :data:`STATUS_WAIT`; ``disconnected`` (an async callable) ends the
+        wait early when the page has gone.
+        """
+        import asyncio
+
+        deadline = time.monotonic() + (STATUS_WAIT if wait is None else wait)
+        while version is not None and self.status["version"] == version and time.monotonic() < deadline:
+            await asyncio.sleep(STATUS_TICK)
+            if disconnected is not None and await disconnected():
+                break
+        return self.status
 
     def design(self, recipe: dict, seq: int, request: str | None = None, *, evaluate: bool = True) -> Design:
         """Compute a design (or return it from memory): the view's part only.
