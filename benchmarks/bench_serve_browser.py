@@ -80,6 +80,7 @@ MOVE_TIMES = """() => {
     busy: busy / 1000,
   };
 }"""
+STUCK = "() => ({clientSeq: window.seatkit.clientSeq, shownSeq: window.seatkit.shownSeq, progress: document.getElementById('progress').textContent})"
 REST = "() => window.seatkit.shownSeq === window.seatkit.clientSeq && document.getElementById('progress').className === 'idle'"
 
 
@@ -89,6 +90,7 @@ def main() -> None:
     args = ap.parse_args()
     if not Path(CHROMIUM).exists():
         sys.exit(f"{CHROMIUM} is missing (Debian's chromium: bash tools/setup-system.sh --test)")
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
     from playwright.sync_api import sync_playwright
 
     port = _free_port()
@@ -117,7 +119,11 @@ def main() -> None:
                     slider.fill(str(int(round(value))))
                     before = _cpu(server), _chromium_cpu()
                     slider.dispatch_event("change")
-                    page.wait_for_function(f"() => window.seatkit.designsShown > {n} && window.seatkit.shownSeq === window.seatkit.clientSeq", timeout=240_000)
+                    try:
+                        page.wait_for_function(f"() => window.seatkit.designsShown > {n} && window.seatkit.shownSeq === window.seatkit.clientSeq", timeout=240_000)
+                    except PlaywrightTimeout:
+                        seen = page.evaluate(STUCK)
+                        sys.exit(f"move {i}: no design shown after 240 s; the page: {seen}")
                     after = _cpu(server), _chromium_cpu()
                     t = page.evaluate(
                         "() => ({answer: window.seatkit.lastAnswer, shown: window.seatkit.lastRoundTrip, draw: window.seatkit.lastDraw,"
