@@ -303,7 +303,7 @@ def create_app(designer: Designer) -> Starlette:
     async def status(request: Request):
         since = request.query_params.get("since")
         version = None if not since else _count(since, "since", "the version of a status answer")
-        current = await designer.status_after(version, disconnected=request.is_disconnected)
+        current = await designer.status_after(version)
         return JSONResponse({**current, "caches": designer.cache_report()})
 
     async def serve_file(request: Request):

@@ -76,9 +76,8 @@ MAX_REFINERS = 8
 #: Most names a recipe's ``pressure.exclude`` may list.
 MAX_EXCLUDE = 64
 
-#: Longest a status request with ``since`` waits for a change, s; and how often it looks, s.
+#: Longest a status request with ``since`` waits for a change, s.
 STATUS_WAIT = 5.0
-STATUS_TICK = 0.02
 
 #: The slider joints: (key, label, segment, axis, sign). The slider shows
 #: ``sign * angle`` in degrees, so that flexion is positive on both sides.
@@ -290,6 +289,7 @@ class Designer:
         self.status: dict = {"seq": 0, "stage": "idle", "started": None, "version": 0}  # version: +1 at each change (:meth:`status_after`)
         self._observing: tuple[int, str] | None = None  # (seq, request id) of the running design
         self._preview: dict = {}
+        self._waiters: list = []  # (event loop, asyncio.Event) of the status requests waiting for a change
         self.hits = 0  # designs answered from memory
         self.max_uploads_bytes = MAX_UPLOADS_BYTES
         self.keep_designs = KEEP_DESIGNS
@@ -557,14 +557,13 @@ class Designer:
             if not report:
                 return
             same = self.status.get("seq") == seq
-            self.status = {
+            self._publish({
                 "seq": seq,
                 "request": self._observing[1] if self._observing and self._observing[0] == seq else None,
                 "stage": stage,
                 "started": self.status.get("started") if same else time.time(),
                 "preview": self._preview.get("stage") if self._preview.get("seq") == seq else None,
-                "version": self.status["version"] + 1,
-            }
+            })
 
     def _observe(self, stage: str, **parts) -> None:
         """Keep what a stage of the running design made, for :meth:`preview`."""
@@ -575,7 +574,7 @@ class Designer:
             if self._preview.get("seq") != seq:
                 self._preview = {"seq": seq, "request": request}
             self._preview.update(parts, stage=stage)
-            self.status = {**self.status, "preview": stage, "version": self.status["version"] + 1}
+            self._publish({**self.status, "preview": stage})
 
     def preview(self, request: str, *, bodies: bool = True) -> dict | None:
         """What the running (or last) design of ``request`` has made so far, as :meth:`view` draws it; None if nothing yet.
@@ -607,24 +606,40 @@ class Designer:
     def _idle(self, seq: int) -> None:
         with self._state:
             if self.status.get("seq") == seq:
-                self.status = {"seq": seq, "stage": "idle", "started": None, "version": self.status["version"] + 1}
+                self._publish({"seq": seq, "stage": "idle", "started": None})
 
-    async def status_after(self, version: int | None, wait: float | None = None, *, disconnected=None) -> dict:
+    def _publish(self, status: dict) -> None:
+        """Set the status (the caller holds ``_state``), one version on, and wake the requests waiting for a change."""
+        self.status = {**status, "version": self.status["version"] + 1}
+        for loop, event in self._waiters:
+            try:
+                loop.call_soon_threadsafe(event.set)
+            except RuntimeError:  # its event loop has closed: nobody is waiting there any more
+                pass
+
+    async def status_after(self, version: int | None, wait: float | None = None) -> dict:
         """The status once its ``version`` differs from ``version`` (at once without one), or after ``wait`` seconds as it is.
 
         The page asks for the status while a design runs: answered when
         something changes (a stage starts, a preview is made, the design
         ends) rather than asked again and again. ``wait`` defaults to
-        :data:`STATUS_WAIT`; ``disconnected`` (an async callable) ends the
-        wait early when the page has gone.
+        :data:`STATUS_WAIT`. A waiting request costs nothing until then: the
+        design's thread wakes it (``call_soon_threadsafe``).
         """
         import asyncio
 
-        deadline = time.monotonic() + (STATUS_WAIT if wait is None else wait)
-        while version is not None and self.status["version"] == version and time.monotonic() < deadline:
-            await asyncio.sleep(STATUS_TICK)
-            if disconnected is not None and await disconnected():
-                break
+        waiter = (asyncio.get_running_loop(), asyncio.Event())
+        with self._state:
+            if version is None or self.status["version"] != version:
+                return self.status
+            self._waiters.append(waiter)
+        try:
+            await asyncio.wait_for(waiter[1].wait(), STATUS_WAIT if wait is None else wait)
+        except asyncio.TimeoutError:
+            pass
+        finally:
+            with self._state:
+                self._waiters.remove(waiter)
         return self.status
 
     def design(self, recipe: dict, seq: int, request: str | None = None, *, evaluate: bool = True) -> Design:
