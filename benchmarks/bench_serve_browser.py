@@ -116,9 +116,9 @@ def main() -> None:
                     value = start[key] + delta * (1 + i // len(moved))
                     n = page.evaluate("() => window.seatkit.designsShown")
                     slider = page.locator(f"#slider-{key}")
-                    slider.fill(str(int(round(value))))
                     before = _cpu(server), _chromium_cpu()
-                    slider.dispatch_event("change")
+                    # one change, as a slider let go (fill() would send its own change event, a second request)
+                    slider.evaluate("(el, v) => { el.value = v; el.dispatchEvent(new Event('input')); el.dispatchEvent(new Event('change')); }", str(int(round(value))))
                     try:
                         page.wait_for_function(f"() => window.seatkit.designsShown > {n} && window.seatkit.shownSeq === window.seatkit.clientSeq", timeout=240_000)
                     except PlaywrightTimeout:

@@ -660,7 +660,12 @@ async function requestDesign() {
   const r = await api("/api/design?files=0&baseline=0&evaluate=0&view=1", { method: "POST", headers: { "Content-Type": "application/json", "X-Request-Id": request }, body: JSON.stringify(recipe) });
   if (seq !== state.clientSeq) return; // a newer request was made: never show a stale design
   stopPolling();
-  if (r.status === 409) return;
+  if (r.status === 409) {
+    // this page's newest request, superseded on the server by an earlier one of this page that
+    // reached it later (the server numbers requests as they arrive): asked again, it is the newest
+    requestDesign();
+    return;
+  }
   if (!r.ok) {
     showError(r.data.error, r.data.kind === "unsupported");
     return;
