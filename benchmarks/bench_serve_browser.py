@@ -54,6 +54,7 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--use-angle=swiftshader
 SLIDERS = [("knee-right", -6), ("knee-left", 5), ("hip-right", 4), ("hip-left", -4)]
 #: the page's main thread: every task of 50 ms or more (Long Tasks API), from before the page's script runs
 LONG_TASKS = """
+performance.setResourceTimingBufferSize(100000);  // every request of every move (the default keeps 250)
 window.__longTasks = [];
 new PerformanceObserver((list) => { for (const e of list.getEntries()) window.__longTasks.push([e.startTime, e.duration]); })
   .observe({type: "longtask", buffered: true});
