@@ -10,9 +10,10 @@ before it draws the new design, the meshes included); then POST
 colours and our Table 1 figures). It reads the server process's CPU time
 (psutil) around each move: on a loaded machine the wall time is mostly
 waiting for a core, the CPU time is what the move costs. Meanwhile it polls
-GET /api/status every 50 ms as the page does (every 100 ms) and fetches each
-preview the page draws when it appears (the posed body; the template's cage
-and its surface), timing when the page could draw it; with --no-previews it
+GET /api/status as the page does (``?since=VERSION``: answered when the
+status changes) and fetches each preview the page draws when it appears
+(the posed body; then the template's cage and its surface, without the
+bodies again), timing when the page could draw it; with --no-previews it
 fetches none (the previews' cost is the difference). Prints the medians, the
 stages of the design (from the report) and what the server reports as cached.
 
@@ -130,23 +131,38 @@ def main() -> None:
                     answer["r"] = client.post(
                         "/api/design?files=0&baseline=0&evaluate=0&view=1", json={"bodies": [{"pose": name}]}, headers={"X-Request-Id": request}
                     )
+                    answer["t"], answer["cpu"] = time.perf_counter(), cpu()  # the answer is in
+
+                seen: dict = {}
+                done = threading.Event()
+
+                def watch(request=request, seen=seen, done=done, t=t):
+                    version = ""
+                    while not done.is_set():
+                        try:
+                            st = client.get("/api/status", params={"since": version}).json()  # answered when the status changes
+                        except httpx.HTTPError:
+                            return  # the server has stopped (the benchmark's end)
+                        if "version" not in st:  # a server that answers at once: asked every 50 ms
+                            time.sleep(0.05)
+                        version = st.get("version", "")
+                        stage = st.get("preview")
+                        if not args.no_previews and not done.is_set() and st.get("request") == request and stage in PREVIEWS and stage not in seen:
+                            # the bodies once: the template's preview of the same request without them
+                            p = client.get("/api/preview", params={"request": request, "bodies": 0 if seen else 1})
+                            if p.status_code == 200 and not done.is_set():
+                                seen[p.json()["stage"]] = time.perf_counter() - t
 
                 worker = threading.Thread(target=post)
+                watcher = threading.Thread(target=watch, daemon=True)  # ends at its next answer (a status request may wait up to 5 s)
                 worker.start()
-                seen: dict = {}
-                while worker.is_alive():
-                    st = client.get("/api/status").json()
-                    stage = st.get("preview")
-                    if not args.no_previews and st.get("request") == request and stage in PREVIEWS and stage not in seen:
-                        p = client.get("/api/preview", params={"request": request})
-                        if p.status_code == 200:
-                            seen[p.json()["stage"]] = time.perf_counter() - t
-                    time.sleep(0.05)
+                watcher.start()
                 worker.join()
+                done.set()
                 r = answer["r"]
-                trips.append(time.perf_counter() - t)
-                cpu_design.append(cpu() - c)
-                for stage, seconds in seen.items():
+                trips.append(answer["t"] - t)
+                cpu_design.append(answer["cpu"] - c)
+                for stage, seconds in list(seen.items()):
                     previews.setdefault(stage, []).append(seconds)
                 if r.status_code != 200:
                     print(f"  move {i}: {r.status_code} {r.json().get('error')}")

@@ -9,6 +9,7 @@ the plugin registry by the names the recipe gives.
 from __future__ import annotations
 
 import functools
+import threading
 import time
 from contextlib import contextmanager
 from typing import Callable, Mapping
@@ -25,12 +26,14 @@ __all__ = [
     "check_overlap",
     "evaluate_result",
     "baseline_components",
+    "checkpoint",
     "fit_baseline",
     "fit_baseline_with",
     "make_bodies",
     "place_bodies",
     "refine",
     "solve_importance",
+    "stoppable",
     "total_seconds",
 ]
 
@@ -45,6 +48,32 @@ Progress = Callable[[str], None]
 
 def _noop(_stage: str) -> None:
     return None
+
+
+_stop = threading.local()
+
+
+@contextmanager
+def stoppable(check: Callable[[], None]):
+    """Within it, each :func:`checkpoint` in this thread calls ``check``, which raises to stop the computation.
+
+    ``seatkit serve`` stops a design or a baseline this way when a newer
+    request arrives: between the stages of a build (``progress``) and
+    between the iterations of a long stage (the surface fit's).
+    """
+    before = getattr(_stop, "check", None)
+    _stop.check = check
+    try:
+        yield
+    finally:
+        _stop.check = before
+
+
+def checkpoint() -> None:
+    """A point where a long computation may be stopped (:func:`stoppable`); nothing outside one."""
+    check = getattr(_stop, "check", None)
+    if check is not None:
+        check()
 
 
 class StageTimer:
@@ -244,7 +273,7 @@ def baseline_components(recipe: Mapping, registry) -> tuple:
     return registry.get("template", ev["baseline"]), refiners, solver
 
 
-def fit_baseline(recipe: Mapping, bodies, pressures, registry, segments) -> Baseline:
+def fit_baseline(recipe: Mapping, bodies, pressures, registry, segments, timer: StageTimer | None = None) -> Baseline:
     """Fit and evaluate the baseline design of a recipe (default ``flat-patch``).
 
     The baseline (what Sit & Relax starts from) is fitted to the same bodies,
@@ -252,12 +281,14 @@ def fit_baseline(recipe: Mapping, bodies, pressures, registry, segments) -> Base
     that declares a ``segments`` parameter gets them), refined by the
     recipe's ``evaluate.baseline_refiners`` (default ``catmull-clark-fit``,
     the Sit & Relax surface fit), and evaluated the same way
-    (:mod:`seatkit.evaluate`).
+    (:mod:`seatkit.evaluate`). ``timer`` is told each part as it starts
+    (``baseline:template``, ``refine:NAME``, ``baseline:surface``,
+    ``baseline:evaluate``); its ``progress`` may raise to stop the fit.
     """
-    return fit_baseline_with(recipe, bodies, pressures, baseline_components(recipe, registry), segments)
+    return fit_baseline_with(recipe, bodies, pressures, baseline_components(recipe, registry), segments, timer)
 
 
-def fit_baseline_with(recipe: Mapping, bodies, pressures, components: tuple, segments) -> Baseline:
+def fit_baseline_with(recipe: Mapping, bodies, pressures, components: tuple, segments, timer: StageTimer | None = None) -> Baseline:
     """:func:`fit_baseline` with its components (:func:`baseline_components`) looked up already."""
     from seatkit.evaluate import evaluate_design
     from seatkit.skeleton import SEGMENTS
@@ -267,12 +298,16 @@ def fit_baseline_with(recipe: Mapping, bodies, pressures, components: tuple, seg
     ev, p = recipe["evaluate"], recipe["pressure"]
     template, refiners, solver = components
     params = {"segments": [SEGMENTS[s] for s in segments]} if "segments" in getattr(template, "parameters", ()) else {}
-    base = template.fit(bodies, pressures, params=params, seed=recipe["seed"])
-    base = refine(base, refiners, bodies, pressures)
-    surface = limit_surface(base, level=recipe["surface_level"])
-    metrics, fields = evaluate_design(
-        bodies, pressures, surface, solver=solver, support_distance=ev["support_distance"], pressure_settings=p, segments=segments
-    )
+    timer = timer or StageTimer()
+    with timer.stage("baseline:template"):
+        base = template.fit(bodies, pressures, params=params, seed=recipe["seed"])
+    base = refine(base, refiners, bodies, pressures, timer)
+    with timer.stage("baseline:surface"):
+        surface = limit_surface(base, level=recipe["surface_level"])
+    with timer.stage("baseline:evaluate"):
+        metrics, fields = evaluate_design(
+            bodies, pressures, surface, solver=solver, support_distance=ev["support_distance"], pressure_settings=p, segments=segments
+        )
     return Baseline(ev["baseline"], base, surface, metrics, fields, time.perf_counter() - start)
 
 

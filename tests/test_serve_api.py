@@ -531,6 +531,10 @@ def test_a_preview_is_always_of_its_own_request(designer):
     assert not np.allclose(body, a.result.bodies[0].vertices, atol=1e-3)
     cage = _decode(p["cage"]["positions"], "<f4").reshape(-1, 3)
     np.testing.assert_allclose(cage, b.result.initial_mesh.vertices, atol=1e-6)
+    # without the bodies (the page has drawn them from the posed preview): the same cage and surface
+    lean = designer.preview("req-51b", bodies=False)
+    assert lean["bodies"] is None and lean["stage"] == p["stage"]
+    assert lean["cage"] == p["cage"] and lean["surface"] == p["surface"]
 
 
 def test_a_baseline_asked_for_after_a_newer_request_is_skipped(client, designer):
@@ -544,6 +548,73 @@ def test_a_baseline_asked_for_after_a_newer_request_is_skipped(client, designer)
     assert r.status_code == 409 and r.json()["kind"] == "superseded"
     assert designer.get(b["id"]).baseline is None
     assert client.get("/api/status").json()["stage"] == "idle"
+
+
+def test_a_move_while_the_baseline_is_fitted_stops_the_baseline(designer, monkeypatch):
+    """The page fits the baseline when the sliders rest; a slider move made while it runs stops it (409) and is designed, newest wins."""
+    seq_a = designer.new_request()
+    a = designer.design(designer.prepare({"bodies": [{"pose": "reclined-sitting"}], "seed": 61}), seq_a, "req-61a")
+    flat = designer.registry.get("template", a.recipe["evaluate"]["baseline"])
+    started, go = threading.Event(), threading.Event()
+    fit = flat.fit
+
+    def gated(*args, **kwargs):  # the baseline is running when the move arrives
+        started.set()
+        assert go.wait(timeout=120)
+        return fit(*args, **kwargs)
+
+    monkeypatch.setattr(flat, "fit", gated)
+    out = {}
+
+    def baseline():
+        try:
+            out["baseline"] = designer.baseline(a, seq_a)
+        except Superseded as e:
+            out["stopped"] = str(e)
+
+    t = threading.Thread(target=baseline)
+    t.start()
+    assert started.wait(timeout=120)
+    seq_b = designer.new_request()  # the move: a newer request, while the baseline is being fitted
+    go.set()
+    b = designer.design(designer.prepare({"bodies": [{"pose": "reclined-sitting"}], "seed": 62}), seq_b, "req-61b", evaluate=False)
+    t.join(timeout=240)
+    assert not t.is_alive()
+    assert "stopped" in out and "baseline" not in out, out  # the baseline gave way to the move
+    assert a.baseline is None and b.seq == seq_b and b.id != a.id
+    assert designer.status["stage"] == "idle"
+    # asked again once nothing newer has arrived, it is fitted
+    monkeypatch.setattr(flat, "fit", fit)
+    seq_c = designer.new_request()
+    assert designer.baseline(a, seq_c)
+
+
+def test_the_status_is_answered_when_it_changes(client, designer):
+    """``GET /api/status?since=V`` answers once the status is no longer version V: each stage of a running design, then idle."""
+    import asyncio
+
+    now = client.get("/api/status").json()
+    assert now["stage"] == "idle"
+    # nothing changes: answered after the wait, as it was
+    same = asyncio.run(designer.status_after(now["version"], wait=0.2))
+    assert same["version"] == now["version"] and same["stage"] == "idle"
+    seq = designer.new_request()
+    recipe = designer.prepare({"bodies": [{"pose": "reclined-sitting"}], "seed": 71})
+    t = threading.Thread(target=lambda: designer.design(recipe, seq, "req-71", evaluate=False))
+    t.start()
+    stages, version = [], now["version"]
+    while True:
+        st = client.get("/api/status", params={"since": version}).json()
+        assert st["version"] != version or not t.is_alive()
+        version = st["version"]
+        stages.append(st["stage"])
+        if st["stage"] == "idle" and not t.is_alive():
+            break
+    t.join()
+    assert stages[-1] == "idle" and {"pressure", "template", "refine:catmull-clark-fit"} & set(stages), stages  # the design's stages seen
+    # the version is a count in digits (as a sequence number)
+    r = client.get("/api/status", params={"since": "\u00b2"})
+    assert r.status_code == 422 and "since" in r.json()["error"]
 
 
 def test_the_evaluation_can_follow_the_design(client, designer, default_design):

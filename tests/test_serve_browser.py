@@ -7,7 +7,8 @@ resolver that maps every host but the loopback to nothing, and a route that
 aborts, and records, every request not to the app; the test fails on any.
 The path: the first design, a body, its mass and height, rapid slider moves
 and one let rest, the switch to the bench, three different people, a
-refused pose, the files; no console error or warning at any point.
+refused pose, the files, a supported pose again; no console error or
+warning at any point.
 
 Set ``SEATKIT_SERVE_SCREENSHOTS=FOLDER`` to keep the screenshots
 (``serve-chair.png`` is docs/images/serve.png).
@@ -116,6 +117,29 @@ def _wait_design(page, before: int, what: str, timeout: int = 240_000) -> dict:
     return page.evaluate("() => window.seatkit.design")
 
 
+#: The page's next design request, when asked (``window.__holdDesign = MS``), sent that much later: a request
+#: that reaches the server after a newer one of the same page (the network, or the server's checks, can do that).
+HOLD_DESIGN = """
+(() => {
+  const send = window.fetch.bind(window);
+  window.__holdDesign = 0;
+  window.fetch = (url, options) => {
+    const hold = window.__holdDesign;
+    if (hold && String(url).startsWith("/api/design?")) {
+      window.__holdDesign = 0;
+      return new Promise((done) => setTimeout(done, hold)).then(() => send(url, options));
+    }
+    return send(url, options);
+  };
+})();
+"""
+
+
+def _let_go(page, selector: str, value: int) -> None:
+    """A slider moved to ``value`` and let go: one change, one request."""
+    page.locator(selector).evaluate("(el, v) => { el.value = v; el.dispatchEvent(new Event('input')); el.dispatchEvent(new Event('change')); }", str(value))
+
+
 def _set(page, selector: str, value: str) -> None:
     page.locator(selector).fill(value)
     page.locator(selector).dispatch_event("change")
@@ -149,6 +173,7 @@ def test_the_designers_path_offline(server, tmp_path):
                 r.abort()
 
         context.route("**/*", route)
+        context.add_init_script(HOLD_DESIGN)
         page = context.new_page()
         # every console error and warning counts, failed resource loads (a non-2xx answer) included
         page.on("console", lambda m: console.append(m.text) if m.type in ("error", "warning") and "GPU stall" not in m.text else None)
@@ -196,6 +221,16 @@ def test_the_designers_path_offline(server, tmp_path):
         left.dispatch_event("change")
         # back where it started: the last design again (from the server's memory), once the newest request is shown
         page.wait_for_function(f"() => window.seatkit.shownSeq === window.seatkit.clientSeq && window.seatkit.design.id === '{d['id']}'", timeout=240_000)
+        # two moves whose requests reach the server in the other order (the first held back in the page): the
+        # server answers the newest 409 (superseded by the older); the page shows the newest all the same
+        n = page.evaluate("() => window.seatkit.designsShown")
+        page.evaluate("() => { window.__holdDesign = 400; }")
+        _let_go(page, "#slider-knee-left", start - 5)
+        page.wait_for_timeout(50)
+        _let_go(page, "#slider-knee-left", start - 9)
+        page.wait_for_function(f"() => window.seatkit.designsShown > {n} && window.seatkit.shownSeq === window.seatkit.clientSeq", timeout=120_000)
+        shown = page.evaluate("() => ({id: window.seatkit.design.id, pose: window.seatkit.people[0].made.name})")
+        assert designer.get(shown["id"]).recipe["bodies"][0]["pose"].endswith(shown["pose"])  # the pose of the last move
         n = page.evaluate("() => window.seatkit.designsShown")
         slider = page.locator("#slider-knee-right")
         knee = float(slider.input_value())
@@ -289,6 +324,16 @@ def test_the_designers_path_offline(server, tmp_path):
         assert all(f"/files/{bench['id']}/" in h for h in hrefs), hrefs
         for h in hrefs:
             assert page.request.get(url + h).status == 200, h
+
+        # a supported pose again: the new design replaces the greyed one, in its pressure colours (not greyed)
+        n = page.evaluate("() => window.seatkit.designsShown")
+        page.select_option("#pose-select", "upright-sitting")
+        _wait_design(page, n, "after the refusal")
+        assert not page.evaluate("() => document.body.classList.contains('stale')")
+        assert page.locator("#refusal").is_hidden()
+        page.locator('#view-options button:text-is("below")').click()
+        page.wait_for_timeout(300)
+        assert _warm_share(page) > 0.001
         context.close()
     assert not foreign, f"requests left localhost: {foreign}"
     assert not page_errors, page_errors

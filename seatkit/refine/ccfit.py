@@ -104,6 +104,7 @@ from seatkit.options import Option, defaults
 from seatkit.params import refiner_params
 from seatkit.refine.quality import mesh_edges
 from seatkit.side import beside
+from seatkit.stages import checkpoint
 
 __all__ = [
     "CCFIT_DEFAULTS",
@@ -921,6 +922,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
             if it >= n_iter and (best[2] <= p["max_penetration"] or since_deeper >= _DEPTH_PATIENCE):
                 break
             iterations += 1
+            checkpoint()  # seatkit serve stops here when a newer request has arrived
             # a support holds skin that faces it: a correspondence whose skin
             # normal does not oppose the surface normal (the front of a shin
             # matched to a seat below the knee) would wrap the surface around

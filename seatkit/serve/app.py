@@ -11,8 +11,8 @@ The API (docs/serve.md describes every route)::
     POST /api/design/ID/baseline      the flat-patch baseline of a design -> the report
     POST /api/design/ID/files         write the design's files -> the report with file URLs
     GET  /api/design/ID/view          the meshes the page draws
-    GET  /api/status                  the running stage, its request id and preview, the caches
-    GET  /api/preview?request=ID      what the running design has made so far (posed bodies, the template's cage)
+    GET  /api/status[?since=VERSION]  the running stage, its request id and preview, the caches (once changed)
+    GET  /api/preview?request=ID      what the running design has made so far (posed bodies, the template's cage; bodies=0: without the bodies)
     GET  /files/ID/NAME               a file the server wrote for design ID (else 404)
 
 Errors are JSON ``{"error": message, "kind": ...}``: a bad recipe, pose or
@@ -295,13 +295,16 @@ def create_app(designer: Designer) -> Starlette:
         return JSONResponse(designer.view(_design_of(request)))
 
     async def preview(request: Request):
-        answer = await run_in_threadpool(designer.preview, request.query_params.get("request", ""))
+        answer = await run_in_threadpool(designer.preview, request.query_params.get("request", ""), bodies=_flag(request, "bodies", True))
         if answer is None:
             raise HTTPException(404, "no preview of that request (not running, or nothing made yet)")
         return JSONResponse(answer)
 
     async def status(request: Request):
-        return JSONResponse({**designer.status, "caches": designer.cache_report()})
+        since = request.query_params.get("since")
+        version = None if not since else _count(since, "since", "the version of a status answer")
+        current = await designer.status_after(version)
+        return JSONResponse({**current, "caches": designer.cache_report()})
 
     async def serve_file(request: Request):
         path = designer.file_path(request.path_params["ident"], request.path_params["name"])
@@ -323,7 +326,7 @@ def create_app(designer: Designer) -> Starlette:
         Route("/api/design/{ident:str}/baseline", guarded(baseline), methods=["POST"]),
         Route("/api/design/{ident:str}/files", guarded(files), methods=["POST"]),
         Route("/api/design/{ident:str}/view", guarded(view)),
-        Route("/api/status", status),
+        Route("/api/status", guarded(status)),
         Route("/api/preview", guarded(preview)),
         Route("/files/{ident:str}/{name:str}", serve_file),
         Mount("/static", StaticFiles(directory=STATIC), name="static"),

@@ -28,10 +28,12 @@ at once).
 
 Supersession: every design request takes a sequence number. Designs run
 one at a time under a lock; a request that is no longer the newest when it
-gets the lock, or at the start of any stage of its build (the pipeline's
-``progress`` callback), stops with :class:`Superseded`, so a newer request
-never waits for a stale one to finish and a stale result is never
-returned as the newest.
+gets the lock, at the start of any stage of its build (the pipeline's
+``progress`` callback) or between the surface fit's iterations
+(:func:`seatkit.stages.checkpoint`), stops with :class:`Superseded`, so a
+newer request never waits for a stale one to finish and a stale result is
+never returned as the newest. The flat-patch baseline the page asks for
+when the sliders rest stops the same way.
 """
 
 from __future__ import annotations
@@ -73,6 +75,9 @@ MAX_REFINERS = 8
 
 #: Most names a recipe's ``pressure.exclude`` may list.
 MAX_EXCLUDE = 64
+
+#: Longest a status request with ``since`` waits for a change, s.
+STATUS_WAIT = 5.0
 
 #: The slider joints: (key, label, segment, axis, sign). The slider shows
 #: ``sign * angle`` in degrees, so that flexion is positive on both sides.
@@ -281,9 +286,10 @@ class Designer:
         self._state = threading.Lock()
         self._latest = 0
         self._designs: OrderedDict[str, Design] = OrderedDict()
-        self.status: dict = {"seq": 0, "stage": "idle", "started": None}
+        self.status: dict = {"seq": 0, "stage": "idle", "started": None, "version": 0}  # version: +1 at each change (:meth:`status_after`)
         self._observing: tuple[int, str] | None = None  # (seq, request id) of the running design
         self._preview: dict = {}
+        self._waiters: list = []  # (event loop, asyncio.Event) of the status requests waiting for a change
         self.hits = 0  # designs answered from memory
         self.max_uploads_bytes = MAX_UPLOADS_BYTES
         self.keep_designs = KEEP_DESIGNS
@@ -551,13 +557,13 @@ class Designer:
             if not report:
                 return
             same = self.status.get("seq") == seq
-            self.status = {
+            self._publish({
                 "seq": seq,
                 "request": self._observing[1] if self._observing and self._observing[0] == seq else None,
                 "stage": stage,
                 "started": self.status.get("started") if same else time.time(),
                 "preview": self._preview.get("stage") if self._preview.get("seq") == seq else None,
-            }
+            })
 
     def _observe(self, stage: str, **parts) -> None:
         """Keep what a stage of the running design made, for :meth:`preview`."""
@@ -568,9 +574,9 @@ class Designer:
             if self._preview.get("seq") != seq:
                 self._preview = {"seq": seq, "request": request}
             self._preview.update(parts, stage=stage)
-            self.status["preview"] = stage
+            self._publish({**self.status, "preview": stage})
 
-    def preview(self, request: str) -> dict | None:
+    def preview(self, request: str, *, bodies: bool = True) -> dict | None:
         """What the running (or last) design of ``request`` has made so far, as :meth:`view` draws it; None if nothing yet.
 
         After the pressure (stage ``posed``): the posed bodies, coloured by
@@ -578,6 +584,9 @@ class Designer:
         template (stage ``template``): the same bodies, the template's cage
         and its limit surface at the recipe's level. Each is made from the
         objects the running design made, when asked (a few milliseconds).
+        With ``bodies=False`` the bodies are left out (``None``): the page
+        asks so for the template's preview once it has drawn the posed
+        bodies of the same request, which are the same.
         """
         from seatkit.subdivision import limit_surface
 
@@ -585,8 +594,8 @@ class Designer:
             p = dict(self._preview)
         if not request or p.get("request") != request or "bodies" not in p:
             return None
-        bodies = [self._body_view(b, f.pressure, "importance") for b, f in zip(p["bodies"], p["pressures"])]
-        out = {"seq": p["seq"], "stage": p["stage"], "bodies": bodies, "surface": None, "cage": None}
+        views = [self._body_view(b, f.pressure, "importance") for b, f in zip(p["bodies"], p["pressures"])] if bodies else None
+        out = {"seq": p["seq"], "stage": p["stage"], "bodies": views, "surface": None, "cage": None}
         mesh = p.get("mesh")
         if mesh is not None:
             level = p.get("level", 3)
@@ -597,7 +606,41 @@ class Designer:
     def _idle(self, seq: int) -> None:
         with self._state:
             if self.status.get("seq") == seq:
-                self.status = {"seq": seq, "stage": "idle", "started": None}
+                self._publish({"seq": seq, "stage": "idle", "started": None})
+
+    def _publish(self, status: dict) -> None:
+        """Set the status (the caller holds ``_state``), one version on, and wake the requests waiting for a change."""
+        self.status = {**status, "version": self.status["version"] + 1}
+        for loop, event in self._waiters:
+            try:
+                loop.call_soon_threadsafe(event.set)
+            except RuntimeError:  # its event loop has closed: nobody is waiting there any more
+                pass
+
+    async def status_after(self, version: int | None, wait: float | None = None) -> dict:
+        """The status once its ``version`` differs from ``version`` (at once without one), or after ``wait`` seconds as it is.
+
+        The page asks for the status while a design runs: answered when
+        something changes (a stage starts, a preview is made, the design
+        ends) rather than asked again and again. ``wait`` defaults to
+        :data:`STATUS_WAIT`. A waiting request costs nothing until then: the
+        design's thread wakes it (``call_soon_threadsafe``).
+        """
+        import asyncio
+
+        waiter = (asyncio.get_running_loop(), asyncio.Event())
+        with self._state:
+            if version is None or self.status["version"] != version:
+                return self.status
+            self._waiters.append(waiter)
+        try:
+            await asyncio.wait_for(waiter[1].wait(), STATUS_WAIT if wait is None else wait)
+        except asyncio.TimeoutError:
+            pass
+        finally:
+            with self._state:
+                self._waiters.remove(waiter)
+        return self.status
 
     def design(self, recipe: dict, seq: int, request: str | None = None, *, evaluate: bool = True) -> Design:
         """Compute a design (or return it from memory): the view's part only.
@@ -615,6 +658,7 @@ class Designer:
             The build's own errors (an unsupported pose, an infeasible support).
         """
         from seatkit.pipeline import build
+        from seatkit.stages import stoppable
 
         ident = Path(recipe["output"]).name
         with self._state:
@@ -634,7 +678,8 @@ class Designer:
                 start = time.perf_counter()
                 fast = copy.deepcopy(recipe)
                 fast["evaluate"]["enabled"] = False
-                result = build(fast, pm=self._plugins, progress=lambda s: self._check(seq, s), write=False, processes=False)
+                with stoppable(lambda: self._check(seq, "its next iteration", report=False)):
+                    result = build(fast, pm=self._plugins, progress=lambda s: self._check(seq, s), write=False, processes=False)
                 designed = time.perf_counter()
                 result.recipe = recipe
                 seconds = {"design": designed - start}
@@ -708,11 +753,16 @@ class Designer:
         """Fit and evaluate the recipe's baseline (default flat-patch) for a design, once; ``None`` without one.
 
         With ``seq``, stops (:class:`Superseded`) when a newer design request
-        has arrived before it starts: the page asks for the baseline after
-        showing a design, and a newer slider move comes first.
+        has arrived, before it starts or while it runs (at the start of each
+        of its parts and between the surface fit's iterations): the page asks
+        for the baseline when the sliders rest, and a slider move made
+        meanwhile comes first, without waiting for the baseline to finish.
         """
+        from contextlib import nullcontext
+
         from seatkit.evaluate import design_segments
         from seatkit.pipeline import fit_baseline
+        from seatkit.stages import StageTimer, stoppable
 
         ev = design.recipe["evaluate"]
         if not (ev["enabled"] and ev["baseline"]):
@@ -726,7 +776,12 @@ class Designer:
                     self._check(seq, "baseline")
                 try:
                     result = design.result
-                    base = fit_baseline(design.recipe, result.bodies, result.pressures, self.registry, design_segments(result.initial_mesh))
+                    progress = (lambda s: self._check(seq, s)) if seq is not None else None
+                    stop = stoppable(lambda: self._check(seq, "the baseline's next iteration", report=False)) if seq is not None else nullcontext()
+                    with stop:
+                        base = fit_baseline(
+                            design.recipe, result.bodies, result.pressures, self.registry, design_segments(result.initial_mesh), StageTimer(progress)
+                        )
                 finally:
                     if seq is not None:
                         self._idle(seq)

@@ -26,10 +26,11 @@ window.seatkit = state; // read by the browser test
 async function api(path, options = {}) {
   const url = path + (path.includes("?") ? "&" : "?") + "errors=200";
   const response = await fetch(url, options);
+  const headers = performance.now();
   let data = null;
   try { data = await response.json(); } catch (e) { data = { error: `HTTP ${response.status}` }; }
   const status = data && data.status ? data.status : response.status;
-  return { ok: response.ok && !(data && data.status), status, data };
+  return { ok: response.ok && !(data && data.status), status, data, times: { headers, parsed: performance.now() } };
 }
 const postJSON = (path, body) => api(path, { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) });
 
@@ -63,12 +64,52 @@ function resize() {
   camera.updateProjectionMatrix();
   render();
 }
-function render() { renderer.render(scene, camera); }
+// One frame per change of the scene: while a design or a preview is put in the scene (its chair, the
+// view options, the camera framed on it), the frames asked for are drawn once, at its end. Every
+// frame asked for is drawn in full, and with software WebGL on the cores the server designs on.
+let holding = 0, held = false;
+function render() {
+  if (holding) { held = true; return; }
+  held = false;
+  renderer.render(scene, camera);
+}
+function drawOnce(change) {
+  holding++;
+  try { change(); } finally { holding--; }
+  if (!holding && held) render();
+}
 window.addEventListener("resize", resize);
 
 function decode(b64, Type) {
-  const bytes = Uint8Array.from(atob(b64), (c) => c.charCodeAt(0));
+  const text = atob(b64);
+  const bytes = new Uint8Array(text.length);
+  for (let i = 0; i < text.length; i++) bytes[i] = text.charCodeAt(i);
   return new Type(bytes.buffer);
+}
+
+// One material per kind, made once and kept for every design and preview. A material disposed
+// with its mesh takes its compiled shader program with it, and compiling it again (with software
+// WebGL: in Chromium's GPU process, on the cores the server designs on) costs more than the frame.
+const MATERIALS = {
+  body: new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.8 }),
+  chair: new THREE.MeshStandardMaterial({ color: 0x6f9fc8, roughness: 0.55, metalness: 0.0, side: THREE.DoubleSide, transparent: true }),
+  cage: new THREE.LineBasicMaterial({ color: 0x1d3b57 }),
+};
+
+// The materials as a design shows (stale: greyed, see-through, for a design that is no longer the
+// one asked for); a property the shader program depends on is changed only when it differs.
+function styleMaterials(stale) {
+  const chairOpacity = Number(document.querySelector("input[name=chair]:checked").value);
+  for (const [kind, m] of Object.entries(MATERIALS)) {
+    const transparent = stale || kind === "chair";
+    const vertexColors = kind === "body" && !stale;
+    if (m.transparent !== transparent || m.vertexColors !== vertexColors) {
+      m.transparent = transparent;
+      m.vertexColors = vertexColors;
+      m.needsUpdate = true;
+    }
+    m.opacity = stale ? 0.25 : kind === "chair" ? chairOpacity : 1;
+  }
 }
 
 // Pressure colours: grey where there is no contact, then yellow -> orange -> red -> purple up to the
@@ -85,37 +126,41 @@ function ramp(t) {
   return RAMP[RAMP.length - 1][1];
 }
 
-function showView(v) {
-  // a preview of the posed body alone keeps the previous chair until the new one is fitted
+function showView(v) { drawOnce(() => putInScene(v)); }
+function putInScene(v) {
+  // a preview of the posed body alone keeps the previous chair until the new one is fitted; the
+  // template's preview (sent without the bodies) keeps the posed bodies drawn
   for (const child of [...designGroup.children]) {
-    if (child.name === "body" || v.surface) {
-      child.geometry.dispose();
-      child.material.dispose();
+    if ((child.name === "body" && v.bodies) || (child.name !== "body" && v.surface)) {
+      child.geometry.dispose(); // the materials are kept (MATERIALS)
       designGroup.remove(child);
     }
   }
-  const pmax = Math.max(1e-9, ...v.bodies.map((b) => b.max_pressure_pa));
-  for (const b of v.bodies) {
-    const g = new THREE.BufferGeometry();
-    const pos = decode(b.positions, Float32Array);
-    const p = decode(b.pressure, Float32Array);
-    const colors = new Float32Array(pos.length);
-    for (let i = 0; i < p.length; i++) {
-      const c = p[i] > 0.5 ? ramp(Math.min(1, p[i] / pmax)) : [0.78, 0.79, 0.8];
-      colors.set(c, 3 * i);
+  if (v.bodies) {
+    const pmax = Math.max(1e-9, ...v.bodies.map((b) => b.max_pressure_pa));
+    for (const b of v.bodies) {
+      const g = new THREE.BufferGeometry();
+      const pos = decode(b.positions, Float32Array);
+      const p = decode(b.pressure, Float32Array);
+      const colors = new Float32Array(pos.length);
+      for (let i = 0; i < p.length; i++) {
+        const c = p[i] > 0.5 ? ramp(Math.min(1, p[i] / pmax)) : [0.78, 0.79, 0.8];
+        colors.set(c, 3 * i);
+      }
+      g.setAttribute("position", new THREE.BufferAttribute(pos, 3));
+      g.setAttribute("color", new THREE.BufferAttribute(colors, 3));
+      g.setIndex(new THREE.BufferAttribute(decode(b.faces, Uint32Array), 1));
+      g.computeVertexNormals();
+      const mesh = new THREE.Mesh(g, MATERIALS.body);
+      mesh.name = "body";
+      designGroup.add(mesh);
     }
-    g.setAttribute("position", new THREE.BufferAttribute(pos, 3));
-    g.setAttribute("color", new THREE.BufferAttribute(colors, 3));
-    g.setIndex(new THREE.BufferAttribute(decode(b.faces, Uint32Array), 1));
-    g.computeVertexNormals();
-    const mesh = new THREE.Mesh(g, new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.8 }));
-    mesh.name = "body";
-    designGroup.add(mesh);
+    $("legend-max").textContent = (pmax / 1000).toFixed(1);
+    $("legend-title").textContent = v.bodies[0].pressure_kind === "contact"
+      ? "relative importance on the designed surface (paper's model), kPa" : "relative importance, supported everywhere (paper's model), kPa";
   }
   if (v.surface) addChair(v);
-  $("legend-max").textContent = (pmax / 1000).toFixed(1);
-  $("legend-title").textContent = v.bodies[0].pressure_kind === "contact"
-    ? "relative importance on the designed surface (paper's model), kPa" : "relative importance, supported everywhere (paper's model), kPa";
+  styleMaterials(false);
   if (v.bounds) reframe(v.bounds);
   render();
 }
@@ -139,10 +184,12 @@ function reframe(bounds) {
 function lookFrom(direction) {
   if (!state.frame) return;
   const { centre, size } = state.frame;
-  controls.target.copy(centre);
-  camera.position.copy(centre).add(new THREE.Vector3(...direction).normalize().multiplyScalar(size * 1.5));
-  controls.update();
-  render();
+  drawOnce(() => {
+    controls.target.copy(centre);
+    camera.position.copy(centre).add(new THREE.Vector3(...direction).normalize().multiplyScalar(size * 1.5));
+    controls.update();
+    render();
+  });
 }
 for (const b of document.querySelectorAll("#view-options button")) b.addEventListener("click", () => lookFrom(b.dataset.view.split(",").map(Number)));
 
@@ -151,13 +198,13 @@ function addChair(v) {
   s.setAttribute("position", new THREE.BufferAttribute(decode(v.surface.positions, Float32Array), 3));
   s.setAttribute("normal", new THREE.BufferAttribute(decode(v.surface.normals, Float32Array), 3));
   s.setIndex(new THREE.BufferAttribute(decode(v.surface.faces, Uint32Array), 1));
-  const chair = new THREE.Mesh(s, new THREE.MeshStandardMaterial({ color: 0x6f9fc8, roughness: 0.55, metalness: 0.0, side: THREE.DoubleSide, transparent: true }));
+  const chair = new THREE.Mesh(s, MATERIALS.chair);
   chair.name = "chair";
   designGroup.add(chair);
   const c = new THREE.BufferGeometry();
   c.setAttribute("position", new THREE.BufferAttribute(decode(v.cage.positions, Float32Array), 3));
   c.setIndex(new THREE.BufferAttribute(decode(v.cage.edges, Uint32Array), 1));
-  const cage = new THREE.LineSegments(c, new THREE.LineBasicMaterial({ color: 0x1d3b57 }));
+  const cage = new THREE.LineSegments(c, MATERIALS.cage);
   cage.name = "cage";
   designGroup.add(cage);
   applyViewOptions();
@@ -180,35 +227,55 @@ for (const input of document.querySelectorAll("#view-options input")) input.addE
 // ------------------------------------------------------------------ progress
 const STAGES = ["check", "bodies", "pressure", "template", "refine:optimize", "refine:catmull-clark-fit", "surface", "evaluate"];
 let polling = null;
+let progressShown = "";
+// The progress box sits over the 3D view: each change of it is a new frame of the page. It is
+// changed only when what it says changes, and without an animation (a frame for every step).
 function setProgress(text, fraction, cls = "") {
+  const key = `${cls}|${text}|${Math.round(100 * fraction)}`;
+  if (key === progressShown) return;
+  progressShown = key;
   $("progress").className = cls;
   $("progress-text").textContent = text;
-  $("progress-bar").style.width = `${Math.round(100 * fraction)}%`;
+  $("progress-bar").style.transform = `scaleX(${Math.min(1, Math.max(0, fraction)).toFixed(2)})`;
 }
-// While a design runs, the page polls the status; when the design has made something new
-// (the posed body, then the template's cage) it draws that preview, labelled, until the
-// finished design replaces it. Only the newest request's previews are drawn, and never
-// after its finished design.
+// While a design runs, the page asks for the status, which the server answers when it changes (a
+// stage starts, a preview is made: GET /api/status?since=VERSION), and shows the stage; when the
+// design has made something new (the posed body, then the template's cage) it draws that preview,
+// labelled, until the finished design replaces it. Only the newest request's previews are drawn,
+// and never after its finished design: the design's answer ends the polling and cancels a status
+// or preview request still on its way.
 const PREVIEW_LABEL = { posed: "new pose (pressure supported everywhere)", template: "template cage; refining" };
 function startPolling(label, request, seq) {
   stopPolling();
   const t0 = performance.now();
-  let drawn = null, fetching = false;
+  const ticket = new AbortController();
+  polling = ticket;
+  const live = () => polling === ticket;
   setProgress(`${label}: sending`, 0.02, "running");
-  const timer = setInterval(async () => {
-    const r = await api("/api/status");
-    if (polling !== timer || !r.ok) return;
-    const stage = r.data.stage;
-    if (stage === "idle") return;
-    const i = STAGES.indexOf(stage);
-    const secs = ((performance.now() - t0) / 1000).toFixed(1);
-    setProgress(`${label}: ${stage} (${secs} s)`, i < 0 ? 0.5 : (i + 1) / (STAGES.length + 1), "running");
-    const preview = r.data.preview;
-    if (r.data.request === request && preview && preview !== drawn && !fetching) {
-      fetching = true;
-      const p = await api(`/api/preview?request=${encodeURIComponent(request)}`);
-      fetching = false;
-      if (polling !== timer || seq !== state.clientSeq || state.shownSeq === seq || !p.ok) return;
+  (async () => {
+    let version = "", drawn = null;
+    while (live()) {
+      let r;
+      try {
+        r = await api(`/api/status?since=${version}`, { signal: ticket.signal });
+      } catch (e) { return; } // cancelled: the design's answer is in
+      if (!live()) return;
+      if (!r.ok) { await new Promise((done) => setTimeout(done, 250)); continue; }
+      version = r.data.version;
+      const stage = r.data.stage;
+      if (stage === "idle" || r.data.request !== request) continue;
+      const i = STAGES.indexOf(stage);
+      const secs = ((performance.now() - t0) / 1000).toFixed(1);
+      setProgress(`${label}: ${stage} (${secs} s)`, i < 0 ? 0.5 : (i + 1) / (STAGES.length + 1), "running");
+      const preview = r.data.preview;
+      if (!preview || preview === drawn) continue;
+      // the body is sent once: the template's preview of the same request adds its cage and surface
+      const only = drawn ? "&bodies=0" : "";
+      let p;
+      try {
+        p = await api(`/api/preview?request=${encodeURIComponent(request)}${only}`, { signal: ticket.signal });
+      } catch (e) { return; }
+      if (!live() || seq !== state.clientSeq || state.shownSeq === seq || !p.ok) continue;
       drawn = p.data.stage;
       const drawStart = performance.now();
       showView(p.data);
@@ -217,10 +284,9 @@ function startPolling(label, request, seq) {
       state.lastPreview = { seq, stage: p.data.stage, seconds: (performance.now() - t0) / 1000 };
       setProgress(`${PREVIEW_LABEL[p.data.stage] || p.data.stage} (${state.lastPreview.seconds.toFixed(1)} s)`, (i + 1) / (STAGES.length + 1), "running");
     }
-  }, 100);
-  polling = timer;
+  })();
 }
-function stopPolling() { if (polling) clearInterval(polling); polling = null; }
+function stopPolling() { if (polling) polling.abort(); polling = null; }
 
 // ------------------------------------------------------------------ controls
 function option(select, value, text) {
@@ -428,14 +494,7 @@ async function loadPose() {
 function markStale(stale) {
   state.stale = stale;
   document.body.classList.toggle("stale", stale);
-  for (const child of designGroup.children) {
-    if (child.material) {
-      child.material.transparent = true;
-      child.material.opacity = stale ? 0.25 : (child.name === "chair" ? Number(document.querySelector("input[name=chair]:checked").value) : 1);
-      if (child.name === "body") child.material.vertexColors = !stale;
-      child.material.needsUpdate = true;
-    }
-  }
+  styleMaterials(stale);
   if (!stale) applyViewOptions();
   showDesignOf();
   render();
@@ -601,12 +660,18 @@ async function requestDesign() {
   const r = await api("/api/design?files=0&baseline=0&evaluate=0&view=1", { method: "POST", headers: { "Content-Type": "application/json", "X-Request-Id": request }, body: JSON.stringify(recipe) });
   if (seq !== state.clientSeq) return; // a newer request was made: never show a stale design
   stopPolling();
-  if (r.status === 409) return;
+  if (r.status === 409) {
+    // this page's newest request, superseded on the server by an earlier one of this page that
+    // reached it later (the server numbers requests as they arrive): asked again, it is the newest
+    requestDesign();
+    return;
+  }
   if (!r.ok) {
     showError(r.data.error, r.data.kind === "unsupported");
     return;
   }
   state.lastAnswer = (performance.now() - started) / 1000; // the design's answer parsed, before drawing it (no WebGL in it)
+  state.lastAnswerTimes = { started, headers: r.times.headers, parsed: r.times.parsed }; // page clock (ms), for the benchmark
   $("refusal").hidden = true;
   state.design = r.data;
   state.shownSeq = seq;
