@@ -59,7 +59,13 @@ def main() -> None:
     def logged_fit(mesh, bodies, pressures, params, *, guard=False, start_from=None):
         start = time.process_time()
         out = fit_once(mesh, bodies, pressures, params, guard=guard, start_from=start_from)
-        fits.append({"kind": "fit", "guard": guard, "from_fit": start_from is not None, "iterations": out.meta["catmull-clark-fit"]["iterations"], "cpu_s": time.process_time() - start})
+        report = out.meta["catmull-clark-fit"]
+        final = report.get("final_depth") or {}
+        fits.append({
+            "kind": "fit", "guard": guard, "from_fit": start_from is not None, "iterations": report["iterations"], "cpu_s": time.process_time() - start,
+            "depth_m": max(final.values()) if final else None, "probe_depth_m": report["after"]["max_penetration"],
+            "depth_history_m": [round(d, 5) for d in report.get("depth_history", ())],
+        })
         return out
 
     def logged_push(mesh, bodies):
@@ -79,7 +85,7 @@ def main() -> None:
             start = time.process_time()
             try:
                 r = build({"template": "chair", "seed": 0, "bodies": [{"model": body, "pose": str(path)}]}, write=False, processes=False)
-                row = {"built": True, "search": r.control_mesh.meta["search"]["winner"]}
+                row = {"built": True, "search": r.control_mesh.meta["search"]["winner"], "candidates": r.control_mesh.meta["search"]["candidates"]}
             except SeatkitError as e:
                 row = {"built": False, "reason": str(e)}
             row.update(case=case, cpu_s=time.process_time() - start, starts=list(log), fits=list(fits))

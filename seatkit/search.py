@@ -49,6 +49,7 @@ class Origin(enum.Enum):
 
     START = "start"  #: one of the template's starts, in its order (``fits``)
     PUSHED_OUT = "pushed-out"  #: a rejected design with its spots over the limit pushed away from the body
+    WALLS_INSIDE = "walls-inside"  #: the template's rejected first cage, walls inside the hands it encloses
     WALLS_AGAINST = "walls-against"  #: a rejected design's start again, walls inside the hands its surface encloses
     LAST_RESORT = "last-resort"  #: the template's last-resort cages
 
@@ -100,6 +101,7 @@ class Source:
 #: design search", gives what each earns on the drawn-pose benchmark.
 BUDGETS: dict[Origin, int] = {
     Origin.START: 3,
+    Origin.WALLS_INSIDE: 1,
     Origin.PUSHED_OUT: 2,
     Origin.WALLS_AGAINST: 2,
     Origin.LAST_RESORT: 2,
@@ -193,10 +195,30 @@ def bind(template, bodies, pressures, *, params, seed, first: Iterator[ControlMe
     """
     walls = isinstance(template, OffersWallsAgainst)
     last = isinstance(template, OffersLastResort)
+    cages = _until_refused(first)
+    taken: list[ControlMesh] = []  # a start's cage the walls-inside source took from ``cages``: the start source's next
 
     def starts(tried):
-        for cage in _until_refused(first):
-            yield Candidate(cage, Origin.START, _start(cage))
+        while True:
+            cage = taken.pop() if taken else next(cages, None)
+            if cage is None:
+                return
+            yield Candidate(cage, Origin.WALLS_INSIDE if _walled(cage) else Origin.START, _start(cage))
+
+    def walls_inside(tried):
+        # the template offers its first cage with walls inside the hands it encloses as its next cage
+        # (OffersStarts.fits); asked once that first cage is rejected, only when it says it encloses a hand
+        while not tried:
+            yield None  # the first cage is not refined yet (the search stops once one is accepted)
+        if tried[0].candidate.origin is not Origin.START or not tried[0].candidate.cage.meta.get("fit_attempts", {}).get("encloses_hands"):
+            return
+        cage = next(cages, None)
+        if cage is None:
+            return
+        if not _walled(cage):
+            taken.append(cage)  # walls did not help: the next start's cage, kept for the start source
+            return
+        yield Candidate(cage, Origin.WALLS_INSIDE, _start(cage))
 
     def pushed_out(tried):
         from seatkit.refine.ccfit import push_out
@@ -238,14 +260,16 @@ def bind(template, bodies, pressures, *, params, seed, first: Iterator[ControlMe
             for cage in _until_refused(template.last_resort_fits(bodies, pressures, params=params, seed=seed)):
                 yield Candidate(cage, Origin.LAST_RESORT, _start(cage))
 
-    offers = {Origin.START: starts, Origin.PUSHED_OUT: pushed_out, Origin.WALLS_AGAINST: walls_against, Origin.LAST_RESORT: last_resort}
+    offers = {Origin.START: starts, Origin.PUSHED_OUT: pushed_out, Origin.WALLS_INSIDE: walls_inside, Origin.WALLS_AGAINST: walls_against, Origin.LAST_RESORT: last_resort}
     return tuple(Source(origin, budget, offers[origin]) for origin, budget in BUDGETS.items())
 
 
 SOURCES = tuple(BUDGETS)
 
+#: The template's own cages: its starts and its first cage with walls inside the hands it encloses.
+_STARTS = (Origin.START, Origin.WALLS_INSIDE)
 #: The rejected designs a push-out answers: the template's own cages and those walled against a rejected surface, not a rescue of a rescue.
-_PUSHABLE = (Origin.START, Origin.WALLS_AGAINST)
+_PUSHABLE = (*_STARTS, Origin.WALLS_AGAINST)
 
 
 def search(sources: Sequence[Source], refine: Callable[[ControlMesh], ControlMesh], bodies, *, fit_last: bool = True, stage=None) -> Outcome:
@@ -311,6 +335,11 @@ def _fit_depths(refined: ControlMesh | None) -> list[float]:
 def _same_cage(a: ControlMesh, b: ControlMesh) -> bool:
     """``a`` and ``b`` are the same cage: the same faces and control points, bit for bit (the refiners are deterministic)."""
     return a.vertices.shape == b.vertices.shape and np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+
+
+def _walled(cage: ControlMesh) -> bool:
+    """``cage`` is a template start's cage with walls inside the hands that start's cage enclosed (the YAML engine's ``fit_attempts.walls_inside``)."""
+    return bool(cage.meta.get("fit_attempts", {}).get("walls_inside"))
 
 
 def _start(cage: ControlMesh) -> int:

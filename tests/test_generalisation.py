@@ -583,7 +583,7 @@ def test_a_hard_drawn_pose_gets_a_chair_that_holds_it(tmp_path, family, index, b
     for key in wins:
         assert ours[key] < flat[key], key
     search = r.control_mesh.meta["search"]
-    assert search["winner"]["origin"] in {"start", "pushed-out", "walls-against", "last-resort"}
+    assert search["winner"]["origin"] in {"start", "walls-inside", "pushed-out", "walls-against", "last-resort"}
     assert all(c["reason"] for c in search["candidates"][: search["winner"]["candidate"] - 1])
 
 
