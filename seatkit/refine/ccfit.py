@@ -75,7 +75,8 @@ deeper than ``surface_limit`` (5 mm), it is refitted with a tighter probe
 target (and, when a body vertex lies too deep inside the furniture, with
 every body vertex guarded: one the fit does not pull to, a hand hanging
 under the edge of the seat, pushes the surface back past it like a probe
-inside the body; such a refit starts from the fit it answers). The fit returns the refit closest to the limit and
+inside the body; such a refit starts from the fit it answers; a fit caught
+in the body from its approach on is not refitted). The fit returns the refit closest to the limit and
 judges nothing: the 5 mm guarantee is the design search's acceptance
 check (:mod:`seatkit.search`), which also offers :func:`push_out` (the
 offending spots' control points pushed away from the body, without the
@@ -467,7 +468,8 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     first repeat the approach to the body, about half its iterations, with
     every guarded vertex tested on the way. A refit from the closest fit
     that comes no closer is followed by one from the cage; any other refit
-    starts from the cage.
+    starts from the cage. No refit follows a fit caught in the body from
+    its approach on (:func:`_caught_throughout`).
 
     Returns the first fit within the limit, else the one closest to it:
     the fit judges nothing. Its ``meta["catmull-clark-fit"]["final_depth"]``

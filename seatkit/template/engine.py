@@ -178,7 +178,9 @@ class YamlTemplate:
         cage is :meth:`fit`'s; the design search asks for the next only when
         the one before is rejected (:mod:`seatkit.search`). When the first cage encloses a hand, the next is the same
         cage with walls inside the hand, if that one is valid and encloses
-        less (docs/templates.md, "Walls inside the hands"). Raises the
+        less (docs/templates.md, "Walls inside the hands"); the first cage's
+        ``meta["fit_attempts"]["encloses_hands"]`` says whether it encloses
+        one the steps could wall. Raises the
         first start's refusal when no start gives a valid cage, and a
         refusal of the pose rule at once.
 
