@@ -101,8 +101,8 @@ class Source:
 #: design search", gives what each earns on the drawn-pose benchmark.
 BUDGETS: dict[Origin, int] = {
     Origin.START: 3,
-    Origin.WALLS_INSIDE: 1,
     Origin.PUSHED_OUT: 2,
+    Origin.WALLS_INSIDE: 1,
     Origin.WALLS_AGAINST: 2,
     Origin.LAST_RESORT: 2,
 }

@@ -116,8 +116,8 @@ def test_each_source_refines_at_most_its_budget_and_a_refused_search_says_why_in
 
 
 def test_the_sources_take_turns_in_their_declared_order():
-    """Each round asks every source for one candidate: a start, the first cage with walls inside its hands, a rejected design pushed out, walls against a rejected start, a last-resort cage."""
-    assert list(BUDGETS) == [Origin.START, Origin.WALLS_INSIDE, Origin.PUSHED_OUT, Origin.WALLS_AGAINST, Origin.LAST_RESORT]
+    """Each round asks every source for one candidate: a start, a rejected design pushed out, the first cage with walls inside its hands, walls against a rejected start, a last-resort cage."""
+    assert list(BUDGETS) == [Origin.START, Origin.PUSHED_OUT, Origin.WALLS_INSIDE, Origin.WALLS_AGAINST, Origin.LAST_RESORT]
     asked = []
 
     def walls(cage):
@@ -140,7 +140,7 @@ def test_the_sources_take_turns_in_their_declared_order():
 
 
 def test_a_first_cage_enclosing_a_hand_is_answered_by_its_walled_cage_before_other_starts_and_last_resort_cages():
-    """The template's first cage with walls inside the hands it encloses comes in the first round, before a push-out, walls against it and the last-resort cages."""
+    """The template's first cage with walls inside the hands it encloses comes in the first round, after a push-out, before walls against it and the last-resort cages."""
     fit = _Fit()
     last = lambda: [_Cage("z", 1.0, {"fit_attempts": {"attempt": 1}})]  # noqa: E731
     outcome = _search(_Template([("a", 9.0), ("b", 1.0)], walls=lambda cage: _Cage(cage.name + "+walls", 1.0), last=last, walled=("a|", 2.0)), fit)
