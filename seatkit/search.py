@@ -266,6 +266,8 @@ def bind(template, bodies, pressures, *, params, seed, first: Iterator[ControlMe
 
 SOURCES = tuple(BUDGETS)
 
+#: The sources asked right after each rejected candidate, not in their turn: repairs of a rejected design, which run no refiner.
+_REPAIRS = (Origin.PUSHED_OUT,)
 #: The template's own cages: its starts and its first cage with walls inside the hands it encloses.
 _STARTS = (Origin.START, Origin.WALLS_INSIDE)
 #: The rejected designs a push-out answers: the template's own cages and those walled against a rejected surface, not a rescue of a rescue.
@@ -277,8 +279,10 @@ def search(sources: Sequence[Source], refine: Callable[[ControlMesh], ControlMes
 
     A round asks every source with budget left for one candidate; a source
     may have none this round (``None``: nothing to derive from yet) or be
-    spent (its iterator ends). The search ends at the first accepted
-    candidate, or after a round that refined nothing.
+    spent (its iterator ends). A repair source (the push-out) is not asked
+    in its turn but right after each rejected candidate, until it offers
+    nothing or one of its designs is rejected too. The search ends at the
+    first accepted candidate, or after a round that refined nothing.
 
     ``refine`` runs the build's refiners on a cage (raising
     :class:`~seatkit.errors.SolverError` when one refuses it: a rejection
@@ -296,32 +300,46 @@ def search(sources: Sequence[Source], refine: Callable[[ControlMesh], ControlMes
     outcome = Outcome()
     offered = [source.offer(outcome.tried) for source in sources]
     left = [source.budget for source in sources]
+    repairs = [k for k, source in enumerate(sources) if source.origin in _REPAIRS]
+
+    def ask(k) -> bool | None:
+        """One candidate of source ``k`` refined and judged: its verdict (True: accepted), None when it had none."""
+        with stage("refine:push-out" if sources[k].origin is Origin.PUSHED_OUT else "template"):
+            candidate = next(offered[k], False)
+        if candidate is False:
+            left[k] = 0  # the source is spent
+        if not candidate:
+            return None  # nothing from this source now
+        if candidate.refined is None and any(_same_cage(candidate.cage, t.candidate.cage) for t in outcome.tried if t.candidate.refined is None):
+            return None  # a cage refined already (two sources derive it alike): its verdict would be the same
+        left[k] -= 1
+        refined, verdict = candidate.refined, None
+        if refined is None:
+            try:
+                refined = refine(candidate.cage)
+            except SolverError as e:
+                refined, verdict = None, Verdict(False, str(e))
+        verdict = verdict or judge(refined, bodies, measured=fit_last or candidate.refined is not None)
+        outcome.tried.append(Tried(candidate, refined, verdict))
+        if verdict.accepted:
+            outcome.winner = len(outcome.tried) - 1
+        return verdict.accepted
+
     while True:
         progressed = False
-        for k, source in enumerate(sources):  # one round: one candidate of each source, in order
-            if left[k] <= 0:
+        for k in range(len(sources)):  # one round: one candidate of each source, in order
+            if left[k] <= 0 or k in repairs:
                 continue
-            with stage("refine:push-out" if source.origin is Origin.PUSHED_OUT else "template"):
-                candidate = next(offered[k], False)
-            if candidate is False:
-                left[k] = 0  # the source is spent
-            if not candidate:
-                continue  # nothing from this source in this round
-            if candidate.refined is None and any(_same_cage(candidate.cage, t.candidate.cage) for t in outcome.tried if t.candidate.refined is None):
-                continue  # a cage refined already (two sources derive it alike): its verdict would be the same
-            left[k] -= 1
-            progressed = True
-            refined, verdict = candidate.refined, None
-            if refined is None:
-                try:
-                    refined = refine(candidate.cage)
-                except SolverError as e:
-                    refined, verdict = None, Verdict(False, str(e))
-            verdict = verdict or judge(refined, bodies, measured=fit_last or candidate.refined is not None)
-            outcome.tried.append(Tried(candidate, refined, verdict))
-            if verdict.accepted:
-                outcome.winner = len(outcome.tried) - 1
+            verdict = ask(k)
+            progressed = progressed or verdict is not None
+            if verdict:
                 return outcome
+            # a repair answers each rejection at once, before the next source is asked
+            for r in repairs:
+                while verdict is False and left[r] > 0:
+                    verdict = ask(r)
+                    if verdict:
+                        return outcome
         if not progressed:
             return outcome
 
