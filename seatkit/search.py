@@ -17,7 +17,8 @@ check judges the fitted cage. This module is that search, whole:
   the furniture, is a rejection with its depths, as is a refiner's
   :class:`~seatkit.errors.SolverError` (its message is the reason);
 - :func:`search` is the loop: candidates are refined and judged in the
-  sources' order until one is accepted or every budget is spent;
+  sources' order until one is accepted or every budget is spent, a repair
+  (the push-out) asked right after each rejection;
 - :class:`Outcome` is what it found, and :meth:`Outcome.report` the
   ``search`` section of report.json: the winner's origin and every
   rejected candidate's reason.

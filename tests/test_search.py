@@ -158,6 +158,23 @@ def test_when_walls_do_not_help_the_next_start_is_kept_for_its_turn():
     assert [t.candidate.origin for t in outcome.tried] == [Origin.START, Origin.LAST_RESORT, Origin.START, Origin.START]
 
 
+def test_a_push_out_answers_each_rejected_design_before_the_next_source(monkeypatch):
+    """The first cage's push-out fails, its walled cage is rejected and pushed out within the limit: the design, before any last-resort cage."""
+    pushed = []
+
+    def push_out(mesh, bodies):
+        pushed.append(mesh.name)
+        return _fitted(dataclasses.replace(mesh, name=mesh.name + "+pushed"), 4.0) if mesh.name == "a|+fit" else None
+
+    monkeypatch.setattr("seatkit.refine.ccfit.push_out", push_out)
+    fit = _Fit()
+    last = lambda: [_Cage("z", 1.0, {"fit_attempts": {"attempt": 1}})]  # noqa: E731
+    outcome = _search(_Template([("a", 9.0), ("b", 1.0)], last=last, walled=("a|", 7.0)), fit)
+    cage, refined = outcome.design()
+    assert pushed == ["a+fit", "a|+fit"] and fit.seen == ["a", "a|"]
+    assert refined.name == "a|+fit+pushed+fit" and refined.meta["search"]["winner"] == {"origin": "pushed-out", "start": 1, "candidate": 3}
+
+
 def test_a_cage_two_sources_derive_alike_is_refined_once():
     """Walls against two rejected starts can be one cage: the second is not refined again, and not counted against the budget."""
     fit = _Fit()
