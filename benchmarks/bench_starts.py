@@ -5,7 +5,8 @@ generalisation benchmark draws them) it runs the full default build (seed
 0) and logs every start the chair template runs, the search's ordinary
 starts and its last-resort ones: whether it gave a valid cage, the
 template's refusal, and its CPU time; and every surface fit (the first
-fit and its refits, guarded or not) and push-out, with their CPU time (the
+fit and its refits, guarded or not, with their depths and each iterate's)
+and push-out, with their CPU time (the
 baseline's fit, the flat patch's, is one of them). Prints one line per case and, with
 ``--results``, writes every start as JSON lines. docs/templates.md, "What a
 rejected candidate costs", gives what it measured:
