@@ -5,7 +5,8 @@ generalisation benchmark draws them) it runs the full default build (seed
 0) and logs every start the chair template runs, the search's ordinary
 starts and its last-resort ones: whether it gave a valid cage, the
 template's refusal, and its CPU time; and every surface fit (the first
-fit and its refits, guarded or not) and push-out, with their CPU time (the
+fit and its refits, guarded or not, with their depths and each iterate's)
+and push-out, with their CPU time (the
 baseline's fit, the flat patch's, is one of them). Prints one line per case and, with
 ``--results``, writes every start as JSON lines. docs/templates.md, "What a
 rejected candidate costs", gives what it measured:
@@ -59,7 +60,13 @@ def main() -> None:
     def logged_fit(mesh, bodies, pressures, params, *, guard=False, start_from=None):
         start = time.process_time()
         out = fit_once(mesh, bodies, pressures, params, guard=guard, start_from=start_from)
-        fits.append({"kind": "fit", "guard": guard, "from_fit": start_from is not None, "iterations": out.meta["catmull-clark-fit"]["iterations"], "cpu_s": time.process_time() - start})
+        report = out.meta["catmull-clark-fit"]
+        final = report.get("final_depth") or {}
+        fits.append({
+            "kind": "fit", "guard": guard, "from_fit": start_from is not None, "iterations": report["iterations"], "cpu_s": time.process_time() - start,
+            "depth_m": max(final.values()) if final else None, "probe_depth_m": report["after"]["max_penetration"],
+            "depth_history_m": [round(d, 5) for d in report.get("depth_history", ())],
+        })
         return out
 
     def logged_push(mesh, bodies):
@@ -79,7 +86,7 @@ def main() -> None:
             start = time.process_time()
             try:
                 r = build({"template": "chair", "seed": 0, "bodies": [{"model": body, "pose": str(path)}]}, write=False, processes=False)
-                row = {"built": True, "search": r.control_mesh.meta["search"]["winner"]}
+                row = {"built": True, "search": r.control_mesh.meta["search"]["winner"], "candidates": r.control_mesh.meta["search"]["candidates"]}
             except SeatkitError as e:
                 row = {"built": False, "reason": str(e)}
             row.update(case=case, cpu_s=time.process_time() - start, starts=list(log), fits=list(fits))

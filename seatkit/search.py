@@ -17,7 +17,8 @@ check judges the fitted cage. This module is that search, whole:
   the furniture, is a rejection with its depths, as is a refiner's
   :class:`~seatkit.errors.SolverError` (its message is the reason);
 - :func:`search` is the loop: candidates are refined and judged in the
-  sources' order until one is accepted or every budget is spent;
+  sources' order until one is accepted or every budget is spent, a repair
+  (the push-out) asked right after each rejection;
 - :class:`Outcome` is what it found, and :meth:`Outcome.report` the
   ``search`` section of report.json: the winner's origin and every
   rejected candidate's reason.
@@ -49,6 +50,7 @@ class Origin(enum.Enum):
 
     START = "start"  #: one of the template's starts, in its order (``fits``)
     PUSHED_OUT = "pushed-out"  #: a rejected design with its spots over the limit pushed away from the body
+    WALLS_INSIDE = "walls-inside"  #: the template's rejected first cage, walls inside the hands it encloses
     WALLS_AGAINST = "walls-against"  #: a rejected design's start again, walls inside the hands its surface encloses
     LAST_RESORT = "last-resort"  #: the template's last-resort cages
 
@@ -101,6 +103,7 @@ class Source:
 BUDGETS: dict[Origin, int] = {
     Origin.START: 3,
     Origin.PUSHED_OUT: 2,
+    Origin.WALLS_INSIDE: 1,
     Origin.WALLS_AGAINST: 2,
     Origin.LAST_RESORT: 2,
 }
@@ -193,10 +196,30 @@ def bind(template, bodies, pressures, *, params, seed, first: Iterator[ControlMe
     """
     walls = isinstance(template, OffersWallsAgainst)
     last = isinstance(template, OffersLastResort)
+    cages = _until_refused(first)
+    taken: list[ControlMesh] = []  # a start's cage the walls-inside source took from ``cages``: the start source's next
 
     def starts(tried):
-        for cage in _until_refused(first):
-            yield Candidate(cage, Origin.START, _start(cage))
+        while True:
+            cage = taken.pop() if taken else next(cages, None)
+            if cage is None:
+                return
+            yield Candidate(cage, Origin.WALLS_INSIDE if _walled(cage) else Origin.START, _start(cage))
+
+    def walls_inside(tried):
+        # the template offers its first cage with walls inside the hands it encloses as its next cage
+        # (OffersStarts.fits); asked once that first cage is rejected, only when it says it encloses a hand
+        while not tried:
+            yield None  # the first cage is not refined yet (the search stops once one is accepted)
+        if tried[0].candidate.origin is not Origin.START or not tried[0].candidate.cage.meta.get("fit_attempts", {}).get("encloses_hands"):
+            return
+        cage = next(cages, None)
+        if cage is None:
+            return
+        if not _walled(cage):
+            taken.append(cage)  # walls did not help: the next start's cage, kept for the start source
+            return
+        yield Candidate(cage, Origin.WALLS_INSIDE, _start(cage))
 
     def pushed_out(tried):
         from seatkit.refine.ccfit import push_out
@@ -238,14 +261,18 @@ def bind(template, bodies, pressures, *, params, seed, first: Iterator[ControlMe
             for cage in _until_refused(template.last_resort_fits(bodies, pressures, params=params, seed=seed)):
                 yield Candidate(cage, Origin.LAST_RESORT, _start(cage))
 
-    offers = {Origin.START: starts, Origin.PUSHED_OUT: pushed_out, Origin.WALLS_AGAINST: walls_against, Origin.LAST_RESORT: last_resort}
+    offers = {Origin.START: starts, Origin.PUSHED_OUT: pushed_out, Origin.WALLS_INSIDE: walls_inside, Origin.WALLS_AGAINST: walls_against, Origin.LAST_RESORT: last_resort}
     return tuple(Source(origin, budget, offers[origin]) for origin, budget in BUDGETS.items())
 
 
 SOURCES = tuple(BUDGETS)
 
+#: The sources asked right after each rejected candidate, not in their turn: repairs of a rejected design, which run no refiner.
+_REPAIRS = (Origin.PUSHED_OUT,)
+#: The template's own cages: its starts and its first cage with walls inside the hands it encloses.
+_STARTS = (Origin.START, Origin.WALLS_INSIDE)
 #: The rejected designs a push-out answers: the template's own cages and those walled against a rejected surface, not a rescue of a rescue.
-_PUSHABLE = (Origin.START, Origin.WALLS_AGAINST)
+_PUSHABLE = (*_STARTS, Origin.WALLS_AGAINST)
 
 
 def search(sources: Sequence[Source], refine: Callable[[ControlMesh], ControlMesh], bodies, *, fit_last: bool = True, stage=None) -> Outcome:
@@ -253,8 +280,10 @@ def search(sources: Sequence[Source], refine: Callable[[ControlMesh], ControlMes
 
     A round asks every source with budget left for one candidate; a source
     may have none this round (``None``: nothing to derive from yet) or be
-    spent (its iterator ends). The search ends at the first accepted
-    candidate, or after a round that refined nothing.
+    spent (its iterator ends). A repair source (the push-out) is not asked
+    in its turn but right after each rejected candidate, until it offers
+    nothing or one of its designs is rejected too. The search ends at the
+    first accepted candidate, or after a round that refined nothing.
 
     ``refine`` runs the build's refiners on a cage (raising
     :class:`~seatkit.errors.SolverError` when one refuses it: a rejection
@@ -272,32 +301,46 @@ def search(sources: Sequence[Source], refine: Callable[[ControlMesh], ControlMes
     outcome = Outcome()
     offered = [source.offer(outcome.tried) for source in sources]
     left = [source.budget for source in sources]
+    repairs = [k for k, source in enumerate(sources) if source.origin in _REPAIRS]
+
+    def ask(k) -> bool | None:
+        """One candidate of source ``k`` refined and judged: its verdict (True: accepted), None when it had none."""
+        with stage("refine:push-out" if sources[k].origin is Origin.PUSHED_OUT else "template"):
+            candidate = next(offered[k], False)
+        if candidate is False:
+            left[k] = 0  # the source is spent
+        if not candidate:
+            return None  # nothing from this source now
+        if candidate.refined is None and any(_same_cage(candidate.cage, t.candidate.cage) for t in outcome.tried if t.candidate.refined is None):
+            return None  # a cage refined already (two sources derive it alike): its verdict would be the same
+        left[k] -= 1
+        refined, verdict = candidate.refined, None
+        if refined is None:
+            try:
+                refined = refine(candidate.cage)
+            except SolverError as e:
+                refined, verdict = None, Verdict(False, str(e))
+        verdict = verdict or judge(refined, bodies, measured=fit_last or candidate.refined is not None)
+        outcome.tried.append(Tried(candidate, refined, verdict))
+        if verdict.accepted:
+            outcome.winner = len(outcome.tried) - 1
+        return verdict.accepted
+
     while True:
         progressed = False
-        for k, source in enumerate(sources):  # one round: one candidate of each source, in order
-            if left[k] <= 0:
+        for k in range(len(sources)):  # one round: one candidate of each source, in order
+            if left[k] <= 0 or k in repairs:
                 continue
-            with stage("refine:push-out" if source.origin is Origin.PUSHED_OUT else "template"):
-                candidate = next(offered[k], False)
-            if candidate is False:
-                left[k] = 0  # the source is spent
-            if not candidate:
-                continue  # nothing from this source in this round
-            if candidate.refined is None and any(_same_cage(candidate.cage, t.candidate.cage) for t in outcome.tried if t.candidate.refined is None):
-                continue  # a cage refined already (two sources derive it alike): its verdict would be the same
-            left[k] -= 1
-            progressed = True
-            refined, verdict = candidate.refined, None
-            if refined is None:
-                try:
-                    refined = refine(candidate.cage)
-                except SolverError as e:
-                    refined, verdict = None, Verdict(False, str(e))
-            verdict = verdict or judge(refined, bodies, measured=fit_last or candidate.refined is not None)
-            outcome.tried.append(Tried(candidate, refined, verdict))
-            if verdict.accepted:
-                outcome.winner = len(outcome.tried) - 1
+            verdict = ask(k)
+            progressed = progressed or verdict is not None
+            if verdict:
                 return outcome
+            # a repair answers each rejection at once, before the next source is asked
+            for r in repairs:
+                while verdict is False and left[r] > 0:
+                    verdict = ask(r)
+                    if verdict:
+                        return outcome
         if not progressed:
             return outcome
 
@@ -311,6 +354,11 @@ def _fit_depths(refined: ControlMesh | None) -> list[float]:
 def _same_cage(a: ControlMesh, b: ControlMesh) -> bool:
     """``a`` and ``b`` are the same cage: the same faces and control points, bit for bit (the refiners are deterministic)."""
     return a.vertices.shape == b.vertices.shape and np.array_equal(a.vertices, b.vertices) and np.array_equal(a.faces, b.faces)
+
+
+def _walled(cage: ControlMesh) -> bool:
+    """``cage`` is a template start's cage with walls inside the hands that start's cage enclosed (the YAML engine's ``fit_attempts.walls_inside``)."""
+    return bool(cage.meta.get("fit_attempts", {}).get("walls_inside"))
 
 
 def _start(cage: ControlMesh) -> int:

@@ -41,6 +41,6 @@ def test_same_inputs_and_seed_give_byte_identical_files(tmp_path):
     # the design search names the winning candidate's origin and judged it within the 5 mm limit
     search = report["search"]
     won = search["candidates"][search["winner"]["candidate"] - 1]
-    assert won["accepted"] and won["origin"] == search["winner"]["origin"] in {"start", "pushed-out", "walls-against", "last-resort"}
+    assert won["accepted"] and won["origin"] == search["winner"]["origin"] in {"start", "walls-inside", "pushed-out", "walls-against", "last-resort"}
     assert won["depth_m"] <= 0.005 and all(c["reason"] for c in search["candidates"] if not c["accepted"])
     assert "search" not in report["control_mesh"]["meta"]

@@ -508,6 +508,7 @@ def test_hands_hanging_under_the_thighs_flank_get_walls_inside_them(rigs, chair,
     first, walled = next(cages), next(cages)
     assert max(f["depth_m"] for f in enclosed_parts(first, [b], tolerance)) > 0.02
     assert "enclosed" not in first.meta and "walls_inside" not in first.meta["fit_attempts"]
+    assert first.meta["fit_attempts"]["encloses_hands"]  # what the design search asks before it asks for the walled cage
     assert walled.meta["fit_attempts"]["attempt"] == 1 and walled.meta["fit_attempts"]["walls_inside"]
     assert walled.meta["enclosed"]["before"]["depth_m"] > 0.02 and walled.meta["enclosed"]["after"]["depth_m"] == 0.0
     assert any(r.get("walls_inside") for r in walled.meta["repairs"])
@@ -583,7 +584,7 @@ def test_a_hard_drawn_pose_gets_a_chair_that_holds_it(tmp_path, family, index, b
     for key in wins:
         assert ours[key] < flat[key], key
     search = r.control_mesh.meta["search"]
-    assert search["winner"]["origin"] in {"start", "pushed-out", "walls-against", "last-resort"}
+    assert search["winner"]["origin"] in {"start", "walls-inside", "pushed-out", "walls-against", "last-resort"}
     assert all(c["reason"] for c in search["candidates"][: search["winner"]["candidate"] - 1])
 
 

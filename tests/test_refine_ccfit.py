@@ -200,3 +200,27 @@ def test_the_step_observer_sees_the_steps_the_fit_takes_and_changes_nothing():
         # the same rows solved again give the same step
         again = state["solve"](state["w"], state["pen"]).reshape(3, -1).T
         assert np.allclose(again, state["solved"][state["cols"]], atol=1e-9)
+
+
+def test_a_fit_is_caught_throughout_only_when_no_iterate_came_within_the_limit():
+    """A refit from the cage answers a fit caught in the body only if the fit's approach once got within the limit.
+
+    The depth histories are those of two drawn poses' fits (mm): reclined-025
+    female's first start, caught from its approach on (its refit from the
+    cage ended deeper), and reclined-169 male's last-resort cage, within the
+    limit at its 18th iterate and caught again while polishing (its refit
+    from the cage is its design).
+    """
+    from seatkit.refine.ccfit import _caught_throughout
+
+    def report(probes_mm, history_mm):
+        return {"after": {"max_penetration": probes_mm / 1000}, "depth_history": [d / 1000 for d in history_mm]}
+
+    reclined_025 = [29.4, 28.4, 28.3, 29.3, 30.6, 29.5, 27.9, 26.5, 25.5, 25.7, 23.4, 22.2, 20.4, 18.9, 20.9, 25.4, 28.7, 30.0]
+    reclined_169 = [29.7, 25.5, 26.7, 24.1, 22.6, 24.0, 18.9, 18.2, 17.6, 16.0, 13.4, 10.1, 7.1, 6.6, 4.0, 2.3, 2.1, 1.9, 3.6, 19.6, 18.7]
+    assert _caught_throughout(report(20.2, reclined_025), 0.005)
+    assert not _caught_throughout(report(18.7, reclined_169), 0.005)
+    # probes that end within the limit (a hand inside the furniture is the guarded refit's): not caught
+    assert not _caught_throughout(report(1.2, [34.5, 26.0, 12.7, 7.0]), 0.005)
+    # a fit with no iterate (nothing recorded) is never judged caught
+    assert not _caught_throughout(report(20.0, []), 0.005)

@@ -49,8 +49,9 @@ class _Fit:
 class _Template:
     """A template offering the starts ``starts`` ((name, depth mm)), and optionally walls and last-resort cages."""
 
-    def __init__(self, starts, walls=None, last=None):
+    def __init__(self, starts, walls=None, last=None, walled=None):
         self.starts = starts
+        self.walled = walled  # (name, depth mm): the first cage encloses a hand, and this is it with walls inside (None: it encloses none)
         if walls is not None:
             self.walls_against = lambda bodies, pressures, cage, refused, *, params=None, seed=0: walls(cage)
         if last is not None:
@@ -61,7 +62,9 @@ class _Template:
 
     def fits(self, bodies, pressures, *, params=None, seed=0):
         for i, (name, depth) in enumerate(self.starts, 1):
-            yield _Cage(name, depth, {"fit_attempts": {"attempt": i}})
+            yield _Cage(name, depth, {"fit_attempts": {"attempt": i, **({"encloses_hands": self.walled is not None} if i == 1 else {})}})
+            if i == 1 and self.walled is not None and self.walled[0] is not None:
+                yield _Cage(self.walled[0], self.walled[1], {"fit_attempts": {"attempt": 1, "walls_inside": True}})
 
 
 @pytest.fixture(autouse=True)
@@ -113,8 +116,8 @@ def test_each_source_refines_at_most_its_budget_and_a_refused_search_says_why_in
 
 
 def test_the_sources_take_turns_in_their_declared_order():
-    """Each round asks every source for one candidate: a start, a rejected design pushed out, walls against a rejected start, a last-resort cage."""
-    assert list(BUDGETS) == [Origin.START, Origin.PUSHED_OUT, Origin.WALLS_AGAINST, Origin.LAST_RESORT]
+    """Each round asks every source for one candidate: a start, a rejected design pushed out, the first cage with walls inside its hands, walls against a rejected start, a last-resort cage."""
+    assert list(BUDGETS) == [Origin.START, Origin.PUSHED_OUT, Origin.WALLS_INSIDE, Origin.WALLS_AGAINST, Origin.LAST_RESORT]
     asked = []
 
     def walls(cage):
@@ -134,6 +137,42 @@ def test_the_sources_take_turns_in_their_declared_order():
     assert fit.seen == ["a", "a+walls", "z", "b", "b+walls", "y"]
     assert asked == ["walls a", "last", "walls b"]  # walls answer the template's starts only
     assert cage.name == "y" and refined.meta["search"]["winner"] == {"origin": "last-resort", "start": 2, "candidate": 6}
+
+
+def test_a_first_cage_enclosing_a_hand_is_answered_by_its_walled_cage_before_other_starts_and_last_resort_cages():
+    """The template's first cage with walls inside the hands it encloses comes in the first round, after a push-out, before walls against it and the last-resort cages."""
+    fit = _Fit()
+    last = lambda: [_Cage("z", 1.0, {"fit_attempts": {"attempt": 1}})]  # noqa: E731
+    outcome = _search(_Template([("a", 9.0), ("b", 1.0)], walls=lambda cage: _Cage(cage.name + "+walls", 1.0), last=last, walled=("a|", 2.0)), fit)
+    cage, refined = outcome.design()
+    assert fit.seen == ["a", "a|"] and cage.name == "a|"
+    assert refined.meta["search"]["winner"] == {"origin": "walls-inside", "start": 1, "candidate": 2}
+
+
+def test_when_walls_do_not_help_the_next_start_is_kept_for_its_turn():
+    """A first cage that encloses a hand but whose walls give no better cage: the template's next cage is the next start, refined in the start source's turn, once."""
+    fit = _Fit()
+    outcome = _search(_Template([("a", 9.0), ("b", 9.0), ("c", 1.0)], last=lambda: [_Cage("z", 9.0, {"fit_attempts": {"attempt": 1}})], walled=(None, 0.0)), fit)
+    cage, _ = outcome.design()
+    assert fit.seen == ["a", "z", "b", "c"] and cage.name == "c"
+    assert [t.candidate.origin for t in outcome.tried] == [Origin.START, Origin.LAST_RESORT, Origin.START, Origin.START]
+
+
+def test_a_push_out_answers_each_rejected_design_before_the_next_source(monkeypatch):
+    """The first cage's push-out fails, its walled cage is rejected and pushed out within the limit: the design, before any last-resort cage."""
+    pushed = []
+
+    def push_out(mesh, bodies):
+        pushed.append(mesh.name)
+        return _fitted(dataclasses.replace(mesh, name=mesh.name + "+pushed"), 4.0) if mesh.name == "a|+fit" else None
+
+    monkeypatch.setattr("seatkit.refine.ccfit.push_out", push_out)
+    fit = _Fit()
+    last = lambda: [_Cage("z", 1.0, {"fit_attempts": {"attempt": 1}})]  # noqa: E731
+    outcome = _search(_Template([("a", 9.0), ("b", 1.0)], last=last, walled=("a|", 7.0)), fit)
+    cage, refined = outcome.design()
+    assert pushed == ["a+fit", "a|+fit"] and fit.seen == ["a", "a|"]
+    assert refined.name == "a|+fit+pushed+fit" and refined.meta["search"]["winner"] == {"origin": "pushed-out", "start": 1, "candidate": 3}
 
 
 def test_a_cage_two_sources_derive_alike_is_refined_once():

@@ -75,7 +75,8 @@ deeper than ``surface_limit`` (5 mm), it is refitted with a tighter probe
 target (and, when a body vertex lies too deep inside the furniture, with
 every body vertex guarded: one the fit does not pull to, a hand hanging
 under the edge of the seat, pushes the surface back past it like a probe
-inside the body; such a refit starts from the fit it answers). The fit returns the refit closest to the limit and
+inside the body; such a refit starts from the fit it answers; a fit caught
+in the body from its approach on is not refitted). The fit returns the refit closest to the limit and
 judges nothing: the 5 mm guarantee is the design search's acceptance
 check (:mod:`seatkit.search`), which also offers :func:`push_out` (the
 offending spots' control points pushed away from the body, without the
@@ -472,7 +473,8 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     first repeat the approach to the body, about half its iterations, with
     every guarded vertex tested on the way. A refit from the closest fit
     that comes no closer is followed by one from the cage; any other refit
-    starts from the cage.
+    starts from the cage. No refit follows a fit caught in the body from
+    its approach on (:func:`_caught_throughout`).
 
     Returns the first fit within the limit, else the one closest to it:
     the fit judges nothing. Its ``meta["catmull-clark-fit"]["final_depth"]``
@@ -498,6 +500,9 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
         stalled = start_from is not None and not closer
         if closer:
             closest = out
+        if _caught_throughout(report, p["surface_limit"]):
+            rounds[-1]["caught_throughout"] = True
+            break  # a refit from the cage repeats this approach and stays as deep: none is run
         # a body part the cage does not support inside the furniture (a
         # hanging hand under the edge of the seat): the refits keep every
         # body vertex out, not only the supported ones
@@ -511,6 +516,22 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
         report["repair_rounds"] = rounds
         report["params"] = {**report["params"], "max_penetration": p["max_penetration"]}
     return closest
+
+
+def _caught_throughout(report: Mapping[str, Any], limit: float) -> bool:
+    """The fit of ``report`` is caught in the body from its approach on: its probes end deeper than ``limit`` and no iterate came within it.
+
+    Such a fit passed through the body on its way to it and never got out
+    (``depth_history``, the depth each iterate is judged by, never at or
+    below ``limit``). A refit after it would start from the cage
+    (:func:`_refit_start`) and repeat that approach with tighter probes:
+    on the drawn-pose benchmark it ended as deep each time (docs/templates.md,
+    "What a rejected candidate costs"). A fit caught only later (one of its
+    iterates within the limit, the probes caught again while polishing)
+    is refitted: from the cage its refit can stay out.
+    """
+    history = report.get("depth_history") or ()
+    return report["after"]["max_penetration"] > limit and bool(history) and min(history) > limit
 
 
 def _refit_start(closest: ControlMesh | None, guard: bool, limit: float):

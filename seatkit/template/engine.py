@@ -178,7 +178,9 @@ class YamlTemplate:
         cage is :meth:`fit`'s; the design search asks for the next only when
         the one before is rejected (:mod:`seatkit.search`). When the first cage encloses a hand, the next is the same
         cage with walls inside the hand, if that one is valid and encloses
-        less (docs/templates.md, "Walls inside the hands"). Raises the
+        less (docs/templates.md, "Walls inside the hands"); the first cage's
+        ``meta["fit_attempts"]["encloses_hands"]`` says whether it encloses
+        one the steps could wall. Raises the
         first start's refusal when no start gives a valid cage, and a
         refusal of the pose rule at once.
 
@@ -243,6 +245,10 @@ class YamlTemplate:
                 mesh.meta["fit_attempts"]["last_resort"] = True
             if first is not None:
                 mesh.meta["fit_attempts"]["first_refusal"] = str(first)
+            if not found:
+                # whether the next cage may be this one with walls inside the hands it encloses: the design
+                # search offers that before another start's (seatkit.search, ``walls-inside``)
+                mesh.meta["fit_attempts"]["encloses_hands"] = _encloses_hands(*start)
             yield mesh
             if not found:
                 # the refiners refused the first cage: the same with walls inside the hands it encloses, if any
@@ -574,6 +580,11 @@ def _checked_cage(state: FitState, bodies, p: dict, repairs: list) -> ControlMes
             if faces is None or round_ == _REPAIR_ROUNDS or not any(step.repair(state, faces, options=o) for step, o in repairs):
                 raise
     raise AssertionError("unreachable")
+
+
+def _encloses_hands(state: FitState, mesh: ControlMesh, bodies, p: dict, fixers: list, repairs: list) -> bool:
+    """The cage ``mesh`` encloses a part it does not hold that a step could put walls inside: :func:`_hands_outside` has something to try."""
+    return bool(fixers) and any(f["vertices"] for f in enclosed_parts(mesh, bodies, p["max_penetration"] + 1e-3))
 
 
 def _hands_outside(state: FitState, mesh: ControlMesh, bodies, p: dict, fixers: list, repairs: list) -> ControlMesh | None:
