@@ -9,7 +9,6 @@ the plugin registry by the names the recipe gives.
 from __future__ import annotations
 
 import functools
-import threading
 import time
 from contextlib import contextmanager
 from typing import Callable, Mapping
@@ -48,32 +47,6 @@ Progress = Callable[[str], None]
 
 def _noop(_stage: str) -> None:
     return None
-
-
-_stop = threading.local()
-
-
-@contextmanager
-def stoppable(check: Callable[[], None]):
-    """Within it, each :func:`checkpoint` in this thread calls ``check``, which raises to stop the computation.
-
-    ``seatkit serve`` stops a design or a baseline this way when a newer
-    request arrives: between the stages of a build (``progress``) and
-    between the iterations of a long stage (the surface fit's).
-    """
-    before = getattr(_stop, "check", None)
-    _stop.check = check
-    try:
-        yield
-    finally:
-        _stop.check = before
-
-
-def checkpoint() -> None:
-    """A point where a long computation may be stopped (:func:`stoppable`); nothing outside one."""
-    check = getattr(_stop, "check", None)
-    if check is not None:
-        check()
 
 
 class StageTimer:

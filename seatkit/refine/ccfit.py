@@ -105,7 +105,7 @@ from seatkit.options import Option, defaults
 from seatkit.params import refiner_params
 from seatkit.refine.quality import mesh_edges
 from seatkit.side import beside
-from seatkit.stages import checkpoint
+from seatkit.stopping import checkpoint
 
 __all__ = [
     "CCFIT_DEFAULTS",

@@ -30,7 +30,7 @@ Supersession: every design request takes a sequence number. Designs run
 one at a time under a lock; a request that is no longer the newest when it
 gets the lock, at the start of any stage of its build (the pipeline's
 ``progress`` callback) or between the surface fit's iterations
-(:func:`seatkit.stages.checkpoint`), stops with :class:`Superseded`, so a
+(:func:`seatkit.stopping.checkpoint`), stops with :class:`Superseded`, so a
 newer request never waits for a stale one to finish and a stale result is
 never returned as the newest. The flat-patch baseline the page asks for
 when the sliders rest stops the same way.
@@ -658,7 +658,7 @@ class Designer:
             The build's own errors (an unsupported pose, an infeasible support).
         """
         from seatkit.pipeline import build
-        from seatkit.stages import stoppable
+        from seatkit.stopping import stoppable
 
         ident = Path(recipe["output"]).name
         with self._state:
@@ -762,7 +762,8 @@ class Designer:
 
         from seatkit.evaluate import design_segments
         from seatkit.pipeline import fit_baseline
-        from seatkit.stages import StageTimer, stoppable
+        from seatkit.stages import StageTimer
+        from seatkit.stopping import stoppable
 
         ev = design.recipe["evaluate"]
         if not (ev["enabled"] and ev["baseline"]):
