@@ -386,6 +386,7 @@ class _DesignOnly:
     def __init__(self, name, fail=None):
         self.name = name
         self.fail = fail
+        self.owner = os.getpid()  # the build's process (a helper gets a copy of this exporter, pid included)
 
     def prepare(self):
         return None
@@ -393,7 +394,7 @@ class _DesignOnly:
     def export(self, result, directory):
         if self.fail == "error":
             raise SeatkitError(f"exporter {self.name} failed")
-        if self.fail == "die" and os.getpid() != int(os.environ["SEATKIT_TEST_BUILD_PID"]):
+        if self.fail == "die" and os.getpid() != self.owner:
             os._exit(3)  # the worker dies (out of memory, a signal from outside)
         path = Path(directory) / f"{self.name}.txt"
         path.write_text(f"{len(result.control_mesh.vertices)} {len(result.surface.vertices)} {len(result.bodies)}\n")
@@ -463,8 +464,7 @@ def test_a_failing_design_exporter_is_one_error_and_leaves_no_output_and_no_proc
 
 
 @needs_proc
-def test_a_helper_that_dies_writing_the_design_is_one_clear_error(tmp_path, design_pm, monkeypatch):
-    monkeypatch.setenv("SEATKIT_TEST_BUILD_PID", str(os.getpid()))
+def test_a_helper_that_dies_writing_the_design_is_one_clear_error(tmp_path, design_pm):
     recipe = dict(FULL, exporters=["usd", "dies", "obj"], output=str(tmp_path / "out"))
     with pytest.raises(WorkerLost, match="^the export process ended before sending its result"):
         seatkit.build(recipe, pm=design_pm, processes=True)
