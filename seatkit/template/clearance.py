@@ -110,11 +110,11 @@ def _within_reach(points: np.ndarray, samples: np.ndarray, reach: float) -> np.n
 
 
 def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, depth, facing, cache):
-    """Rows (A, rhs) of ``A t >= rhs`` over the move columns, and the deepest sink.
+    """Rows (A, rhs) of ``A t <= -rhs`` over the move columns, and the deepest sink.
 
     Column ``j`` moves vertex ``col_vertex[j]`` along ``col_dir[j]`` (the
     constraint is ``s + sum_k phi_k (d_k . n_T)``, written with ``d`` pointing
-    away from the body, hence the minus sign). ``cache`` keeps each body's
+    away from the body, hence ``<= -rhs``). ``cache`` keeps each body's
     vertices near the cage from the first round (later rounds move the cage
     by centimetres).
     """
@@ -126,6 +126,9 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
     good = area2 > 1e-10
     n_t = n_t / np.maximum(area2, 1e-12)[:, None]
     centres, radius = _triangle_spheres(points, tris)
+    # edges and their dot products, once per triangle (gathered per pair below)
+    E1, E2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
+    D00, D01, D11 = np.einsum("ij,ij->i", E1, E1), np.einsum("ij,ij->i", E1, E2), np.einsum("ij,ij->i", E2, E2)
     rows, cols, vals, rhs = [], [], [], []
     worst = 0.0
     for person, (body, bn) in enumerate(zip(bodies, normals)):
@@ -161,7 +164,8 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
             continue
         # (body vertex, triangle) pairs, each once, in the order of
         # bi * len(tris) + ti (near is ascending): the rows' order
-        owners = np.sort(np.where(nearest < len(samples), s_owner[np.minimum(nearest, len(samples) - 1)], len(tris)), axis=1)
+        # a missing neighbour (index len(samples)) owns the sentinel len(tris)
+        owners = np.sort(np.append(s_owner, len(tris))[nearest], axis=1)
         fresh = np.ones(owners.shape, bool)
         fresh[:, 1:] = owners[:, 1:] != owners[:, :-1]
         fresh &= owners < len(tris)
@@ -173,9 +177,9 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
         s = np.einsum("ij,ij->i", rel, n)
         sel = (s < depth) & (s > -depth)
         bi, ti, s, rel, n = bi[sel], ti[sel], s[sel], rel[sel], n[sel]
-        e1, e2 = T[ti, 1] - T[ti, 0], T[ti, 2] - T[ti, 0]
+        e1, e2 = E1[ti], E2[ti]
         # barycentric coordinates of the projection
-        d00, d01, d11 = np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e1, e2), np.einsum("ij,ij->i", e2, e2)
+        d00, d01, d11 = D00[ti], D01[ti], D11[ti]
         d20, d21 = np.einsum("ij,ij->i", rel, e1), np.einsum("ij,ij->i", rel, e2)
         den = d00 * d11 - d01 * d01
         beta = (d11 * d20 - d01 * d21) / den
@@ -187,7 +191,9 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
         # the final check
         above = np.zeros(len(tris), bool)
         above[ti[inside & (s >= target)]] = True
-        sinks = inside & (s < target) & above[ti] & (np.einsum("ij,ij->i", bn[bi], n) < facing)
+        sinks = inside & (s < target) & above[ti]
+        cand_sink = np.flatnonzero(sinks)  # the skin's turn is asked only of these
+        sinks[cand_sink] = np.einsum("ij,ij->i", bn[bi[cand_sink]], n[cand_sink]) < facing
         if not sinks.any():
             continue
         ti, s, n = ti[sinks], s[sinks], n[sinks]
@@ -210,14 +216,22 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
         return None, None, 0.0
     rhs = np.concatenate(rhs)
     r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
-    # row . (phi_k n_T) per vertex and axis, times each move column's direction
-    A = None
+    # row . (phi_k n_T) per vertex and axis, times each move column's
+    # direction, summed over the axes in order. Dense: a few hundred rows by
+    # the moving vertices. A corner of a quad (four distinct corners) takes
+    # two shares, its triangle's and the centre's, whose sum does not depend
+    # on their order; shares of vertices that do not move are dropped
+    moved, column = np.unique(col_vertex, return_inverse=True)
+    slot = np.full(len(V), -1)
+    slot[moved] = np.arange(len(moved))
+    keep = slot[c] >= 0
+    r, c, v = r[keep], slot[c[keep]], v[keep]
+    A = np.zeros((len(rhs), len(col_vertex)))
     for axis in range(3):
-        P = sp.csr_matrix((v[:, axis], (r, c)), shape=(len(rhs), len(V)))
-        D = sp.csr_matrix((col_dir[:, axis], (col_vertex, np.arange(len(col_vertex)))), shape=(len(V), len(col_vertex)))
-        term = P @ D
-        A = term if A is None else A + term
-    return -A, rhs, worst
+        P = np.zeros((len(rhs), len(moved)))
+        np.add.at(P, (r, c), v[:, axis])
+        A += P[:, column] * col_dir[:, axis]
+    return sp.csr_matrix(A), rhs, worst
 
 
 def lift_off_bodies(
@@ -313,13 +327,13 @@ def lift_off_bodies(
             room = np.maximum(V[col_vertex, 1] - floor, 0.0) / np.where(down, -col_dir[:, 1], 1.0)
             ub = np.where(down, np.minimum(ub, room), ub)
         nc = len(col_vertex)
-        res = linprog(col_cost, A_ub=-A, b_ub=-rhs, bounds=np.stack([np.zeros(nc), ub], 1), method="highs")
+        res = linprog(col_cost, A_ub=A, b_ub=-rhs, bounds=np.stack([np.zeros(nc), ub], 1), method="highs")
         if res.status != 0:
             # infeasible within max_move: satisfy what can be, by a penalised version
             feasible = False
             m = A.shape[0]
             c = np.concatenate([col_cost, np.full(m, 1e3)])
-            A2 = sp.hstack([-A, -sp.identity(m, format="csr")], format="csr")
+            A2 = sp.hstack([A, -sp.identity(m, format="csr")], format="csr")
             bounds = np.vstack([np.stack([np.zeros(nc), ub], 1), np.stack([np.zeros(m), np.full(m, np.inf)], 1)])
             res = linprog(c, A_ub=A2, b_ub=-rhs, bounds=bounds, method="highs")
             if res.status != 0:
