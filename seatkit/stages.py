@@ -25,14 +25,12 @@ __all__ = [
     "check_overlap",
     "evaluate_result",
     "baseline_components",
-    "checkpoint",
     "fit_baseline",
     "fit_baseline_with",
     "make_bodies",
     "place_bodies",
     "refine",
     "solve_importance",
-    "stoppable",
     "total_seconds",
 ]
 
