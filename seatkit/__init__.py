@@ -7,9 +7,11 @@ Public API::
     seatkit.hookimpl                                     # for plugins
     seatkit.jsonable(result.metrics)                     # plain JSON data, as report.json writes it
 
-The data types (:mod:`seatkit.model`) and interfaces (:mod:`seatkit.interfaces`)
-are re-exported here; heavy modules are imported on first use so that
-``import seatkit`` stays fast.
+The data types (:mod:`seatkit.model`) and :func:`~seatkit.io.jsonable` are
+re-exported here, imported on first use: ``import seatkit`` (and so the
+``seatkit`` command's start-up, and every plugin's ``from seatkit import
+hookimpl``) imports neither numpy nor the data types until they are asked
+for.
 """
 
 from __future__ import annotations
@@ -17,8 +19,6 @@ from __future__ import annotations
 import pluggy
 
 from seatkit.errors import SeatkitError
-from seatkit.io import jsonable
-from seatkit.model import Body, BuildResult, ControlMesh, Pose, PressureField, RiggedBody, Surface
 
 __version__ = "0.1.0"
 
@@ -39,6 +39,28 @@ __all__ = [
     "hookimpl",
     "jsonable",
 ]
+
+
+#: The re-exports of :mod:`seatkit.model` (numpy), imported on first use (:func:`__getattr__`).
+_MODEL_NAMES = frozenset({"Body", "BuildResult", "ControlMesh", "Pose", "PressureField", "RiggedBody", "Surface"})
+
+
+def __getattr__(name: str):
+    """``seatkit.jsonable`` and the data types of :mod:`seatkit.model`, imported when first asked for."""
+    if name == "jsonable":
+        from seatkit.io import jsonable as value
+    elif name in _MODEL_NAMES:
+        from seatkit import model
+
+        value = getattr(model, name)
+    else:
+        raise AttributeError(f"module 'seatkit' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
 
 
 def build(recipe, **kwargs):

@@ -12,6 +12,7 @@ the traceback instead. Any other exception is a bug and shows its traceback.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import gc
 import importlib
 import json
@@ -211,6 +212,24 @@ def plugin_manager(ctx: typer.Context):
     return obj["pm"]
 
 
+@contextlib.contextmanager
+def _collections_paused():
+    """Python's cyclic garbage collector off inside (restored after, as it was), for the build's start-up.
+
+    The objects made then are modules, functions, classes and registered
+    components that live as long as the process; the few cycles that are
+    garbage wait for the collections after the build (:func:`gc.freeze`
+    keeps them with the rest until :func:`gc.unfreeze`).
+    """
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if collecting:
+            gc.enable()
+
+
 def stderr_console():
     """A rich console on stderr (progress, tables that are not the output)."""
     from rich.console import Console
@@ -264,57 +283,62 @@ def build(
 
     Stages: bodies -> pressure -> template -> refiners -> surface -> exporters.
     """
-    from seatkit.pipeline import build as run_build
-    from seatkit.recipe import apply_overrides, check_recipe, load_recipe
-    from seatkit.workers import helpers_pay, start_fork_server
+    # no garbage collection while the build starts up (_collections_paused):
+    # numpy, scipy, the stages and the plugins make some 300,000 objects
+    # that live as long as the process, and some 160 collections walked them
+    # (0.08 s of CPU, a tenth of the start-up) to find next to no garbage
+    with _collections_paused():
+        from seatkit.pipeline import build as run_build
+        from seatkit.recipe import apply_overrides, check_recipe, load_recipe
+        from seatkit.workers import helpers_pay, start_fork_server
 
-    # helper processes only with an idle core beside this one, measured
-    # over this program's start-up up to here: the stages' imports (numpy,
-    # scipy: a few tenths of a second of one core) are the window, long
-    # enough for the machine's idle time to tell (seatkit.workers.spare_cores
-    # needs 10 clock ticks; the option parsing alone is shorter). The
-    # helpers are forks of this process, which has imported the stages, or,
-    # where it cannot fork, of a fork server that imports them, started
-    # now, beside the plugins and the recipe
-    processes = helpers_pay(_STARTED)
-    if processes:
-        start_fork_server()
+        # helper processes only with an idle core beside this one, measured
+        # over this program's start-up up to here: the stages' imports (numpy,
+        # scipy: a few tenths of a second of one core) are the window, long
+        # enough for the machine's idle time to tell (seatkit.workers.spare_cores
+        # needs 10 clock ticks; the option parsing alone is shorter). The
+        # helpers are forks of this process, which has imported the stages, or,
+        # where it cannot fork, of a fork server that imports them, started
+        # now, beside the plugins and the recipe
+        processes = helpers_pay(_STARTED)
+        if processes:
+            start_fork_server()
 
-    pm = plugin_manager(ctx)
-    base, document = load_recipe(recipe)
-    merged = apply_overrides(
-        base,
-        template=template,
-        poses=pose or None,
-        bodies=body or None,
-        mass=mass,
-        height=height,
-        frame=frame,
-        refiners=[] if no_refiners else (refiner or None),
-        exporters=exporter or None,
-        solver=solver,
-        lam=lam,
-        mu=mu,
-        output=str(out) if out is not None else None,
-        seed=seed,
-        surface_level=level,
-        export_frame=export_frame,
-        sitters=sitter or None,
-        options=option or None,
-    )
-    if merged["output"] is None and recipe is not None and not (template or pose or body or sitter or option or mass is not None or frame is not None):
-        merged["output"] = str(Path("seatkit-out") / recipe.stem)  # the recipe's design, named after it
+        pm = plugin_manager(ctx)
+        base, document = load_recipe(recipe)
+        merged = apply_overrides(
+            base,
+            template=template,
+            poses=pose or None,
+            bodies=body or None,
+            mass=mass,
+            height=height,
+            frame=frame,
+            refiners=[] if no_refiners else (refiner or None),
+            exporters=exporter or None,
+            solver=solver,
+            lam=lam,
+            mu=mu,
+            output=str(out) if out is not None else None,
+            seed=seed,
+            surface_level=level,
+            export_frame=export_frame,
+            sitters=sitter or None,
+            options=option or None,
+        )
+        if merged["output"] is None and recipe is not None and not (template or pose or body or sitter or option or mass is not None or frame is not None):
+            merged["output"] = str(Path("seatkit-out") / recipe.stem)  # the recipe's design, named after it
 
-    if structure or size_thickness or any(v is not None for v in (material, thickness, safety_factor, max_deflection)):
-        from seatkit.structure.build import enable
+        if structure or size_thickness or any(v is not None for v in (material, thickness, safety_factor, max_deflection)):
+            from seatkit.structure.build import enable
 
-        enable(merged, material=material, thickness=thickness, size_thickness=size_thickness or None, safety_factor=safety_factor, max_deflection=max_deflection)
-    merged = check_recipe(merged, pm.registry, document=document)  # a Recipe: build() takes it as checked
-    # what is imported and registered by now outlives the build: its
-    # garbage collections need not walk it again (two full collections
-    # walked it, 0.06 s of a build's CPU); given back to the collector after
-    # the build, for a program that runs more than one command
-    gc.freeze()
+            enable(merged, material=material, thickness=thickness, size_thickness=size_thickness or None, safety_factor=safety_factor, max_deflection=max_deflection)
+        merged = check_recipe(merged, pm.registry, document=document)  # a Recipe: build() takes it as checked
+        # what is imported and registered by now outlives the build: its
+        # garbage collections need not walk it again (two full collections
+        # walked it, 0.06 s of a build's CPU); given back to the collector after
+        # the build, for a program that runs more than one command
+        gc.freeze()
     try:
         if quiet or as_json:
             result = run_build(merged, pm=pm, overwrite=overwrite, processes=processes)  # the entry point is guarded (seatkit.workers)

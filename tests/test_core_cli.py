@@ -158,3 +158,43 @@ def test_a_default_build_reads_its_options_without_pydantic():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "[]", done.stdout
+
+
+def test_a_build_leaves_the_garbage_collector_as_it_found_it(tmp_path):
+    """The build pauses collections while it starts up: a program that goes on gets the collector back as it was, on success or refusal."""
+    import gc
+
+    try:
+        for enabled in (True, False):
+            gc.enable() if enabled else gc.disable()
+            result = invoke("build", "--template", "sofa", "--out", str(tmp_path / "o"))  # refused while starting up
+            assert result.exit_code == 1 and gc.isenabled() is enabled
+            # refused by the template stage, after the start-up
+            result = invoke("build", "--template", "chair", "--pose", "feet-tucked", "--out", str(tmp_path / f"d{enabled}"))
+            assert result.exit_code == 1 and "cannot support" in result.stderr
+            assert gc.isenabled() is enabled
+            assert not gc.get_freeze_count()  # what the build froze is given back
+    finally:
+        gc.enable()
+
+
+def test_import_seatkit_and_its_command_line_import_no_numpy():
+    """``import seatkit`` (a plugin's ``from seatkit import hookimpl``, the command's start-up) imports numpy only when a data type is asked for."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, seatkit, seatkit.cli\n"
+        "assert 'numpy' not in sys.modules, 'numpy imported'\n"
+        "from seatkit import Body, ControlMesh, jsonable\n"
+        "import seatkit.model, seatkit.io\n"
+        "assert Body is seatkit.model.Body and seatkit.Surface is seatkit.model.Surface and jsonable is seatkit.io.jsonable\n"
+        "assert set(seatkit.__all__) <= set(dir(seatkit))\n"
+        "assert all(getattr(seatkit, name) is not None for name in seatkit.__all__)\n"
+        "try:\n"
+        "    seatkit.no_such_name\n"
+        "except AttributeError as e:\n"
+        "    print(e)\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == "module 'seatkit' has no attribute 'no_such_name'"
