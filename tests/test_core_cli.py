@@ -198,3 +198,27 @@ def test_import_seatkit_and_its_command_line_import_no_numpy():
     )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert done.stdout.strip() == "module 'seatkit' has no attribute 'no_such_name'"
+
+
+def test_the_build_loads_openblas_without_the_threads_it_does_not_use(tmp_path):
+    """The build runs numpy and scipy on one thread: its start-up loads their OpenBLAS so, leaving the environment and a user's own setting as they were."""
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import os, sys, threadpoolctl\n"
+        "from seatkit.cli import run\n"
+        f"sys.argv = ['seatkit', 'build', '--template', 'sofa', '--out', {str(tmp_path / 'o')!r}]\n"
+        "assert run() == 1\n"  # refused once the stages are imported
+        "print(sorted({i['num_threads'] for i in threadpoolctl.threadpool_info() if i['internal_api'] == 'openblas'}), os.environ.get('OPENBLAS_NUM_THREADS'))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_NUM_THREADS"}
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True)
+    if done.stdout.startswith("[]"):
+        import pytest
+
+        pytest.skip("this numpy is not built on OpenBLAS")
+    assert done.stdout.strip() == "[1] None", done.stdout
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**env, "OPENBLAS_NUM_THREADS": "2"}, check=True)
+    assert done.stdout.strip() == "[2] 2", done.stdout
