@@ -212,41 +212,49 @@ def plugin_manager(ctx: typer.Context):
     return obj["pm"]
 
 
+@contextlib.contextmanager
+def _collections_paused():
+    """Python's cyclic garbage collector off inside (restored after, as it was): the build's start-up.
+
+    The objects made then are modules, functions, classes and registered
+    components that live as long as the process; the few cycles that are
+    garbage wait for the collections after the build (:func:`gc.freeze`
+    keeps them with the rest until :func:`gc.unfreeze`).
+    """
+    collecting = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if collecting:
+            gc.enable()
+
+
 #: The environment variable OpenBLAS reads, as it is loaded, for the size of its thread pool.
 _BLAS_THREADS = "OPENBLAS_NUM_THREADS"
 
 
 @contextlib.contextmanager
-def _starting_up():
-    """What the build's start-up (its imports, the plugins, the recipe) runs inside.
+def _one_blas_thread():
+    """numpy's and scipy's OpenBLAS loaded with one thread by the imports inside, unless numpy is imported already or ``OPENBLAS_NUM_THREADS`` is set.
 
-    * Python's cyclic garbage collector is off (restored after, as it was):
-      the objects made then are modules, functions, classes and registered
-      components that live as long as the process; the few cycles that are
-      garbage wait for the collections after the build (:func:`gc.freeze`
-      keeps them with the rest until :func:`gc.unfreeze`).
-    * numpy's and scipy's OpenBLAS libraries, when they are first loaded
-      here (numpy not imported yet) and ``OPENBLAS_NUM_THREADS`` is not
-      set, are loaded with one thread: the build runs every numerical step
-      on one thread (:func:`seatkit.pipeline.build`), and each library
-      otherwise starts a pool of one thread per core whose threads spin
-      for a while, idle (0.1-0.15 s of CPU beside the start-up). The
-      environment is as it was after the block, so the processes the build
-      starts get the user's; a program that goes on after the command keeps
-      those libraries on one thread.
+    The build runs every numerical step on one thread
+    (:func:`seatkit.pipeline.build`); each OpenBLAS library otherwise
+    starts a pool of one thread per core as it loads, whose threads spin
+    idle for a while (0.1-0.15 s of CPU beside the start-up). The
+    environment is as it was after the block: the processes the build
+    starts (a fork server, an exporter's programs) get the user's. A
+    program that goes on after the command keeps those two libraries on
+    one thread.
     """
-    collecting = gc.isenabled()
-    blas = "numpy" not in sys.modules and _BLAS_THREADS not in os.environ
-    gc.disable()
-    if blas:
-        os.environ[_BLAS_THREADS] = "1"
+    if "numpy" in sys.modules or _BLAS_THREADS in os.environ:
+        yield
+        return
+    os.environ[_BLAS_THREADS] = "1"
     try:
         yield
     finally:
-        if blas:
-            os.environ.pop(_BLAS_THREADS, None)
-        if collecting:
-            gc.enable()
+        os.environ.pop(_BLAS_THREADS, None)
 
 
 def stderr_console():
@@ -302,13 +310,13 @@ def build(
 
     Stages: bodies -> pressure -> template -> refiners -> surface -> exporters.
     """
-    # no garbage collection while the build starts up, and OpenBLAS loaded
-    # without the threads the build does not use (_starting_up): numpy,
-    # scipy, the stages and the plugins make some 300,000 objects that live
-    # as long as the process, and some 160 collections walked them (0.08 s
-    # of CPU, a tenth of the start-up) to find next to no garbage
-    with _starting_up():
-        from seatkit.pipeline import build as run_build
+    # no garbage collection while the build starts up (_collections_paused):
+    # numpy, scipy, the stages and the plugins make some 300,000 objects
+    # that live as long as the process, and some 160 collections walked them
+    # (0.08 s of CPU, a tenth of the start-up) to find next to no garbage
+    with _collections_paused():
+        with _one_blas_thread():  # the stages' imports: numpy, scipy and their OpenBLAS
+            from seatkit.pipeline import build as run_build
         from seatkit.recipe import apply_overrides, check_recipe, load_recipe
         from seatkit.workers import helpers_pay, start_fork_server
 
