@@ -311,9 +311,10 @@ def build(
     Stages: bodies -> pressure -> template -> refiners -> surface -> exporters.
     """
     # no garbage collection while the build starts up (_collections_paused):
-    # numpy, scipy, the stages and the plugins make some 300,000 objects
-    # that live as long as the process, and some 160 collections walked them
-    # (0.08 s of CPU, a tenth of the start-up) to find next to no garbage
+    # numpy, scipy, the stages and the plugins make some 100,000 objects
+    # the collector tracks, which live as long as the process, and some 160
+    # collections walked them (0.08 s of CPU, a tenth of the start-up) to
+    # find next to no garbage
     with _collections_paused():
         with _one_blas_thread():  # the stages' imports: numpy, scipy and their OpenBLAS
             from seatkit.pipeline import build as run_build
