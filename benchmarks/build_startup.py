@@ -1,6 +1,6 @@
 """What the default build's own process does before its first stage, phase by phase, two versions of the code alternating.
 
-    python benchmarks/build_startup.py [--runs 8] [--old /path/to/previous/.venv/bin/python] [-- extra seatkit build flags]
+    python benchmarks/build_startup.py [--runs 8] [--old /path/to/previous/.venv/bin/python] [--template chair] [-- extra seatkit build flags]
 
 Each run is a fresh process that starts ``seatkit build -q --template
 chair`` as the ``seatkit`` command does (``from seatkit.cli import main``,
@@ -143,6 +143,7 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=8, help="runs of each version (default 8)")
     ap.add_argument("--old", help="the Python of an install of the previous code (omit: this code only)")
     ap.add_argument("--new", default=sys.executable, help="the Python of the code measured (default: this one)")
+    ap.add_argument("--template", default="chair")
     ap.add_argument("extra", nargs="*", help="more flags for seatkit build")
     args = ap.parse_args()
     env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
@@ -153,11 +154,11 @@ def main() -> None:
         for i in range(-1, args.runs):  # -1: bytecode written, disk caches warm
             order = list(sides) if i % 2 else list(sides)[::-1]
             for side in order:
-                argv = ["-q", "--template", "chair", "--out", str(Path(tmp) / f"{side}{i}"), "--overwrite", *args.extra]
+                argv = ["-q", "--template", args.template, "--out", str(Path(tmp) / f"{side}{i}"), "--overwrite", *args.extra]
                 run = one_run(sides[side], argv, env, tmp)
                 if i >= 0:
                     results[side].append(run)
-    print(f"main process CPU before the first stage: median of {args.runs} runs (SEATKIT_HELPERS={env['SEATKIT_HELPERS']})")
+    print(f"main process CPU before the first stage of seatkit build --template {args.template}: median of {args.runs} runs (SEATKIT_HELPERS={env['SEATKIT_HELPERS']})")
     print(f"{'':26}" + "".join(f"{side:>10}" for side in sides))
     for name in [p for p, _ in PHASES] + ["total", "gc", "collections", "modules"]:
         cells = []
