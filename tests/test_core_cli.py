@@ -222,3 +222,34 @@ def test_the_build_loads_openblas_without_the_threads_it_does_not_use(tmp_path):
     assert done.stdout.strip() == "[1] None", done.stdout
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**env, "OPENBLAS_NUM_THREADS": "2"}, check=True)
     assert done.stdout.strip() == "[2] 2", done.stdout
+
+
+def test_the_command_line_reads_as_the_whole_app_reads_it(monkeypatch, capsys):
+    """``seatkit.cli.run`` has typer make only the command the command line names: the same output and exit status as the whole app, every command still listed and suggested."""
+    import sys
+
+    import typer.main
+
+    from seatkit import cli
+
+    commands = list(app.registered_commands)
+    names = sorted(typer.main.get_command(app).commands)
+    for argv in (
+        ["build", "--help"],
+        ["--disable-plugin", "bench", "templates"],
+        ["--disable-plugin=bench", "--debug", "templates"],
+        ["build", "--mass", "heavy"],
+        ["--help"],
+        ["biuld"],
+        ["--no-such-option", "build"],
+    ):
+        monkeypatch.setattr(sys, "argv", ["seatkit", *argv])
+        code = cli.run()
+        out = capsys.readouterr()
+        whole = CliRunner().invoke(app, argv, prog_name="seatkit")
+        assert (code, out.out, out.err) == (whole.exit_code, whole.stdout, whole.stderr), argv
+        assert app.registered_commands == commands
+    monkeypatch.setattr(sys, "argv", ["seatkit", "--help"])
+    cli.run()
+    listed = capsys.readouterr().out
+    assert all(name in listed for name in names) and len(names) > 10
