@@ -509,7 +509,7 @@ def _app_for(argv: Sequence[str]) -> typer.Typer:
     """``app``, or a copy of it with only the command ``argv`` names.
 
     typer makes the click command of every command of the app, its options
-    and their readers, before it reads the command line: about 12 ms of CPU
+    and their readers, before it reads the command line: about 10 ms of CPU
     for the thirteen commands ``seatkit build`` does not run. The copy parses
     the command line the same way (the group's options, then the command's);
     where ``argv`` names no command of the app (``--help``, a typo, an
