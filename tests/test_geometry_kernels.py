@@ -90,3 +90,28 @@ def test_the_skin_search_skips_padding_and_repeats_to_the_bit():
         ref_tri, ref_bary = _search_every_slot(skin, points, cand)
         assert np.array_equal(tri, ref_tri)
         assert np.array_equal(bary, ref_bary)
+
+
+def test_a_few_points_get_the_answers_they_get_in_a_large_batch():
+    """A SurfaceQuery asked about a few points searches their own vertices' rings: the same answers, to the bit."""
+    from seatkit.geometry.surface import SurfaceQuery
+    from seatkit.model import Surface
+
+    n = 40
+    grid = np.stack(np.meshgrid(np.linspace(0, 1, n), np.linspace(0, 1, n), indexing="ij"), axis=-1).reshape(-1, 2)
+    verts = np.column_stack([grid[:, 0], 0.1 * np.sin(3 * grid[:, 1]) * np.cos(2 * grid[:, 0]), grid[:, 1]])
+    ij = np.arange(n * n).reshape(n, n)
+    quads = np.stack([ij[:-1, :-1], ij[1:, :-1], ij[1:, 1:], ij[:-1, 1:]], axis=-1).reshape(-1, 4)
+    rng = np.random.default_rng(9)
+    normals = np.tile([0.0, 1.0, 0.0], (len(verts), 1)) + rng.normal(scale=0.3, size=(len(verts), 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)  # which triangle a point's nearest is on shows in its normal
+    surface = Surface(verts, normals, quads, 0)
+    points = np.concatenate([rng.uniform([0, -0.2, 0], [1, 0.3, 1], (400, 3)), verts[:50], verts[quads[:50]].mean(axis=1)])
+    whole = SurfaceQuery(surface).closest_normals(points)
+    for lo in range(0, len(points), 3):
+        few = SurfaceQuery(surface).closest_normals(points[lo : lo + 3])  # a fresh query: nothing built yet
+        assert all(np.array_equal(a[lo : lo + 3], b, equal_nan=True) for a, b in zip(whole, few))
+    dist, side, normal = SurfaceQuery(surface).closest_normals(points[:4], within=0.05)
+    searched = np.isfinite(dist)  # the others are farther than that
+    assert 0 < searched.sum() < 4
+    assert np.array_equal(dist[searched], whole[0][:4][searched]) and np.array_equal(normal[searched], whole[2][:4][searched])

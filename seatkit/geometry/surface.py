@@ -40,26 +40,79 @@ class SurfaceQuery:
     #: Slack (m) for rounding when the nearest vertex's distance alone decides a point's search.
     _ROUNDING = 1e-9
 
+    #: A batch whose candidate vertices are fewer than the surface's vertices over this searches
+    #: the rings of those vertices alone (a final check's few body vertices inside the furniture).
+    _FEW = 8
+
     def __init__(self, surface: Surface):
         v = np.asarray(surface.vertices, dtype=np.float64)
         f = np.asarray(surface.faces, dtype=np.int64)
         tris = np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]]) if f.shape[1] == 4 else f
         self.vertices, self.normals, self.triangles = v, np.asarray(surface.normals, dtype=np.float64), tris
-        self.rings = vertex_triangle_rings(tris, len(v))  # vertex -> incident triangles, padded with -1
         self.tree = cKDTree(v, balanced_tree=False, compact_nodes=False)
-        # Every point of a triangle lies within its second-longest edge of the
-        # corner opposite its longest edge (the triangle is the convex hull of
-        # its corners), so no surface point is farther than this from a vertex.
-        corners = np.take(v, tris, axis=0)  # (T, 3, 3)
-        #: (T, 9): each triangle's corners, gathered at once by a query
-        self._corners = corners.reshape(len(tris), 9)
-        if len(tris):
-            edges = row_norms(corners - np.roll(corners, -1, axis=1))
-            a, b, c = edges[:, 0], edges[:, 1], edges[:, 2]
-            # each triangle's middle edge length (a sort along the short axis is several times slower)
-            self.reach = float(np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c)).max())
-        else:
-            self.reach = 0.0
+        # the rings, the corners' table and the reach: on first use (a query of a
+        # few points needs none of them whole)
+        self._rings = self._table = self._reach = None
+
+    @property
+    def rings(self) -> np.ndarray:
+        """(v, w) int64: the triangles around each vertex, padded with -1."""
+        if self._rings is None:
+            self._rings = vertex_triangle_rings(self.triangles, len(self.vertices))
+        return self._rings
+
+    @property
+    def _corners(self) -> np.ndarray:
+        """(T, 9): each triangle's corners, gathered at once by a query."""
+        if self._table is None:
+            self._table = np.take(self.vertices, self.triangles, axis=0).reshape(len(self.triangles), 9)
+        return self._table
+
+    @property
+    def reach(self) -> float:
+        """The farthest a point of the surface lies from its nearest vertex, at most, m.
+
+        Every point of a triangle lies within its second-longest edge of the
+        corner opposite its longest edge (the triangle is the convex hull of
+        its corners), so no surface point is farther than this from a vertex.
+        """
+        if self._reach is None:
+            if len(self.triangles):
+                corners = self._corners.reshape(-1, 3, 3)
+                edges = row_norms(corners - np.roll(corners, -1, axis=1))
+                a, b, c = edges[:, 0], edges[:, 1], edges[:, 2]
+                # each triangle's middle edge length (a sort along the short axis is several times slower)
+                self._reach = float(np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c)).max())
+            else:
+                self._reach = 0.0
+        return self._reach
+
+    def _candidates(self, near: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(k, c) candidate triangles of each point (the rings of its ``near`` vertices in turn; -1: none) and (k, c, 9) their corners.
+
+        A batch of few points takes the rings of its own vertices alone, in
+        the same order (each ring by triangle index), padded to their own
+        width: the same candidates, without the rings of the whole surface.
+        """
+        k = len(near)
+        if self._rings is None and near.size * self._FEW < len(self.vertices):
+            need, where = np.unique(near, return_inverse=True)
+            local = np.full(len(self.vertices), -1, np.int64)
+            local[need] = np.arange(need.size)
+            corner = np.take(local, self.triangles.ravel())
+            hit = np.flatnonzero(corner >= 0)  # in triangle order
+            vert = corner[hit]
+            order = np.argsort(vert, kind="stable")
+            counts = np.bincount(vert, minlength=need.size)
+            slot = np.arange(hit.size) - np.repeat(np.cumsum(counts) - counts, counts)
+            rings = np.full((need.size, int(counts.max(initial=0))), -1, np.int64)
+            rings[vert[order], slot] = hit[order] // 3
+            cand = np.take(rings, where.reshape(near.shape), axis=0).reshape(k, -1)
+            tri_i = np.where(cand >= 0, cand, 0)
+            g = np.take(self.vertices, np.take(self.triangles, tri_i, axis=0), axis=0).reshape(k, -1, 9)
+            return cand, g
+        cand = np.take(self.rings, near, axis=0).reshape(k, -1)
+        return cand, np.take(self._corners, np.where(cand >= 0, cand, 0), axis=0)
 
     def query(self, points: np.ndarray, *, within=None) -> tuple[np.ndarray, np.ndarray]:
         """Distance to the surface and signed offset along its normal.
@@ -127,10 +180,9 @@ class SurfaceQuery:
             parts = [self._closest(points[lo : lo + self._BLOCK], near[lo : lo + self._BLOCK]) for lo in range(0, len(points), self._BLOCK)]
             return tuple(np.concatenate(part) for part in zip(*parts))
         # (np.take gathers rows several times faster than indexing does)
-        cand = np.take(self.rings, near, axis=0).reshape(len(points), -1)  # (k, c)
+        cand, g = self._candidates(near)  # (k, c), (k, c, 9)
         valid = cand >= 0
         tri_i = np.where(valid, cand, 0)
-        g = np.take(self._corners, tri_i, axis=0)  # (k, c, 9)
         a, b, c = g[..., 0:3], g[..., 3:6], g[..., 6:9]
         closest, bary = closest_point_on_triangles(points[:, None, :], a, b, c)
         d2 = np.where(valid, np.einsum("kci,kci->kc", closest - points[:, None, :], closest - points[:, None, :]), np.inf)
