@@ -245,23 +245,27 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if not len(tris) or not len(p):
         return np.zeros(len(p), bool)
-    # (np.take gathers rows several times faster than indexing does)
-    t = np.take(v, tris, axis=0)  # (T, 3, 3)
+    # each corner's coordinates as contiguous columns, (corner, axis) -> (T,): a
+    # gather from contiguous arrays is several times faster than from rows or a
+    # transposed table, and so are reductions over columns
+    vc = [np.ascontiguousarray(v[:, i]) for i in range(3)]
+    tc = [np.ascontiguousarray(tris[:, c]) for c in range(3)]
+    corner = [[np.take(vc[i], tc[c]) for i in range(3)] for c in range(3)]
     # x and z; corner by corner (a reduction along the short axis is several times slower)
-    lo = np.minimum(np.minimum(t[:, 0, ::2], t[:, 1, ::2]), t[:, 2, ::2])
-    hi = np.maximum(np.maximum(t[:, 0, ::2], t[:, 1, ::2]), t[:, 2, ::2])
-    origin = np.minimum(lo.min(axis=0), p[:, [0, 2]].min(axis=0)) - cell
-    c_lo = np.floor((lo - origin) / cell).astype(np.int64)
-    c_hi = np.floor((hi - origin) / cell).astype(np.int64)
-    width = int(max(c_hi[:, 0].max(), np.floor((p[:, 0].max() - origin[0]) / cell))) + 2
+    lo = [np.minimum(np.minimum(corner[0][i], corner[1][i]), corner[2][i]) for i in (0, 2)]
+    hi = [np.maximum(np.maximum(corner[0][i], corner[1][i]), corner[2][i]) for i in (0, 2)]
+    origin = np.array([np.minimum(lo[0].min(), p[:, 0].min()), np.minimum(lo[1].min(), p[:, 2].min())]) - cell
+    c_lo = [np.floor((lo[a] - origin[a]) / cell).astype(np.int64) for a in (0, 1)]
+    c_hi = [np.floor((hi[a] - origin[a]) / cell).astype(np.int64) for a in (0, 1)]
+    width = int(max(c_hi[0].max(), np.floor((p[:, 0].max() - origin[0]) / cell))) + 2
     # every (triangle, cell) pair of the triangles' plan bounding boxes
-    nx, nz = c_hi[:, 0] - c_lo[:, 0] + 1, c_hi[:, 1] - c_lo[:, 1] + 1
+    nx, nz = c_hi[0] - c_lo[0] + 1, c_hi[1] - c_lo[1] + 1
     count = nx * nz
     owner = np.repeat(np.arange(len(tris)), count)
     k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
     nx_o = np.take(nx, owner)
-    gx = np.take(c_lo[:, 0], owner) + k % nx_o
-    gz = np.take(c_lo[:, 1], owner) + k // nx_o
+    gx = np.take(c_lo[0], owner) + k % nx_o
+    gz = np.take(c_lo[1], owner) + k // nx_o
     key = gz * width + gx
     # the body vertices above the floor, their cells, and the triangles there
     up = np.flatnonzero(p[:, 1] > 0.0)
@@ -277,7 +281,7 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     # (the seat under the thighs) is left out, which changes no parity
     lowest = np.full(int(max(key.max(initial=0), pkey.max(initial=0))) + 1, np.inf)
     np.minimum.at(lowest, pkey, start_points[:, 1])
-    above = np.maximum(np.maximum(t[:, 0, 1], t[:, 1, 1]), t[:, 2, 1])[owner] > lowest[key]
+    above = np.take(np.maximum(np.maximum(corner[0][1], corner[1][1]), corner[2][1]), owner) > lowest[key]
     key, owner = key[above], owner[above]
     order = np.argsort(key, kind="stable")
     key, owner = key[order], owner[order]
@@ -290,8 +294,8 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     j = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
     tri = owner[np.repeat(start, n) + j]
     qx, qy, qz = (np.take(start_points[:, i], pt) for i in range(3))
-    # one coordinate a row: each gathered column contiguous
-    ax, ay, az, bx, by, bz, cx, cy, cz = np.take(t.reshape(-1, 9).T, tri, axis=1)
+    # each gathered column contiguous
+    (ax, ay, az), (bx, by, bz), (cx, cy, cz) = ([np.take(x, tri) for x in corner[c]] for c in range(3))
     # plan barycentrics of q in (a, b, c)
     e1x, e1z, e2x, e2z, dx, dz = bx - ax, bz - az, cx - ax, cz - az, qx - ax, qz - az
     det = e1x * e2z - e1z * e2x
