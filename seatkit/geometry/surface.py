@@ -176,6 +176,8 @@ class SurfaceQuery:
 
     def _closest(self, points: np.ndarray, near: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Distance, side and surface normal of each point over the triangles around its ``near`` vertices."""
+        if self._rings is None and near.size * self._FEW >= len(self.vertices):
+            self.rings  # noqa: B018 (a large batch: the rings of the whole surface, for every block)
         if len(points) > self._BLOCK:
             parts = [self._closest(points[lo : lo + self._BLOCK], near[lo : lo + self._BLOCK]) for lo in range(0, len(points), self._BLOCK)]
             return tuple(np.concatenate(part) for part in zip(*parts))
