@@ -173,7 +173,11 @@ def compare(a_path: str, b_path: str, tolerance: float, limit: float) -> int:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        epilog="record FITS [--library 0|1] [--drawn N] [--draw-seed S]; run FITS OUT [--repeat N] [--only NAME] [--cold]; "
+        "compare A B [--tolerance M] [--limit M] (each command's --help says more)",
+    )
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("record")
     r.add_argument("fits")
