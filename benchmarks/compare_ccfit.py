@@ -6,13 +6,18 @@ bodies:
 
     python benchmarks/compare_ccfit.py record fits.pkl     # every supported library pose x both default bodies
     python benchmarks/compare_ccfit.py record drawn.pkl --library 0 --drawn 8   # 8 drawn poses (seatkit.body.generator)
-    python benchmarks/compare_ccfit.py run fits.pkl new.npz [--repeat 3]
+    python benchmarks/compare_ccfit.py run fits.pkl new.npz [--repeat 3] [--only NAME] [--cold]
     python benchmarks/compare_ccfit.py compare old.npz new.npz
 
 ``record`` builds each design (nothing written) and keeps the inputs of every
 ``catmull-clark-fit`` call: our cage after ``optimize`` and the flat-patch
 baseline's. ``run`` fits each of them ``--repeat`` times and keeps the best
-time, the fitted control points and the final depths (the 5 mm guarantee).
+time, the fitted control points and the final depths (the 5 mm guarantee);
+``--only`` fits only those whose name holds that text (say
+``default-male/upright-sitting/chair``, the default build's), and
+``--cold`` empties the library's memo caches before every fit (the
+subdivision operators and the skins' distance structures), so that each
+fit pays for them as the one fit of a build does.
 ``compare`` prints, per fit, the largest control-point and limit-surface
 distance between the two results and both versions' times and depths, then
 the CPU-time ratio per fit and how many fits are the same to the bit; it
@@ -76,17 +81,31 @@ def _poses() -> list[str]:
     return [info.name for info in list_poses() if info.supported]
 
 
-def run(path: str, out: str, repeat: int) -> None:
+def _empty_caches() -> None:
+    """Empty the memo caches a fit fills (those a version has): its next fit builds everything again."""
+    import seatkit.geometry.skin as skin
+    import seatkit.subdivision.catmull_clark as catmull_clark
+
+    for cache in (getattr(catmull_clark, "_OPS_CACHE", None), getattr(catmull_clark, "_LEVEL_CACHE", None), getattr(skin, "_CACHE", None)):
+        if cache is not None:
+            cache.clear()
+
+
+def run(path: str, out: str, repeat: int, only: str | None = None, cold: bool = False) -> None:
     from seatkit.errors import SolverError
     from seatkit.refine.ccfit import fit_cage
     from seatkit.subdivision import limit_surface
 
     with open(path, "rb") as f:
         fits = pickle.load(f)
+    if only:
+        fits = [fit for fit in fits if only in fit["name"]]
     result = {}
     for fit in fits:
         best, cpu = np.inf, np.inf
         for _ in range(repeat):
+            if cold:
+                _empty_caches()
             t0, c0 = time.perf_counter(), time.process_time()
             try:
                 mesh = fit_cage(fit["mesh"], fit["bodies"], fit["pressures"], fit["params"])
@@ -154,7 +173,11 @@ def compare(a_path: str, b_path: str, tolerance: float, limit: float) -> int:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0],
+        epilog="record FITS [--library 0|1] [--drawn N] [--draw-seed S]; run FITS OUT [--repeat N] [--only NAME] [--cold]; "
+        "compare A B [--tolerance M] [--limit M] (each command's --help says more)",
+    )
     sub = ap.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("record")
     r.add_argument("fits")
@@ -165,6 +188,8 @@ def main() -> None:
     u.add_argument("fits")
     u.add_argument("out")
     u.add_argument("--repeat", type=int, default=1)
+    u.add_argument("--only", help="fit only those whose name holds this text")
+    u.add_argument("--cold", action="store_true", help="empty the memo caches before every fit")
     c = sub.add_parser("compare")
     c.add_argument("a")
     c.add_argument("b")
@@ -174,7 +199,7 @@ def main() -> None:
     if args.cmd == "record":
         record(args.fits, library=bool(args.library), drawn=args.drawn, draw_seed=args.draw_seed)
     elif args.cmd == "run":
-        run(args.fits, args.out, args.repeat)
+        run(args.fits, args.out, args.repeat, args.only, args.cold)
     else:
         sys.exit(compare(args.a, args.b, args.tolerance, args.limit))
 

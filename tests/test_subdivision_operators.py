@@ -58,6 +58,33 @@ def test_operators_are_cached_per_topology():
     assert build_operators(a, 3) is not build_operators(a, 2)
 
 
+@pytest.mark.parametrize("case", runner.reference_cases()[:8], ids=lambda c: c.name)
+def test_a_finer_level_from_a_cached_coarser_one_is_the_same_to_the_bit(case):
+    """Level k + 1 goes on from a cached level k: the operators are those refined from the cage."""
+    from seatkit.subdivision import catmull_clark
+
+    cage = case.cage()
+
+    def cold(level):
+        catmull_clark._OPS_CACHE.clear()
+        catmull_clark._LEVEL_CACHE.clear()
+        return build_operators(cage, level)
+
+    for finer in (2, 3, 4):
+        fresh = cold(finer)
+        for coarser in range(1, finer):
+            cold(coarser)
+            on = build_operators(cage, finer)
+            assert on is not fresh
+            for name in ("refine", "limit", "du", "dv"):
+                a, b = getattr(fresh, name), getattr(on, name)
+                assert np.array_equal(a.indptr, b.indptr) and np.array_equal(a.indices, b.indices)
+                assert np.array_equal(a.data, b.data)
+            assert len(on.steps) == finer
+            for name in ("faces", "face_origin", "rules"):
+                assert np.array_equal(getattr(fresh, name), getattr(on, name))
+
+
 def test_translation_and_scaling_commute():
     cage = runner.reference_cases()[1].cage()  # the creased chair
     ops = build_operators(cage, 2)

@@ -288,24 +288,50 @@ class SkinDistance:
         return self._open
 
     def _nearest_triangle(self, points: np.ndarray, cand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Of the candidate triangles ``cand`` (k, c; -1: none) of each point, the closest (the first of equals) and the barycentric coordinates (k, 3) of its closest point."""
-        valid = cand >= 0
-        tri_i = np.where(valid, cand, 0)
-        # each candidate's triangle in one gather (np.take: several times faster than indexing)
-        g = np.take(self._table, tri_i, axis=0)
-        ap = points[:, None, :] - g[..., 0:3]
-        ab, ac = g[..., 3:6], g[..., 6:9]
-        d00, d01, d11 = g[..., 9], g[..., 10], g[..., 11]
-        d1 = np.einsum("kci,kci->kc", ab, ap)
-        d2 = np.einsum("kci,kci->kc", ac, ap)
+        """Of the candidate triangles ``cand`` (k, c; -1: none) of each point, the closest (the first of equals) and the barycentric coordinates (k, 3) of its closest point.
+
+        Each point's candidates are the rings of its nearest vertices, one
+        after the other (every point's first ring holds a triangle): about
+        a third of the slots are padding or a triangle an earlier ring
+        already offers (two neighbouring vertices share two), and only the
+        others are searched, as one flat list of (point, triangle) pairs in
+        the slots' order. The first of equals is then the same triangle as
+        over all slots, and each pair's arithmetic is the same, to the bit.
+        """
+        k, c = cand.shape
+        keep = cand >= 0
+        width = self.rings.shape[1]
+        for j in range(width, c, width):
+            # a triangle of this ring that an earlier ring holds: searched there already
+            # (slot by slot: a reduction along the short axis is several times slower)
+            ring = cand[:, j : j + width]
+            seen = ring == cand[:, :1]
+            for s in range(1, j):
+                seen |= ring == cand[:, s : s + 1]
+            keep[:, j : j + width] &= ~seen
+        pair = np.flatnonzero(keep)  # in (point, slot) order
+        owner = pair // c
+        count = np.bincount(owner, minlength=k)
+        tri = np.take(cand, pair)
+        # each pair's triangle in one gather (np.take: several times faster than indexing)
+        g = np.take(self._table, tri, axis=0)
+        ap = np.take(points, owner, axis=0) - g[:, 0:3]
+        ab, ac = g[:, 3:6], g[:, 6:9]
+        d00, d01, d11 = g[:, 9], g[:, 10], g[:, 11]
+        d1 = np.einsum("ni,ni->n", ab, ap)
+        d2 = np.einsum("ni,ni->n", ac, ap)
         bary = closest_barycentric(d1, d2, d00, d01, d11)
         _, v, w = bary
         # |ap - v ab - w ac|^2 without forming the points
-        d2sq = np.einsum("kci,kci->kc", ap, ap) - 2.0 * (v * d1 + w * d2) + v * v * d00 + 2.0 * v * w * d01 + w * w * d11
-        d2sq = np.where(valid & np.isfinite(d2sq), np.maximum(d2sq, 0.0), np.inf)
-        best = np.argmin(d2sq, axis=1)
-        rows = np.arange(len(points))
-        return tri_i[rows, best], np.stack([x[rows, best] for x in bary], axis=1)
+        d2sq = np.einsum("ni,ni->n", ap, ap) - 2.0 * (v * d1 + w * d2) + v * v * d00 + 2.0 * v * w * d01 + w * w * d11
+        d2sq = np.where(np.isfinite(d2sq), np.maximum(d2sq, 0.0), np.inf)
+        # the first pair of each point at its smallest distance
+        start = np.cumsum(count) - count
+        lowest = np.minimum.reduceat(d2sq, start)
+        at_min = np.flatnonzero(d2sq == np.repeat(lowest, count))
+        who = np.take(owner, at_min)
+        best = at_min[np.concatenate([[True], who[1:] != who[:-1]])]
+        return np.take(tri, best), np.stack([np.take(x, best) for x in bary], axis=1)
 
     def _exact(self, points: np.ndarray, near: np.ndarray):
         # in blocks of points whose candidates' arrays stay in the cache

@@ -40,26 +40,79 @@ class SurfaceQuery:
     #: Slack (m) for rounding when the nearest vertex's distance alone decides a point's search.
     _ROUNDING = 1e-9
 
+    #: A batch whose candidate vertices are fewer than the surface's vertices over this searches
+    #: the rings of those vertices alone (a final check's few body vertices inside the furniture).
+    _FEW = 8
+
     def __init__(self, surface: Surface):
         v = np.asarray(surface.vertices, dtype=np.float64)
         f = np.asarray(surface.faces, dtype=np.int64)
         tris = np.concatenate([f[:, [0, 1, 2]], f[:, [0, 2, 3]]]) if f.shape[1] == 4 else f
         self.vertices, self.normals, self.triangles = v, np.asarray(surface.normals, dtype=np.float64), tris
-        self.rings = vertex_triangle_rings(tris, len(v))  # vertex -> incident triangles, padded with -1
         self.tree = cKDTree(v, balanced_tree=False, compact_nodes=False)
-        # Every point of a triangle lies within its second-longest edge of the
-        # corner opposite its longest edge (the triangle is the convex hull of
-        # its corners), so no surface point is farther than this from a vertex.
-        corners = np.take(v, tris, axis=0)  # (T, 3, 3)
-        #: (T, 9): each triangle's corners, gathered at once by a query
-        self._corners = corners.reshape(len(tris), 9)
-        if len(tris):
-            edges = row_norms(corners - np.roll(corners, -1, axis=1))
-            a, b, c = edges[:, 0], edges[:, 1], edges[:, 2]
-            # each triangle's middle edge length (a sort along the short axis is several times slower)
-            self.reach = float(np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c)).max())
-        else:
-            self.reach = 0.0
+        # the rings, the corners' table and the reach: on first use (a query of a
+        # few points needs none of them whole)
+        self._rings = self._table = self._reach = None
+
+    @property
+    def rings(self) -> np.ndarray:
+        """(v, w) int64: the triangles around each vertex, padded with -1."""
+        if self._rings is None:
+            self._rings = vertex_triangle_rings(self.triangles, len(self.vertices))
+        return self._rings
+
+    @property
+    def _corners(self) -> np.ndarray:
+        """(T, 9): each triangle's corners, gathered at once by a query."""
+        if self._table is None:
+            self._table = np.take(self.vertices, self.triangles, axis=0).reshape(len(self.triangles), 9)
+        return self._table
+
+    @property
+    def reach(self) -> float:
+        """The farthest a point of the surface lies from its nearest vertex, at most, m.
+
+        Every point of a triangle lies within its second-longest edge of the
+        corner opposite its longest edge (the triangle is the convex hull of
+        its corners), so no surface point is farther than this from a vertex.
+        """
+        if self._reach is None:
+            if len(self.triangles):
+                corners = self._corners.reshape(-1, 3, 3)
+                edges = row_norms(corners - np.roll(corners, -1, axis=1))
+                a, b, c = edges[:, 0], edges[:, 1], edges[:, 2]
+                # each triangle's middle edge length (a sort along the short axis is several times slower)
+                self._reach = float(np.maximum(np.minimum(a, b), np.minimum(np.maximum(a, b), c)).max())
+            else:
+                self._reach = 0.0
+        return self._reach
+
+    def _candidates(self, near: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(k, c) candidate triangles of each point (the rings of its ``near`` vertices in turn; -1: none) and (k, c, 9) their corners.
+
+        A batch of few points takes the rings of its own vertices alone, in
+        the same order (each ring by triangle index), padded to their own
+        width: the same candidates, without the rings of the whole surface.
+        """
+        k = len(near)
+        if self._rings is None and near.size * self._FEW < len(self.vertices):
+            need, where = np.unique(near, return_inverse=True)
+            local = np.full(len(self.vertices), -1, np.int64)
+            local[need] = np.arange(need.size)
+            corner = np.take(local, self.triangles.ravel())
+            hit = np.flatnonzero(corner >= 0)  # in triangle order
+            vert = corner[hit]
+            order = np.argsort(vert, kind="stable")
+            counts = np.bincount(vert, minlength=need.size)
+            slot = np.arange(hit.size) - np.repeat(np.cumsum(counts) - counts, counts)
+            rings = np.full((need.size, int(counts.max(initial=0))), -1, np.int64)
+            rings[vert[order], slot] = hit[order] // 3
+            cand = np.take(rings, where.reshape(near.shape), axis=0).reshape(k, -1)
+            tri_i = np.where(cand >= 0, cand, 0)
+            g = np.take(self.vertices, np.take(self.triangles, tri_i, axis=0), axis=0).reshape(k, -1, 9)
+            return cand, g
+        cand = np.take(self.rings, near, axis=0).reshape(k, -1)
+        return cand, np.take(self._corners, np.where(cand >= 0, cand, 0), axis=0)
 
     def query(self, points: np.ndarray, *, within=None) -> tuple[np.ndarray, np.ndarray]:
         """Distance to the surface and signed offset along its normal.
@@ -123,14 +176,15 @@ class SurfaceQuery:
 
     def _closest(self, points: np.ndarray, near: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Distance, side and surface normal of each point over the triangles around its ``near`` vertices."""
+        if self._rings is None and near.size * self._FEW >= len(self.vertices):
+            self.rings  # noqa: B018 (a large batch: the rings of the whole surface, for every block)
         if len(points) > self._BLOCK:
             parts = [self._closest(points[lo : lo + self._BLOCK], near[lo : lo + self._BLOCK]) for lo in range(0, len(points), self._BLOCK)]
             return tuple(np.concatenate(part) for part in zip(*parts))
         # (np.take gathers rows several times faster than indexing does)
-        cand = np.take(self.rings, near, axis=0).reshape(len(points), -1)  # (k, c)
+        cand, g = self._candidates(near)  # (k, c), (k, c, 9)
         valid = cand >= 0
         tri_i = np.where(valid, cand, 0)
-        g = np.take(self._corners, tri_i, axis=0)  # (k, c, 9)
         a, b, c = g[..., 0:3], g[..., 3:6], g[..., 6:9]
         closest, bary = closest_point_on_triangles(points[:, None, :], a, b, c)
         d2 = np.where(valid, np.einsum("kci,kci->kc", closest - points[:, None, :], closest - points[:, None, :]), np.inf)
@@ -193,23 +247,27 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     p = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     if not len(tris) or not len(p):
         return np.zeros(len(p), bool)
-    # (np.take gathers rows several times faster than indexing does)
-    t = np.take(v, tris, axis=0)  # (T, 3, 3)
+    # each corner's coordinates as contiguous columns, (corner, axis) -> (T,): a
+    # gather from contiguous arrays is several times faster than from rows or a
+    # transposed table, and so are reductions over columns
+    vc = [np.ascontiguousarray(v[:, i]) for i in range(3)]
+    tc = [np.ascontiguousarray(tris[:, c]) for c in range(3)]
+    corner = [[np.take(vc[i], tc[c]) for i in range(3)] for c in range(3)]
     # x and z; corner by corner (a reduction along the short axis is several times slower)
-    lo = np.minimum(np.minimum(t[:, 0, ::2], t[:, 1, ::2]), t[:, 2, ::2])
-    hi = np.maximum(np.maximum(t[:, 0, ::2], t[:, 1, ::2]), t[:, 2, ::2])
-    origin = np.minimum(lo.min(axis=0), p[:, [0, 2]].min(axis=0)) - cell
-    c_lo = np.floor((lo - origin) / cell).astype(np.int64)
-    c_hi = np.floor((hi - origin) / cell).astype(np.int64)
-    width = int(max(c_hi[:, 0].max(), np.floor((p[:, 0].max() - origin[0]) / cell))) + 2
+    lo = [np.minimum(np.minimum(corner[0][i], corner[1][i]), corner[2][i]) for i in (0, 2)]
+    hi = [np.maximum(np.maximum(corner[0][i], corner[1][i]), corner[2][i]) for i in (0, 2)]
+    origin = np.array([np.minimum(lo[0].min(), p[:, 0].min()), np.minimum(lo[1].min(), p[:, 2].min())]) - cell
+    c_lo = [np.floor((lo[a] - origin[a]) / cell).astype(np.int64) for a in (0, 1)]
+    c_hi = [np.floor((hi[a] - origin[a]) / cell).astype(np.int64) for a in (0, 1)]
+    width = int(max(c_hi[0].max(), np.floor((p[:, 0].max() - origin[0]) / cell))) + 2
     # every (triangle, cell) pair of the triangles' plan bounding boxes
-    nx, nz = c_hi[:, 0] - c_lo[:, 0] + 1, c_hi[:, 1] - c_lo[:, 1] + 1
+    nx, nz = c_hi[0] - c_lo[0] + 1, c_hi[1] - c_lo[1] + 1
     count = nx * nz
     owner = np.repeat(np.arange(len(tris)), count)
     k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
     nx_o = np.take(nx, owner)
-    gx = np.take(c_lo[:, 0], owner) + k % nx_o
-    gz = np.take(c_lo[:, 1], owner) + k // nx_o
+    gx = np.take(c_lo[0], owner) + k % nx_o
+    gz = np.take(c_lo[1], owner) + k // nx_o
     key = gz * width + gx
     # the body vertices above the floor, their cells, and the triangles there
     up = np.flatnonzero(p[:, 1] > 0.0)
@@ -225,7 +283,7 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     # (the seat under the thighs) is left out, which changes no parity
     lowest = np.full(int(max(key.max(initial=0), pkey.max(initial=0))) + 1, np.inf)
     np.minimum.at(lowest, pkey, start_points[:, 1])
-    above = np.maximum(np.maximum(t[:, 0, 1], t[:, 1, 1]), t[:, 2, 1])[owner] > lowest[key]
+    above = np.take(np.maximum(np.maximum(corner[0][1], corner[1][1]), corner[2][1]), owner) > lowest[key]
     key, owner = key[above], owner[above]
     order = np.argsort(key, kind="stable")
     key, owner = key[order], owner[order]
@@ -238,8 +296,8 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     j = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
     tri = owner[np.repeat(start, n) + j]
     qx, qy, qz = (np.take(start_points[:, i], pt) for i in range(3))
-    # one coordinate a row: each gathered column contiguous
-    ax, ay, az, bx, by, bz, cx, cy, cz = np.take(t.reshape(-1, 9).T, tri, axis=1)
+    # each gathered column contiguous
+    (ax, ay, az), (bx, by, bz), (cx, cy, cz) = ([np.take(x, tri) for x in corner[c]] for c in range(3))
     # plan barycentrics of q in (a, b, c)
     e1x, e1z, e2x, e2z, dx, dz = bx - ax, bz - az, cx - ax, cz - az, qx - ax, qz - az
     det = e1x * e2z - e1z * e2x

@@ -104,27 +104,30 @@ def limit_masks(level: MeshLevel) -> tuple[sp.csr_matrix, sp.csr_matrix, sp.csr_
     lam = 5.0 / 16.0 + (1.0 / 16.0) * (cos_t + np.cos(theta * 0.5) * np.sqrt(2.0 * (9.0 + cos_t)))
     with np.errstate(divide="ignore"):
         face_scale = 1.0 / (4.0 * lam - 1.0)  # used for smooth vertices only
+    # (the cosines only where the valence is not 4: after a refinement or
+    # two almost every vertex has the B-spline weights)
     sel = smooth[e_vert]
     ev_s, ep_s, eo_s = e_vert[sel], e_pos[sel], e_opp[sel]
-    nn = n_faces[ev_s]
-    th = theta[ev_s]
-    w1 = 4.0 * np.cos(ep_s * th)
-    w2 = 4.0 * np.cos((ep_s - 1) * th)
-    is4 = nn == 4
-    w1 = np.where(is4, np.array([4.0, 0.0, -4.0, 0.0])[ep_s % 4], w1)
-    w2 = np.where(is4, np.array([0.0, 4.0, 0.0, -4.0])[ep_s % 4], w2)
+    is4 = n_faces[ev_s] == 4
+    w1 = np.array([4.0, 0.0, -4.0, 0.0])[ep_s % 4]
+    w2 = np.array([0.0, 4.0, 0.0, -4.0])[ep_s % 4]
+    odd = np.flatnonzero(~is4)
+    if odd.size:
+        th, p = theta[ev_s[odd]], ep_s[odd]
+        w1[odd] = 4.0 * np.cos(p * th)
+        w2[odd] = 4.0 * np.cos((p - 1) * th)
     add(T1, ev_s, eo_s, w1)
     add(T2, ev_s, eo_s, w2)
     sel = smooth[f_vert]
     fv_s, fp_s, fo_s = f_vert[sel], f_pos[sel], f_opp[sel]
-    nn = n_faces[fv_s]
-    th = theta[fv_s]
-    fs = face_scale[fv_s]
-    w1 = fs * (np.cos(fp_s * th) + np.cos((fp_s + 1) * th))
-    w2 = fs * (np.cos((fp_s - 1) * th) + np.cos(fp_s * th))
-    is4 = nn == 4
-    w1 = np.where(is4, np.array([1.0, -1.0, -1.0, 1.0])[fp_s % 4], w1)
-    w2 = np.where(is4, np.array([1.0, 1.0, -1.0, -1.0])[fp_s % 4], w2)
+    is4 = n_faces[fv_s] == 4
+    w1 = np.array([1.0, -1.0, -1.0, 1.0])[fp_s % 4]
+    w2 = np.array([1.0, 1.0, -1.0, -1.0])[fp_s % 4]
+    odd = np.flatnonzero(~is4)
+    if odd.size:
+        th, p, fs = theta[fv_s[odd]], fp_s[odd], face_scale[fv_s[odd]]
+        w1[odd] = fs * (np.cos(p * th) + np.cos((p + 1) * th))
+        w2[odd] = fs * (np.cos((p - 1) * th) + np.cos(p * th))
     add(T1, fv_s, fo_s, w1)
     add(T2, fv_s, fo_s, w2)
 
