@@ -12,6 +12,8 @@ the fit's cross products and unit vectors are numpy's to the bit.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import trimesh
 from hypothesis import given, settings
@@ -91,6 +93,23 @@ def test_crossing_faces_finds_what_every_pair_finds():
             found += len(want)
     assert found > 0  # the cages do cross the sphere
 
+
+
+def test_a_quad_crosses_the_body_whatever_the_rest_of_the_cage_and_a_moved_quad_is_tested_again():
+    # the check keeps each quad's answer per body (a repair moves a few quads; the check runs again)
+    body = _sphere_body(subdivisions=2)
+    rng = np.random.default_rng(11)
+    V, Q = _random_cage(rng)
+    whole = crossing_faces(V, Q, body, 0.007)
+    assert 0 < len(whole) < len(Q)
+    for i in range(len(Q)):  # each quad alone, on a new body object (nothing kept for it)
+        alone = crossing_faces(V, Q[i : i + 1], dataclasses.replace(body), 0.007)
+        assert (len(alone) == 1) == (i in whole)
+    moved = V.copy()
+    moved[Q[whole[0]]] += rng.normal(scale=0.05, size=(4, 3))  # the corners of a crossing quad, and their neighbours' corners
+    for tolerance in (0.007, 0.0):
+        np.testing.assert_array_equal(crossing_faces(moved, Q, body, tolerance), _brute_crossing(moved, Q, body, tolerance))
+    np.testing.assert_array_equal(crossing_faces(V, Q, body, 0.007), whole)
 
 def test_self_intersections_match_every_pair():
     rng = np.random.default_rng(3)
