@@ -22,7 +22,7 @@ from scipy.spatial import cKDTree
 
 from seatkit.model import Body
 from seatkit.template.clearance import _within_reach
-from seatkit.template.planes import cross, unit
+from seatkit.template.planes import _neighbour_cut, cross, unit
 from seatkit.template.checks import (
     _cover_triangles,
     crossing_faces,
@@ -182,6 +182,27 @@ def test_cross_and_unit_are_numpys_to_the_bit():
         want = np.asarray(x) / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-12)
         assert np.array_equal(unit(x), want)
 
+
+
+def test_the_neighbour_cut_counts_the_neighbours_under_each_candidates_supported_patch():
+    rng = np.random.default_rng(5)
+    points, neighbours = rng.normal(size=(60, 3)), rng.normal(size=(40, 3))
+    c = 25
+    normals, d_up = unit(rng.normal(size=(c, 3))), unit(rng.normal(size=(c, 3)))
+    d_side, offsets = unit(cross(d_up, normals)), rng.normal(scale=0.5, size=c)
+    supported = rng.random((c, len(points))) < 0.4
+    supported[3] = False  # a candidate that supports nothing cuts nothing
+    got = _neighbour_cut(points, supported, neighbours, normals, offsets, d_up, d_side, 0.01)
+    for j in range(c):
+        patch = points[supported[j]]
+        if len(patch) == 0:
+            assert got[j] == 0.0
+            continue
+        u, v = neighbours @ d_up[j], neighbours @ d_side[j]
+        pu, pv = patch @ d_up[j], patch @ d_side[j]
+        under = (u > pu.min()) & (u < pu.max()) & (v > pv.min()) & (v < pv.max()) & (neighbours @ normals[j] - offsets[j] < -0.01)
+        assert got[j] == under.mean()
+    assert got.max() > 0
 
 def test_a_small_body_through_a_large_face_is_found():
     """A ball 2 cm across poking through the middle of one of a quad's four triangles: no cage edge meets it, only the body's edges cross the face."""
