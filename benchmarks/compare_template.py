@@ -245,7 +245,8 @@ def compare(a_path: str, b_path: str, tolerance: float) -> int:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    usage = "\n".join(line for line in __doc__.splitlines() if line.strip().startswith("python benchmarks/compare_template.py"))
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], epilog=usage, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     r = sub.add_parser("record")
     r.add_argument("cases")
