@@ -4,6 +4,7 @@ Three steps, so that two versions of seatkit (say a commit and the working
 tree, each in its own venv) fit exactly the same bodies and pressures:
 
     python benchmarks/compare_template.py record cases.pkl   # library poses x 2 bodies x seeds 0-2, 30 drawn poses x 2 bodies
+    python benchmarks/compare_template.py record cases.pkl --builds crossed-legs-050@default-female seated-000@default-male
     python benchmarks/compare_template.py run cases.pkl new.npz [--repeat 1] [--only template|optimize]
     python benchmarks/compare_template.py compare old.npz new.npz [--tolerance 1e-9]
 
@@ -12,7 +13,10 @@ tree, each in its own venv) fit exactly the same bodies and pressures:
 on both default bodies, solves their pressure (QP), and keeps the bodies, the
 pressures and, for every case, the chair the recording version fits with
 seed 0 (the input of ``optimize``, so that both versions optimise the very
-same cage). ``run`` fits the chair to every case with every seed of the case
+same cage). With ``--builds FAMILY-INDEX@BODY ...`` it records only those
+drawn cases (draw seed 2026, as the generalisation benchmark draws them),
+with the bodies and pressures the default build (seed 0) hands the
+template: posed, in the canonical frame, placed. ``run`` fits the chair to every case with every seed of the case
 (seeds 0-2 on the library poses, ``--drawn-seeds`` on the drawn ones) and
 runs ``optimize`` on every recorded cage, ``--repeat`` times each, keeping
 the least CPU time (``time.process_time``, BLAS on one thread as in a build),
@@ -36,6 +40,48 @@ BODIES = ("default-female", "default-male")
 #: ControlMesh arrays compared (positions with the tolerance, the rest exactly).
 POSITIONS = ("vertices", "plane_points", "plane_normals", "vertex_weights")
 EXACT = ("faces", "face_segments", "face_person", "fixed", "ground", "crease_edges", "corners")
+
+
+def record_builds(path: str, names: list[str]) -> None:
+    """Record the drawn cases ``names`` with the bodies and pressures the default build hands the chair template."""
+    import tempfile
+    from pathlib import Path
+
+    from seatkit.body.generator import draw_case, pose_yaml
+    from seatkit.errors import SeatkitError
+    from seatkit.pipeline import build
+    from seatkit.template import engine
+
+    seen: list = []
+    fits = engine.YamlTemplate.fits
+
+    def recorded(self, bodies, pressures, **kw):
+        if not seen:
+            seen.append((list(bodies), list(pressures)))
+        return fits(self, bodies, pressures, **kw)
+
+    engine.YamlTemplate.fits = recorded
+    cases = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            drawn, model = draw_case(name)
+            pose = Path(tmp) / f"{drawn.name}.yaml"
+            pose.write_text(pose_yaml(drawn))
+            seen.clear()
+            try:
+                r = build({"template": "chair", "seed": 0, "bodies": [{"model": model, "pose": str(pose)}]}, write=False, processes=False)
+                cage, note = r.initial_mesh, f"{len(r.initial_mesh.vertices)} control points"
+            except SeatkitError as e:
+                cage, note = None, f"refused: {str(e)[:90]}"
+            if not seen:
+                print(f"{name}: the build never fitted the template ({note})", file=sys.stderr)
+                continue
+            (body,), (pressure,) = seen[0]
+            cases.append({"name": f"{model}/{drawn.name}", "body": body, "pressure": pressure, "seeds": [0], "cage": cage})
+            print(f"{name}: {note}", file=sys.stderr)
+    engine.YamlTemplate.fits = fits
+    with open(path, "wb") as f:
+        pickle.dump(cases, f)
 
 
 def record(path: str, drawn: int, draw_seed: int, drawn_seeds: list[int]) -> None:
@@ -199,13 +245,15 @@ def compare(a_path: str, b_path: str, tolerance: float) -> int:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    usage = "\n".join(line for line in __doc__.splitlines() if line.strip().startswith("python benchmarks/compare_template.py"))
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0], epilog=usage, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     r = sub.add_parser("record")
     r.add_argument("cases")
     r.add_argument("--drawn", type=int, default=30)
     r.add_argument("--draw-seed", type=int, default=2026)
     r.add_argument("--drawn-seeds", type=int, nargs="+", default=[0])
+    r.add_argument("--builds", nargs="+", metavar="FAMILY-INDEX@BODY", help="only these drawn cases, as the default build fits them")
     u = sub.add_parser("run")
     u.add_argument("cases")
     u.add_argument("out")
@@ -217,7 +265,9 @@ def main() -> None:
     c.add_argument("b")
     c.add_argument("--tolerance", type=float, default=0.0)
     args = parser.parse_args()
-    if args.command == "record":
+    if args.command == "record" and args.builds:
+        record_builds(args.cases, args.builds)
+    elif args.command == "record":
         record(args.cases, args.drawn, args.draw_seed, args.drawn_seeds)
     elif args.command == "run":
         run(args.cases, args.out, args.repeat, args.only, args.match)

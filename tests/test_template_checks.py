@@ -12,6 +12,8 @@ the fit's cross products and unit vectors are numpy's to the bit.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import trimesh
 from hypothesis import given, settings
@@ -20,7 +22,7 @@ from scipy.spatial import cKDTree
 
 from seatkit.model import Body
 from seatkit.template.clearance import _within_reach
-from seatkit.template.planes import cross, unit
+from seatkit.template.planes import _neighbour_cut, cross, unit
 from seatkit.template.checks import (
     _cover_triangles,
     crossing_faces,
@@ -91,6 +93,23 @@ def test_crossing_faces_finds_what_every_pair_finds():
             found += len(want)
     assert found > 0  # the cages do cross the sphere
 
+
+
+def test_a_quad_crosses_the_body_whatever_the_rest_of_the_cage_and_a_moved_quad_is_tested_again():
+    # the check keeps each quad's answer per body (a repair moves a few quads; the check runs again)
+    body = _sphere_body(subdivisions=2)
+    rng = np.random.default_rng(11)
+    V, Q = _random_cage(rng)
+    whole = crossing_faces(V, Q, body, 0.007)
+    assert 0 < len(whole) < len(Q)
+    for i in range(len(Q)):  # each quad alone, on a new body object (nothing kept for it)
+        alone = crossing_faces(V, Q[i : i + 1], dataclasses.replace(body), 0.007)
+        assert (len(alone) == 1) == (i in whole)
+    moved = V.copy()
+    moved[Q[whole[0]]] += rng.normal(scale=0.05, size=(4, 3))  # the corners of a crossing quad, and their neighbours' corners
+    for tolerance in (0.007, 0.0):
+        np.testing.assert_array_equal(crossing_faces(moved, Q, body, tolerance), _brute_crossing(moved, Q, body, tolerance))
+    np.testing.assert_array_equal(crossing_faces(V, Q, body, 0.007), whole)
 
 def test_self_intersections_match_every_pair():
     rng = np.random.default_rng(3)
@@ -163,6 +182,27 @@ def test_cross_and_unit_are_numpys_to_the_bit():
         want = np.asarray(x) / np.maximum(np.linalg.norm(x, axis=-1, keepdims=True), 1e-12)
         assert np.array_equal(unit(x), want)
 
+
+
+def test_the_neighbour_cut_counts_the_neighbours_under_each_candidates_supported_patch():
+    rng = np.random.default_rng(5)
+    points, neighbours = rng.normal(size=(60, 3)), rng.normal(size=(40, 3))
+    c = 25
+    normals, d_up = unit(rng.normal(size=(c, 3))), unit(rng.normal(size=(c, 3)))
+    d_side, offsets = unit(cross(d_up, normals)), rng.normal(scale=0.5, size=c)
+    supported = rng.random((c, len(points))) < 0.4
+    supported[3] = False  # a candidate that supports nothing cuts nothing
+    got = _neighbour_cut(points, supported, neighbours, normals, offsets, d_up, d_side, 0.01)
+    for j in range(c):
+        patch = points[supported[j]]
+        if len(patch) == 0:
+            assert got[j] == 0.0
+            continue
+        u, v = neighbours @ d_up[j], neighbours @ d_side[j]
+        pu, pv = patch @ d_up[j], patch @ d_side[j]
+        under = (u > pu.min()) & (u < pu.max()) & (v > pv.min()) & (v < pv.max()) & (neighbours @ normals[j] - offsets[j] < -0.01)
+        assert got[j] == under.mean()
+    assert got.max() > 0
 
 def test_a_small_body_through_a_large_face_is_found():
     """A ball 2 cm across poking through the middle of one of a quad's four triangles: no cage edge meets it, only the body's edges cross the face."""

@@ -362,6 +362,10 @@ def prepare_body(body: Body) -> None:
     _body_triangle_bins(body)
 
 
+#: Quads :func:`crossing_faces` answered, per body: at most this many kept (then forgotten, all at once).
+_CROSSING_MEMO = 50_000
+
+
 def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, tolerance: float) -> np.ndarray:
     """(k,) int64 quads that cross the body deeper than ``tolerance``.
 
@@ -370,27 +374,51 @@ def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, toleranc
     sink depth do not count; then every body edge is tested against the
     cage's triangles and every cage edge against the body's triangles.
     Only numpy and scipy's k-d tree.
+
+    Whether a quad crosses depends on its four corners, the body and
+    ``tolerance`` alone (each quad is tested apart from the others), so the
+    answer is kept per body, by the corners' coordinates to the bit: the
+    template's final check after a repair tests only the quads the repair
+    moved, and the next start's check only those it has not seen.
     """
     if len(quads) == 0:
         return np.zeros(0, np.int64)
     V = np.asarray(vertices, dtype=np.float64)
+    corners = np.ascontiguousarray(V[np.asarray(quads)])  # (f, 4, 3)
+    memo = _cached(body, "crossing", lambda b: {})
+    if len(memo) > _CROSSING_MEMO:
+        memo.clear()
+    tag = np.float64(tolerance).tobytes()
+    keys = [tag + q.tobytes() for q in corners]
+    known = [memo.get(k) for k in keys]
+    todo = np.array([i for i, k in enumerate(known) if k is None], dtype=np.int64)
+    bad = np.array([bool(k) for k in known])
+    if len(todo):
+        fresh = _crossing_quads(corners[todo], body, tolerance)
+        bad[todo] = fresh
+        memo.update(zip((keys[i] for i in todo), fresh.tolist()))
+    return np.flatnonzero(bad).astype(np.int64)
+
+
+def _crossing_quads(Q: np.ndarray, body: Body, tolerance: float) -> np.ndarray:
+    """(f,) bool: which quads (their corners, (f, 4, 3) float64) cross the body (:func:`crossing_faces`)."""
+    nq = len(Q)
     # every quad moved back along its own normal (quads come apart, which is
     # fine here): a face may rest ``tolerance`` deep in the skin
-    Q = V[quads]
     fn = cross(Q[:, 2] - Q[:, 0], Q[:, 3] - Q[:, 1])
     fn /= np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-12)
     Q = Q - tolerance * fn[:, None, :]
-    points, tris, owner = quad_triangles(Q.reshape(-1, 3), np.arange(4 * len(quads)).reshape(-1, 4))
+    points, tris, owner = quad_triangles(Q.reshape(-1, 3), np.arange(4 * nq).reshape(-1, 4))
     bv = np.asarray(body.vertices, dtype=np.float64)
     bf = np.asarray(body.faces)
-    bad = np.zeros(len(quads), bool)
+    bad = np.zeros(nq, bool)
     spacing = 0.03
     # only cage triangles near the body can cross it
     centres, radius = _triangle_spheres(points, tris)
     d, _ = body_tree(body).query(centres, distance_upper_bound=float(radius.max()) + 0.1)
     near = np.flatnonzero(d <= radius + 0.05)
     if len(near) == 0:
-        return np.zeros(0, np.int64)
+        return bad
     # body edges against cage triangles: candidates from samples of the triangles
     be = body_edges(body)
     # every point of a near triangle lies within ``spacing`` of one of its
@@ -419,7 +447,7 @@ def crossing_faces(vertices: np.ndarray, quads: np.ndarray, body: Body, toleranc
     B = bv[bf[tj]]
     hit = segments_cross_triangles(p0[ei], p1[ei], B[:, 0], B[:, 1], B[:, 2])
     bad[eo[ei[hit]]] = True
-    return np.flatnonzero(bad).astype(np.int64)
+    return bad
 
 
 def faces_cross_body(vertices: np.ndarray, quads: np.ndarray, body: Body, tolerance: float) -> bool:
@@ -797,6 +825,25 @@ def _parts(mesh: ControlMesh, faces) -> list:
 _NOT_OCCLUDING = set(NOT_HELD) | {SEGMENT_INDEX[a] for a in ("RightArm", "LeftArm")}
 
 
+def _cast_down(body: Body, down: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cast_parallel` straight down to the ground from the body vertices ``down`` (ascending), 2 mm under them.
+
+    The casts depend on the body and the vertices alone, and the template's
+    starts ask for the same ones (the important vertices under seat-like
+    faces): kept per body, by the vertices.
+    """
+    memo = _cached(body, "cast_down", lambda b: {})
+    key = (down.dtype.str, down.tobytes())
+    if key not in memo:
+        if len(memo) > 256:
+            memo.clear()
+        up = np.array([0.0, 1.0, 0.0])
+        t, tri = cast_parallel(body, body.vertices[down] - 2e-3 * up, -up, np.maximum(body.vertices[down, 1], 1e-6))
+        t.flags.writeable = tri.flags.writeable = False
+        memo[key] = (t, tri)
+    return memo[key]
+
+
 def check_supportability(state, max_occluded_fraction: float, max_roll: float, joint_reach: float = 0.1) -> None:
     """Detect poses this topology cannot support (paper Secs. 5.1 and 6).
 
@@ -848,7 +895,7 @@ def check_supportability(state, max_occluded_fraction: float, max_roll: float, j
         t_down = np.full(len(body.vertices), np.inf)
         up = np.array([0.0, 1.0, 0.0])
         if len(down):
-            t_down[down], hit_down[down] = cast_parallel(body, body.vertices[down] - 2e-3 * up, -up, np.maximum(body.vertices[down, 1], 1e-6))
+            t_down[down], hit_down[down] = _cast_down(body, down)
         bad = []
         # faces of a row that are not seat-like share one direction: the mean
         # normal of all the row's fitted faces that are not seat-like, with or

@@ -376,12 +376,14 @@ def _neighbour_cut(points, supported, neighbours, normals, offsets, d_up, d_side
     # in-plane coordinates of the supported patch and of the neighbours, (k, c) and (q, c)
     inf = np.inf
     mask = supported.T
+    # the extremes over each candidate's supported vertices: its column with the others
+    # replaced by +-inf (the same values as a reduction ``where=mask``, about 4x faster)
     pu = points @ d_up.T
-    lo_u = np.min(pu, axis=0, where=mask, initial=inf)
-    hi_u = np.max(pu, axis=0, where=mask, initial=-inf)
+    lo_u = np.where(mask, pu, inf).min(axis=0)
+    hi_u = np.where(mask, pu, -inf).max(axis=0)
     pv = points @ d_side.T
-    lo_v = np.min(pv, axis=0, where=mask, initial=inf)
-    hi_v = np.max(pv, axis=0, where=mask, initial=-inf)
+    lo_v = np.where(mask, pv, inf).min(axis=0)
+    hi_v = np.where(mask, pv, -inf).max(axis=0)
     nu = neighbours @ d_up.T
     cut = nu > lo_u  # inside the patch ...
     cut &= nu < hi_u
