@@ -73,6 +73,11 @@ class LRUCache(_Cache):
             self._store(key, value)
         return value
 
+    def peek(self, key: Hashable) -> Any:
+        """The value of ``key`` if it is cached, else None (nothing is made, its recency unchanged)."""
+        with self._lock:
+            return self._data.get(key)
+
 
 class IdentityCache(_Cache):
     """A thread-safe cache of values by the identity of live objects (and a hashable tag).

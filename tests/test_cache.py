@@ -29,6 +29,16 @@ def test_lru_keeps_the_recent_and_drops_the_least_recently_used():
     assert made == ["a", "b", "c", "b"]
 
 
+def test_peek_gives_a_cached_value_without_making_one_or_refreshing_it():
+    cache = LRUCache(maxsize=2)
+    assert cache.peek("a") is None and len(cache) == 0  # a miss makes nothing
+    cache.get("a", lambda: 1)
+    cache.get("b", lambda: 2)
+    assert cache.peek("a") == 1
+    cache.get("c", lambda: 3)  # "a" is still the least recently used: a peek does not refresh it
+    assert cache.peek("a") is None and cache.peek("b") == 2 and cache.peek("c") == 3
+
+
 def test_threads_that_miss_the_same_key_at_once_all_get_one_object():
     cache = LRUCache(maxsize=8)
     barrier = threading.Barrier(6)

@@ -324,21 +324,12 @@ class SubdivisionOperators:
         return out
 
 
-class _Cache(LRUCache):
-    """An :class:`~seatkit.cache.LRUCache` that can also be asked for a value it holds, without making it."""
-
-    def peek(self, key):
-        """The value of ``key`` if it is cached, else None (nothing is made)."""
-        with self._lock:
-            return self._data.get(key)
-
-
 #: build_operators' cache: (topology key, level) -> SubdivisionOperators
-_OPS_CACHE = _Cache(maxsize=64)
+_OPS_CACHE = LRUCache(maxsize=64)
 #: The topology of the levels refined last, from which a finer level's operators go on:
 #: (topology key, level) -> (MeshLevel, cage face of each quad). A few: a MeshLevel is
 #: about 60% the size of its level's operators.
-_LEVEL_CACHE = _Cache(maxsize=4)
+_LEVEL_CACHE = LRUCache(maxsize=4)
 
 
 #: Most quads a refinement may make: the operators take about 2.3 kB per
