@@ -94,9 +94,18 @@ def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: n
 
 
 def vertex_triangle_rings(triangles: np.ndarray, n_vertices: int) -> np.ndarray:
-    """(n_vertices, width) int64: the triangles around each vertex, padded with -1."""
+    """(n_vertices, width) int64: the triangles around each vertex, padded with -1.
+
+    Each ring lists its triangles by index. A corner given as -1 is left
+    out: with the corners renumbered to some vertices and the rest -1, the
+    rings of those vertices alone (the same as in the whole surface's rings,
+    padded to their own width).
+    """
     corner = np.asarray(triangles, dtype=np.int64).ravel()
     owner = np.repeat(np.arange(len(corner) // 3), 3)
+    if len(corner) and corner.min() < 0:
+        keep = corner >= 0
+        corner, owner = corner[keep], owner[keep]
     order = np.argsort(corner, kind="stable")
     counts = np.bincount(corner, minlength=n_vertices)
     width = int(counts.max()) if len(counts) else 0

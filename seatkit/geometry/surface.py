@@ -99,14 +99,7 @@ class SurfaceQuery:
             need, where = np.unique(near, return_inverse=True)
             local = np.full(len(self.vertices), -1, np.int64)
             local[need] = np.arange(need.size)
-            corner = np.take(local, self.triangles.ravel())
-            hit = np.flatnonzero(corner >= 0)  # in triangle order
-            vert = corner[hit]
-            order = np.argsort(vert, kind="stable")
-            counts = np.bincount(vert, minlength=need.size)
-            slot = np.arange(hit.size) - np.repeat(np.cumsum(counts) - counts, counts)
-            rings = np.full((need.size, int(counts.max(initial=0))), -1, np.int64)
-            rings[vert[order], slot] = hit[order] // 3
+            rings = vertex_triangle_rings(np.take(local, self.triangles), need.size)
             cand = np.take(rings, where.reshape(near.shape), axis=0).reshape(k, -1)
             tri_i = np.where(cand >= 0, cand, 0)
             g = np.take(self.vertices, np.take(self.triangles, tri_i, axis=0), axis=0).reshape(k, -1, 9)
