@@ -1095,7 +1095,9 @@ def _final_depths(mesh: ControlMesh, bodies: Sequence[Body], level: int) -> dict
     for lv in sorted({level, 4}):
         ops = build_operators(cage, lv)
         X = ops.limit_points(mesh.vertices)
-        surfaces.append(Surface(X, ops.limit_normals(mesh.vertices, X), ops.faces, lv))
+        # positions alone: both depths are distances, the normals would go unread
+        # (and level 4's tangent operators unmade)
+        surfaces.append(Surface(X, np.zeros_like(X), ops.faces, lv))
     # the surface in the body: the probes of surface_depth_in_body (every
     # tessellation vertex and quad centre) of both tessellations in one
     # query per body; a coarser level's vertices are the first limit points

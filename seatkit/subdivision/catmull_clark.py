@@ -24,6 +24,7 @@ computed in float32 as OpenSubdiv does.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -264,7 +265,12 @@ class SubdivisionOperators:
     du, dv : (p, v) scipy.sparse.csr_matrix
         Limit tangents of the refined vertices (OpenSubdiv's first and second
         tangent); ``cross(du @ P, dv @ P)`` is the surface normal, pointing
-        to the side from which the faces are counter-clockwise.
+        to the side from which the faces are counter-clockwise. Made on
+        first use (from ``tangent_masks`` and ``refine``): a level whose
+        normals are never asked for (the surface fit's level-4 check of
+        positions) does without them.
+    tangent_masks : tuple of two (p, p) scipy.sparse.csr_matrix
+        The limit tangent masks at ``level`` (``du = tangent_masks[0] @ refine``).
     faces : (q, 4) int64
         Quads of the refined mesh (OpenSubdiv's face order and winding).
     face_origin : (q,) int64
@@ -279,12 +285,21 @@ class SubdivisionOperators:
     level: int
     refine: sp.csr_matrix
     limit: sp.csr_matrix
-    du: sp.csr_matrix
-    dv: sp.csr_matrix
+    tangent_masks: tuple = field(repr=False)
     faces: np.ndarray
     face_origin: np.ndarray
     steps: tuple = field(repr=False)
     rules: np.ndarray = field(repr=False)
+
+    @cached_property
+    def du(self) -> sp.csr_matrix:
+        """(p, v): the first limit tangent of each refined vertex."""
+        return (self.tangent_masks[0] @ self.refine).tocsr()
+
+    @cached_property
+    def dv(self) -> sp.csr_matrix:
+        """(p, v): the second limit tangent of each refined vertex."""
+        return (self.tangent_masks[1] @ self.refine).tocsr()
 
     @property
     def n_points(self) -> int:
@@ -410,8 +425,7 @@ def _make_operators(cage: Cage, level: int) -> SubdivisionOperators:
         level=level,
         refine=refine,
         limit=(L @ refine).tocsr(),
-        du=(T1 @ refine).tocsr(),
-        dv=(T2 @ refine).tocsr(),
+        tangent_masks=(T1, T2),
         faces=current.corner_vertex.reshape(-1, 4).copy(),
         face_origin=origin,
         steps=tuple(steps),
