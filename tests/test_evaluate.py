@@ -178,3 +178,30 @@ def test_body_depth_in_surface_agrees_with_brute_force_parity():
     dist, _ = SurfaceQuery(sheet).query(pts)
     assert body_depth_in_surface(sheet, SimpleNamespace(vertices=pts)) == dist[inside].max()
     assert body_depth_in_surface(sheet, SimpleNamespace(vertices=pts[~inside])) == 0.0
+
+
+def test_body_depth_in_surface_kept_is_the_depth_measured_anew():
+    """An answer kept for a body and a tessellation is the one measured again, and the same surface's moved copy gets its own."""
+    from types import SimpleNamespace
+
+    from seatkit.geometry import surface as surface_module
+    from seatkit.geometry.surface import body_depth_in_surface
+    from seatkit.model import Surface
+
+    xs, zs = np.linspace(-0.3, 0.3, 25), np.linspace(-0.3, 0.3, 25)
+    X, Z = np.meshgrid(xs, zs, indexing="ij")
+    Y = np.where((np.abs(X) > 0.299) | (np.abs(Z) > 0.299), 0.0, 0.4 + 0.05 * np.sin(8 * X) * np.cos(6 * Z))
+    verts = np.stack([X, Y, Z], axis=-1).reshape(-1, 3)
+    idx = np.arange(len(verts)).reshape(X.shape)
+    quads = np.stack([idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]], axis=-1).reshape(-1, 4)
+    rng = np.random.default_rng(3)
+    body = SimpleNamespace(vertices=np.column_stack([rng.uniform(-0.3, 0.3, 500), rng.uniform(0.0, 0.5, 500), rng.uniform(-0.3, 0.3, 500)]))
+    sheet = Surface(verts, np.tile([0.0, 1.0, 0.0], (len(verts), 1)), quads, 3)
+    # the same tessellation made again (other arrays, zero normals): the kept answer, which is the one measured anew
+    again = Surface(verts.copy(), np.zeros_like(verts), quads.copy(), 3)
+    first = body_depth_in_surface(sheet, body)
+    assert first > 0.0
+    assert body_depth_in_surface(again, body) == first == surface_module._body_depth_in_surface(again, body, None, 0.02)
+    # lowered by 5 cm: fewer points inside, and less deep; its own answer, not the kept one
+    lower = Surface(verts - [0.0, 0.05, 0.0], sheet.normals, quads, 3)
+    assert body_depth_in_surface(lower, body) == surface_module._body_depth_in_surface(lower, body, None, 0.02) < first

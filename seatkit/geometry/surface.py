@@ -13,8 +13,12 @@ here.
 
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 from scipy.spatial import cKDTree
+
+from seatkit.cache import IdentityCache
 
 from seatkit.geometry.closest import closest_point_on_triangles, row_norms, vertex_triangle_rings
 from seatkit.geometry.skin import SkinDistance
@@ -203,6 +207,23 @@ def surface_depth_in_body(surface: Surface, body: Body) -> float:
     return SkinDistance.of(body.vertices, body.faces).max_depth(points)
 
 
+#: :func:`body_depth_in_surface`'s answers, by the body's vertex array (its identity) and the
+#: tessellation's contents: the surface fit's final check measures the designed
+#: surface at the exported level, and the evaluation asks the same of the same
+#: surface made again from the same control points.
+_BODY_DEPTHS = IdentityCache(maxsize=16)
+
+
+def _tessellation_key(surface: Surface, cell: float) -> tuple:
+    """A key of what :func:`body_depth_in_surface` reads of a surface: its vertices and faces (a digest of their bytes)."""
+    digest = hashlib.blake2b(digest_size=16)
+    for array in (surface.vertices, surface.faces):
+        a = np.ascontiguousarray(array)
+        digest.update(f"{a.dtype.str}{a.shape}".encode())
+        digest.update(a.data)
+    return digest.digest(), float(cell)
+
+
 def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | None = None, *, cell: float = 0.02) -> float:
     """Largest depth of a body vertex inside the furniture, m (0 when none is).
 
@@ -217,8 +238,16 @@ def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | No
     itself reaches only a limb's radius into the body.
 
     Candidate triangles come from a grid of ``cell`` (m) over the floor
-    plan; the point-in-triangle tests are exact in the plan.
+    plan; the point-in-triangle tests are exact in the plan. The answer is
+    kept for the last few vertex arrays and tessellations in this process
+    (the surface's normals and ``query`` do not change it).
     """
+    return _BODY_DEPTHS.get(
+        (body.vertices,), lambda: _body_depth_in_surface(surface, body, query, cell), tag=_tessellation_key(surface, cell)
+    )
+
+
+def _body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | None, cell: float) -> float:
     p = np.asarray(body.vertices, dtype=np.float64)
     inside = np.flatnonzero(inside_furniture(surface, p, cell=cell))
     if not inside.size:
