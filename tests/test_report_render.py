@@ -202,6 +202,34 @@ def test_the_pictures_drawn_early_are_those_of_the_result_and_only_of_its_bodies
     assert redrawn["report_pressure_png"].read_bytes() != early["png"]["report_pressure_png"]
 
 
+def test_the_bodies_rasters_kept_from_other_pictures_draw_the_same_pictures(tmp_path):
+    """The bodies' views kept in the process (pressure.png's, drawn ahead) give every picture's bytes as drawing them anew does; other bodies get their own."""
+    import dataclasses
+
+    result = evaluated_result()
+    anew = {}
+    for role in report.PNG_FILES:
+        report._BODY_RASTERS.clear()
+        (tmp_path / role).mkdir()
+        anew.update(report.render_pngs(result, tmp_path / role, roles=(role,)))
+    report._BODY_RASTERS.clear()
+    report.draw_early_pngs(result)  # the bodies' front, back and from-below views kept
+    assert len(report._BODY_RASTERS) == 3
+    (tmp_path / "kept").mkdir()
+    kept = report.render_pngs(result, tmp_path / "kept")
+    assert list(kept) == list(anew)
+    for role, path in kept.items():
+        assert path.read_bytes() == anew[role].read_bytes(), role
+    body = result.bodies[0]
+    other = dataclasses.replace(result, bodies=[dataclasses.replace(body, vertices=body.vertices * [1.3, 1.0, 1.0])])
+    (tmp_path / "other").mkdir()
+    drawn = report.render_pngs(other, tmp_path / "other", roles=("report_pressure_png",))
+    report._BODY_RASTERS.clear()
+    (tmp_path / "other-anew").mkdir()
+    fresh = report.render_pngs(other, tmp_path / "other-anew", roles=("report_pressure_png",))
+    assert drawn["report_pressure_png"].read_bytes() == fresh["report_pressure_png"].read_bytes() != kept["report_pressure_png"].read_bytes()
+
+
 def test_comparison_only_with_a_baseline(tmp_path):
     files = report.ReportPngExporter().export(plain_result(), tmp_path)
     assert set(files) == {"report_pressure_png", "report_cage_png", "report_surface_png"}

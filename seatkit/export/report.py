@@ -37,15 +37,18 @@ with the keys of :mod:`seatkit.evaluate`), ``metrics["baseline_template"]``,
 from __future__ import annotations
 
 import base64
+import hashlib
 import html
 import math
 import os
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 
 import numpy as np
 
 from seatkit import picture as pic
+from seatkit.cache import LRUCache
 from seatkit.errors import InputError
 from seatkit.geometry.normals import vertex_normals
 from seatkit.io import atomic_write, write_bytes_atomic
@@ -187,6 +190,12 @@ class _Mesh:
     closed: bool = False
 
 
+#: The bodies' rasters in the views framed on them alone, by the bodies' mesh (a digest) and the
+#: view: a build's pictures draw the same bodies in the same views in several parts
+#: (``pressure.png`` ahead, ``surface.png`` and ``interface.png`` later). About 3 MB each.
+_BODY_RASTERS = LRUCache(maxsize=5)
+
+
 @dataclass
 class _Scene:
     """The meshes of a result, merged over people, with cached rasters."""
@@ -206,6 +215,7 @@ class _Scene:
     people: list = field(default_factory=list)  # one label per person (pose, body, mass)
     _rasters: dict = field(default_factory=dict)
     _frames: dict = field(default_factory=dict)
+    _body_digest: bytes | None = None
 
     def frame(self, view: str, family: str) -> rs.Frame:
         """The frame of a view that shows the body only or the whole scene."""
@@ -223,8 +233,24 @@ class _Scene:
         key = (name, view, family)
         if key not in self._rasters:
             mesh = self.mesh(name)
-            self._rasters[key] = rs.rasterize(self.frame(view, family), mesh.vertices, mesh.faces, cull_back=mesh.closed)
+            draw = lambda: rs.rasterize(self.frame(view, family), mesh.vertices, mesh.faces, cull_back=mesh.closed)  # noqa: E731
+            if name == "body" and family == "body":
+                # framed on the bodies alone: the same raster for every scene of these bodies in this
+                # process (pressure.png, drawn ahead by a build's helper, and the parts it draws later)
+                draw = partial(_BODY_RASTERS.get, (self._body_key(), view), draw)
+            self._rasters[key] = draw()
         return self._rasters[key]
+
+    def _body_key(self) -> bytes:
+        """A digest of the bodies' mesh (vertices and faces): what their views framed on them alone show."""
+        if self._body_digest is None:
+            digest = hashlib.blake2b(digest_size=16)
+            for array in (self.body.vertices, self.body.faces):
+                a = np.ascontiguousarray(array)
+                digest.update(f"{a.dtype.str}{a.shape}".encode())
+                digest.update(a.data)
+            self._body_digest = digest.digest()
+        return self._body_digest
 
     def mesh(self, name: str) -> _Mesh:
         if name == "body":
