@@ -194,10 +194,17 @@ class Raster:
             One row per covered pixel, in the order of :attr:`covered`.
         """
         vals = np.asarray(vertex_values, dtype=np.float32)
-        # weighted sum of the three corner values, one corner at a time
-        acc = self.bary[:, 0, None] * vals[self.corners[:, 0]]
-        acc += self.bary[:, 1, None] * vals[self.corners[:, 1]]
-        acc += self.bary[:, 2, None] * vals[self.corners[:, 2]]
+        # weighted sum of the three corner values, one corner at a time, the
+        # products formed in place (np.take gathers rows several times faster
+        # than indexing does; the same products and sums)
+        acc = np.take(vals, self.corners[:, 0], axis=0)
+        acc *= self.bary[:, 0, None]
+        part = np.take(vals, self.corners[:, 1], axis=0)
+        part *= self.bary[:, 1, None]
+        acc += part
+        np.take(vals, self.corners[:, 2], axis=0, out=part)
+        part *= self.bary[:, 2, None]
+        acc += part
         return acc
 
 
@@ -291,12 +298,15 @@ def rasterize(frame: Frame, vertices: np.ndarray, faces: np.ndarray, *, cull_bac
             inside &= l1 + l2 <= 1.0 + 1e-6
             inside &= gx < grx
             inside &= gy < gry
-            k_i, y_i, x_i = np.nonzero(inside)
-            tri = grp[k_i]
+            # the covered candidates' flat indices, split into (triangle, row, column): cheaper than np.nonzero's
+            flat = np.flatnonzero(inside)
+            k_i, rest = np.divmod(flat, gh * gw)
+            y_i, x_i = np.divmod(rest, gw)
+            tri = np.take(grp, k_i)
             # the depth at the covered pixels only, with the same operations as over the box
-            fx, fy = gx.ravel()[x_i], gy.ravel()[y_i]
-            zz = coef[6, tri] * fx + coef[7, tri] * fy + coef[8, tri]
-            parts.append((tri, (by0[tri] + y_i) * w + bx0[tri] + x_i, l1[inside], l2[inside], zz))
+            fx, fy = np.take(gx.ravel(), x_i), np.take(gy.ravel(), y_i)
+            zz = np.take(coef[6], tri) * fx + np.take(coef[7], tri) * fy + np.take(coef[8], tri)
+            parts.append((tri, (np.take(by0, tri) + y_i) * w + np.take(bx0, tri) + x_i, np.take(l1, flat), np.take(l2, flat), zz))
         tri = np.concatenate([p[0] for p in parts])
         pix = np.concatenate([p[1] for p in parts])
         l1 = np.concatenate([p[2] for p in parts])
@@ -315,7 +325,7 @@ def rasterize(frame: Frame, vertices: np.ndarray, faces: np.ndarray, *, cull_bac
         face_img[covered] = ids[tri[frag]]
     else:
         bary = np.zeros((0, 3), np.float32)
-    corners = faces[face_img[covered]]
+    corners = np.take(faces, face_img[covered], axis=0)
     return Raster(depth.reshape(h, w), face_img.reshape(h, w), covered, corners, bary)
 
 
@@ -338,16 +348,15 @@ def composite(background, layers) -> np.ndarray:
     """
     layers = list(layers)
     h, w = layers[0][0].depth.shape
-    image = np.empty((h * w, 3), np.float32)
-    image[:] = np.asarray(background, dtype=np.float32)
+    image = np.repeat(np.asarray(background, dtype=np.float32).reshape(1, 3), h * w, axis=0)
     front = np.full(h * w, -np.inf, np.float32)
     # opaque layers by z-buffer
     for raster, colors, alpha in layers:
         if alpha >= 1.0:
-            depth = raster.depth.ravel()[raster.covered]
-            nearer = depth > front[raster.covered]
+            depth = np.take(raster.depth.ravel(), raster.covered)
+            nearer = depth > np.take(front, raster.covered)
             pix = raster.covered[nearer]
-            image[pix] = colors[nearer]
+            _put_rows(image, pix, colors, nearer)
             front[pix] = depth[nearer]
     trans = [layer for layer in layers if layer[2] < 1.0]
     if len(trans) > 1:
@@ -363,8 +372,27 @@ def composite(background, layers) -> np.ndarray:
             elif k > 0:
                 continue
             pix = raster.covered[sel]
-            image[pix] = (1.0 - alpha) * image[pix] + alpha * colors[sel]
+            _put_rows(image, pix, (1.0 - alpha) * np.take(image, pix, axis=0) + alpha * np.compress(sel, colors, axis=0))
     return image.reshape(h, w, 3)
+
+
+#: One pixel's three float32 channels as one 12-byte item.
+_PIXEL = np.dtype((np.void, 12))
+
+
+def _put_rows(image: np.ndarray, pix: np.ndarray, rows: np.ndarray, select: np.ndarray | None = None) -> None:
+    """``image[pix] = rows[select]`` (``rows`` whole without ``select``) for an (n, 3) float32 image.
+
+    float32 rows are moved as 12-byte items, three times faster than numpy
+    assigns (k, 3) rows; the same values, bit for bit. Rows of another type
+    are assigned (and converted) as numpy does.
+    """
+    rows = np.asarray(rows)
+    if rows.dtype == np.float32 and rows.ndim == 2 and rows.shape[1] == 3 and image.flags.c_contiguous:
+        items = np.ascontiguousarray(rows).view(_PIXEL).ravel()
+        image.view(_PIXEL).ravel()[pix] = items if select is None else items[select]
+    else:
+        image[pix] = rows if select is None else rows[select]
 
 
 def to_uint8(image: np.ndarray) -> np.ndarray:
