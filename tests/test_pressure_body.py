@@ -131,3 +131,20 @@ def test_plugin_registers_the_qp_solver():
     (solver,) = seatkit_qp.seatkit_register_pressure_solvers()
     assert isinstance(solver, PressureSolver)
     assert solver.name == "qp"
+
+
+def test_body_geometry_kept_for_a_body_is_the_geometry_computed_anew(seated):
+    """The areas and normals kept for a body's arrays are those computed anew, each call's own copy; other vertices get their own."""
+    from seatkit.geometry.normals import vertex_normals
+    from seatkit.pressure.areas import mixed_voronoi_areas
+
+    body = seated
+    first, again = body_geometry(body.vertices, body.faces), body_geometry(body.vertices, body.faces)
+    assert np.array_equal(first.area, mixed_voronoi_areas(body.vertices, body.faces))
+    assert np.array_equal(first.normal, vertex_normals(body.vertices, body.faces))
+    assert np.array_equal(again.area, first.area) and np.array_equal(again.normal, first.normal)
+    again.area[:] = 0.0  # a caller's copy: what the next call gets is untouched
+    assert np.array_equal(body_geometry(body.vertices, body.faces).area, first.area)
+    stretched = body.vertices * [1.0, 1.1, 1.0]
+    other = body_geometry(stretched, body.faces)
+    assert np.array_equal(other.area, mixed_voronoi_areas(stretched, body.faces)) and not np.array_equal(other.area, first.area)

@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from seatkit.cache import IdentityCache
 from seatkit.constants import GRAVITY
 from seatkit.geometry.normals import vertex_normals
 from seatkit.pressure.areas import mixed_voronoi_areas
@@ -106,13 +107,21 @@ class BodyGeometry:
     normal: np.ndarray
 
 
+#: :func:`body_geometry` by the vertex and face arrays (their identity): a build solves the
+#: importance map and then each design's contact pressure on the same body.
+_GEOMETRY = IdentityCache(maxsize=8)
+
+
 def body_geometry(vertices: np.ndarray, faces: np.ndarray) -> BodyGeometry:
     """Mixed Voronoi areas and outward normals of a body surface.
 
     Faces must be counter-clockwise seen from outside (the :class:`Body`
-    contract); the normals then point out of the body.
+    contract); the normals then point out of the body. Computed once for
+    the last few vertex and face arrays in this process; each call gets its
+    own copy of the arrays.
     """
-    return BodyGeometry(area=mixed_voronoi_areas(vertices, faces), normal=vertex_normals(vertices, faces))
+    area, normal = _GEOMETRY.get((vertices, faces), lambda: (mixed_voronoi_areas(vertices, faces), vertex_normals(vertices, faces)))
+    return BodyGeometry(area=area.copy(), normal=normal.copy())
 
 
 @dataclass(frozen=True)
