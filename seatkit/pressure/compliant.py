@@ -138,7 +138,10 @@ def _point_segment_distance(points: np.ndarray, a: np.ndarray, b: np.ndarray) ->
     rel = points[:, None, :] - a[None, :, :]  # (n, s, 3)
     t = np.clip(np.einsum("nsd,sd->ns", rel, d) / length2, 0.0, 1.0)
     closest = a[None] + t[..., None] * d[None]
-    return np.linalg.norm(points[:, None, :] - closest, axis=2)
+    off = points[:, None, :] - closest
+    off *= off
+    # np.linalg.norm(..., axis=2) to the bit: the squares summed in order, without a reduction along the short axis
+    return np.sqrt(off[..., 0] + off[..., 1] + off[..., 2])
 
 
 def bone_distance(body) -> np.ndarray:
