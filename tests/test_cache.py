@@ -8,7 +8,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from seatkit.cache import IdentityCache, LRUCache
+from seatkit.cache import IdentityCache, LRUCache, content_key
 
 
 def test_lru_keeps_the_recent_and_drops_the_least_recently_used():
@@ -121,3 +121,15 @@ def test_the_library_caches_give_the_same_object_for_the_same_input():
         ops = list(pool.map(lambda _: build_operators(cage, 2), range(8)))
     assert all(o is ops[0] for o in ops)
     assert cage.base_level() is Cage.from_control_mesh(mesh).base_level()  # same topology, same level
+
+
+def test_content_key_is_the_same_for_the_same_contents_only():
+    a = np.arange(12, dtype=np.float64).reshape(4, 3)
+    faces = np.array([[0, 1, 2]])
+    assert content_key(a, faces) == content_key(a.copy(), faces.copy()) == content_key(np.asfortranarray(a), faces)
+    b = a.copy()
+    b[3, 2] = np.nextafter(b[3, 2], np.inf)  # one bit
+    assert content_key(b, faces) != content_key(a, faces)
+    assert content_key(a.reshape(3, 4), faces) != content_key(a, faces)  # the same bytes, another shape
+    assert content_key(a.astype(np.float32), faces) != content_key(a, faces)
+    assert content_key(faces, a) != content_key(a, faces)  # in order

@@ -37,7 +37,6 @@ with the keys of :mod:`seatkit.evaluate`), ``metrics["baseline_template"]``,
 from __future__ import annotations
 
 import base64
-import hashlib
 import html
 import math
 import os
@@ -48,7 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from seatkit import picture as pic
-from seatkit.cache import LRUCache
+from seatkit.cache import LRUCache, content_key
 from seatkit.errors import InputError
 from seatkit.geometry.normals import vertex_normals
 from seatkit.io import atomic_write, write_bytes_atomic
@@ -244,12 +243,7 @@ class _Scene:
     def _body_key(self) -> bytes:
         """A digest of the bodies' mesh (vertices and faces): what their views framed on them alone show."""
         if self._body_digest is None:
-            digest = hashlib.blake2b(digest_size=16)
-            for array in (self.body.vertices, self.body.faces):
-                a = np.ascontiguousarray(array)
-                digest.update(f"{a.dtype.str}{a.shape}".encode())
-                digest.update(a.data)
-            self._body_digest = digest.digest()
+            self._body_digest = content_key(self.body.vertices, self.body.faces)
         return self._body_digest
 
     def mesh(self, name: str) -> _Mesh:
@@ -599,16 +593,9 @@ EARLY_PNGS = ("report_pressure_png",)
 
 def _importance_key(result) -> str:
     """A digest of what the early pictures show: every body's vertices and faces and its importance pressure."""
-    import hashlib
-
-    digest = hashlib.blake2b(digest_size=16)
     bodies, pressures = list(result.bodies or []), list(result.pressures or [])
-    digest.update(f"{len(bodies)} {len(pressures)}".encode())
-    for array in [a for b in bodies for a in (b.vertices, b.faces)] + [getattr(p, "pressure", p) for p in pressures]:
-        a = np.ascontiguousarray(array)
-        digest.update(f"{a.dtype.str}{a.shape}".encode())
-        digest.update(a.tobytes())
-    return digest.hexdigest()
+    arrays = [a for b in bodies for a in (b.vertices, b.faces)] + [getattr(p, "pressure", p) for p in pressures]
+    return f"{len(bodies)} {len(pressures)} {content_key(*arrays).hex()}"
 
 
 def draw_early_pngs(result) -> dict:

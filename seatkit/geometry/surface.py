@@ -13,12 +13,10 @@ here.
 
 from __future__ import annotations
 
-import hashlib
-
 import numpy as np
 from scipy.spatial import cKDTree
 
-from seatkit.cache import IdentityCache
+from seatkit.cache import IdentityCache, content_key
 
 from seatkit.geometry.closest import closest_point_on_triangles, row_norms, vertex_triangle_rings
 from seatkit.geometry.skin import SkinDistance
@@ -214,16 +212,6 @@ def surface_depth_in_body(surface: Surface, body: Body) -> float:
 _BODY_DEPTHS = IdentityCache(maxsize=16)
 
 
-def _tessellation_key(surface: Surface, cell: float) -> tuple:
-    """A key of what :func:`body_depth_in_surface` reads of a surface: its vertices and faces (a digest of their bytes)."""
-    digest = hashlib.blake2b(digest_size=16)
-    for array in (surface.vertices, surface.faces):
-        a = np.ascontiguousarray(array)
-        digest.update(f"{a.dtype.str}{a.shape}".encode())
-        digest.update(a.data)
-    return digest.digest(), float(cell)
-
-
 def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | None = None, *, cell: float = 0.02) -> float:
     """Largest depth of a body vertex inside the furniture, m (0 when none is).
 
@@ -243,7 +231,7 @@ def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | No
     (the surface's normals and ``query`` do not change it).
     """
     return _BODY_DEPTHS.get(
-        (body.vertices,), lambda: _body_depth_in_surface(surface, body, query, cell), tag=_tessellation_key(surface, cell)
+        (body.vertices,), lambda: _body_depth_in_surface(surface, body, query, cell), tag=(content_key(surface.vertices, surface.faces), float(cell))
     )
 
 
