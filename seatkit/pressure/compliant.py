@@ -69,8 +69,7 @@ from seatkit.constants import (
 )
 from seatkit.errors import InfeasibleSupportError, InputError, SolverError
 from seatkit.model import PressureField
-from seatkit.pressure.areas import mixed_voronoi_areas
-from seatkit.pressure.assembly import joint_loads, segment_gravity
+from seatkit.pressure.assembly import body_geometry, joint_loads, segment_gravity
 from seatkit.pressure.solve import project_to_cone
 
 __all__ = [
@@ -159,9 +158,8 @@ def bone_distance(body) -> np.ndarray:
 
 
 def _outward_normals(body) -> np.ndarray:
-    from seatkit.geometry.normals import vertex_normals
-
-    return vertex_normals(body.vertices, body.faces)
+    # the importance map's solve on the same body computed them (body_geometry keeps them)
+    return body_geometry(body.vertices, body.faces).normal
 
 
 def contact_with_surface(body, surface, *, reach: float = CONTACT_REACH_M, query=None) -> SupportContact:
@@ -280,7 +278,7 @@ def solve_compliant(
         msg = f"compliant contact needs E > 0, 0 <= nu < 0.5 and mu >= 0; got E = {youngs_modulus}, nu = {poisson}, mu = {mu}"
         raise InputError(msg)
     n = len(body.vertices)
-    area = mixed_voronoi_areas(body.vertices, body.faces)
+    area = body_geometry(body.vertices, body.faces).area
     if thickness is None:
         thickness = np.clip(bone_distance(body), *TISSUE_THICKNESS_RANGE_M)
     thickness = np.asarray(thickness, dtype=np.float64)
