@@ -148,3 +148,15 @@ def test_body_geometry_kept_for_a_body_is_the_geometry_computed_anew(seated):
     stretched = body.vertices * [1.0, 1.1, 1.0]
     other = body_geometry(stretched, body.faces)
     assert np.array_equal(other.area, mixed_voronoi_areas(stretched, body.faces)) and not np.array_equal(other.area, first.area)
+
+
+def test_kept_vertex_normals_are_the_normals_computed_anew_and_read_only(seated):
+    from seatkit.geometry.normals import kept_vertex_normals, vertex_normals
+
+    kept = kept_vertex_normals(seated.vertices, seated.faces)
+    assert kept is kept_vertex_normals(seated.vertices, seated.faces)
+    assert np.array_equal(kept, vertex_normals(seated.vertices, seated.faces))
+    with pytest.raises(ValueError):
+        kept[0, 0] = 1.0
+    moved = seated.vertices + [0.0, 0.0, 0.5]  # other arrays, their own normals (the same here: a translation)
+    assert kept_vertex_normals(moved, seated.faces) is not kept

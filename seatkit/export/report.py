@@ -49,7 +49,7 @@ import numpy as np
 from seatkit import picture as pic
 from seatkit.cache import LRUCache, content_key
 from seatkit.errors import InputError
-from seatkit.geometry.normals import vertex_normals
+from seatkit.geometry.normals import kept_vertex_normals, vertex_normals
 from seatkit.io import atomic_write, write_bytes_atomic
 from seatkit.picture import draw as pic_draw
 from seatkit.picture import raster as rs
@@ -304,9 +304,13 @@ def _scene(result, *, body_only: bool = False) -> _Scene:
         raise InputError(msg)
     sizes = [len(b.vertices) for b in bodies]
     offsets = np.cumsum([0, *sizes[:-1]])
-    verts = np.concatenate([np.asarray(b.vertices, dtype=np.float64) for b in bodies])
-    faces = np.concatenate([np.asarray(b.faces, dtype=np.int64) + o for b, o in zip(bodies, offsets)])
-    body = _Mesh(verts, faces, vertex_normals(verts, faces), closed=True)
+    if len(bodies) == 1:  # the body's own arrays: its normals as the build's stages computed them
+        verts, faces = np.asarray(bodies[0].vertices, dtype=np.float64), np.asarray(bodies[0].faces, dtype=np.int64)
+        body = _Mesh(verts, faces, kept_vertex_normals(verts, faces), closed=True)
+    else:
+        verts = np.concatenate([np.asarray(b.vertices, dtype=np.float64) for b in bodies])
+        faces = np.concatenate([np.asarray(b.faces, dtype=np.int64) + o for b, o in zip(bodies, offsets)])
+        body = _Mesh(verts, faces, vertex_normals(verts, faces), closed=True)
     importance = _concat_fields(list(result.pressures or []), sizes)
     if importance is None:
         msg = f"the report needs one importance pressure per body, got {len(result.pressures or [])} for {len(bodies)} bodies"

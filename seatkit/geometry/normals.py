@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["face_normals", "vertex_normals", "quad_vertex_normals", "sum_rows_at"]
+from seatkit.cache import IdentityCache
+
+__all__ = ["face_normals", "vertex_normals", "kept_vertex_normals", "quad_vertex_normals", "sum_rows_at"]
 
 
 def sum_rows_at(n: int, index: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -78,6 +80,25 @@ def vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
     summed = sum_rows_at(len(vertices), faces.T, np.concatenate([cross, cross, cross]))
     length = np.linalg.norm(summed, axis=1)
     return summed / np.where(length > 0, length, 1.0)[:, None]
+
+
+#: :func:`kept_vertex_normals` by the vertex and face arrays (their identity).
+_KEPT = IdentityCache(maxsize=8)
+
+
+def kept_vertex_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """:func:`vertex_normals`, computed once for the last few vertex and face arrays in this process (read-only).
+
+    A build asks for a body's normals in its importance solve, its
+    template's clearance and its evaluation: the same arrays each time.
+    """
+
+    def make():
+        normals = vertex_normals(vertices, faces)
+        normals.flags.writeable = False
+        return normals
+
+    return _KEPT.get((vertices, faces), make)
 
 
 def quad_vertex_normals(vertices: np.ndarray, quads: np.ndarray) -> np.ndarray:

@@ -50,7 +50,7 @@ import scipy.sparse as sp
 
 from seatkit.cache import IdentityCache
 from seatkit.constants import GRAVITY
-from seatkit.geometry.normals import vertex_normals
+from seatkit.geometry.normals import kept_vertex_normals
 from seatkit.pressure.areas import mixed_voronoi_areas
 from seatkit.pressure.weights import DEFAULT_WEIGHT_CAP, local_reaction_weights, tangent_frames
 from seatkit.skeleton import N_JOINTS, N_SEGMENTS, PARENTS
@@ -107,9 +107,9 @@ class BodyGeometry:
     normal: np.ndarray
 
 
-#: :func:`body_geometry` by the vertex and face arrays (their identity): a build solves the
-#: importance map and then each design's contact pressure on the same body.
-_GEOMETRY = IdentityCache(maxsize=8)
+#: :func:`body_geometry`'s areas by the vertex and face arrays (their identity): a build solves
+#: the importance map and then each design's contact pressure on the same body.
+_AREAS = IdentityCache(maxsize=8)
 
 
 def body_geometry(vertices: np.ndarray, faces: np.ndarray) -> BodyGeometry:
@@ -120,8 +120,8 @@ def body_geometry(vertices: np.ndarray, faces: np.ndarray) -> BodyGeometry:
     the last few vertex and face arrays in this process; each call gets its
     own copy of the arrays.
     """
-    area, normal = _GEOMETRY.get((vertices, faces), lambda: (mixed_voronoi_areas(vertices, faces), vertex_normals(vertices, faces)))
-    return BodyGeometry(area=area.copy(), normal=normal.copy())
+    area = _AREAS.get((vertices, faces), lambda: mixed_voronoi_areas(vertices, faces))
+    return BodyGeometry(area=area.copy(), normal=kept_vertex_normals(vertices, faces).copy())
 
 
 @dataclass(frozen=True)

@@ -96,7 +96,7 @@ from scipy.spatial import cKDTree
 
 from seatkit.errors import SolverError
 from seatkit.geometry.closest import row_norms
-from seatkit.geometry.normals import vertex_normals
+from seatkit.geometry.normals import kept_vertex_normals
 from seatkit.geometry.skin import SkinDistance
 from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, inside_furniture, surface_depth_in_body
 from seatkit.model import Body, ControlMesh, PressureField, Surface
@@ -726,7 +726,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
     # closed skin has a well-defined inside: this stays meaningful where the
     # surface folds or wraps (the surface's own normals do not).
 
-    skin_n = np.concatenate([vertex_normals(bd.vertices, bd.faces) for bd in bodies])
+    skin_n = np.concatenate([kept_vertex_normals(bd.vertices, bd.faces) for bd in bodies])
     skins = [SkinDistance.of(bd.vertices, bd.faces) for bd in bodies]
     # supported targets: the skin offset by the clearance along its normal
     owner_offset = np.cumsum([0] + [len(bd.vertices) for bd in bodies])[:-1]

@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 
 from seatkit.cache import IdentityCache
 from seatkit.errors import PluginError, UnsupportedPoseError
-from seatkit.geometry.normals import vertex_normals as _triangle_normals
+from seatkit.geometry.normals import kept_vertex_normals
 from seatkit.geometry.surface import SurfaceQuery, inside_furniture
 from seatkit.model import Body, ControlMesh, Surface
 from seatkit.skeleton import PARENTS, SEGMENT_INDEX, SEGMENTS
@@ -314,7 +314,7 @@ def body_tree(body: Body) -> cKDTree:
 def body_vertex_normals(body: Body) -> np.ndarray:
     """(n, 3) float64 area-weighted outward vertex normals of a body."""
 
-    return _cached(body, "vertex_normals", lambda b: _triangle_normals(b.vertices, b.faces))
+    return kept_vertex_normals(body.vertices, body.faces)
 
 
 def _body_segments(body: Body) -> np.ndarray:
