@@ -11,7 +11,8 @@ times, ``--repeat`` times each, the parts as a build meets them:
 - the evaluation of our design, after the fit's check and the importance
   solve on the same bodies (what the build's own process has done by then);
 - the interface pressure (the soft-tissue model: a helper's, beside the
-  evaluation);
+  evaluation; with nothing kept of the bodies, as in a helper forked
+  before they were made);
 - the report's pictures in the parts a build with helpers draws them:
   ``pressure.png`` ahead (a helper), ``surface.png`` and ``comparison.png``
   after it in the same process (the same helper), ``cage.png`` (the export
@@ -80,6 +81,16 @@ def main() -> None:
             body_geometry(b.vertices, b.faces)  # the importance map's solve
         ccfit._final_depths(mesh, bodies, level)
 
+    def as_in_a_helper():
+        # a helper is forked before the bodies exist: it keeps no areas or normals of them
+        from seatkit.geometry import normals
+        from seatkit.pressure import assembly
+
+        for module, name in ((normals, "_KEPT"), (assembly, "_AREAS"), (assembly, "_GEOMETRY")):
+            kept = getattr(module, name, None)
+            if kept is not None:
+                kept.clear()
+
     def forget_rasters():
         kept = getattr(report, "_BODY_RASTERS", None)
         if kept is not None:
@@ -98,7 +109,7 @@ def main() -> None:
                 bodies, result.pressures, result.surface, solver=solver, support_distance=ev["support_distance"], pressure_settings=pressure, segments=segments
             ),
         ),
-        "interface pressure": (lambda: None, lambda: evaluate_interface(bodies, result.surface, mu=pressure.get("mu"))),
+        "interface pressure (in a helper)": (as_in_a_helper, lambda: evaluate_interface(bodies, result.surface, mu=pressure.get("mu"))),
         "pressure.png, drawn ahead": (forget_rasters, lambda: report.draw_early_pngs(result)),
         "surface.png + comparison.png, after it": (
             after_pressure_png,
