@@ -20,9 +20,13 @@ Fixed and ground points stay. A start replaces the cage the fit is given,
 so the fit's fairness then asks for a smooth displacement of the start.
 
     python benchmarks/ccfit_starts.py where
+    python benchmarks/ccfit_starts.py approach
     python benchmarks/ccfit_starts.py run concave --count fits.txt -- benchmarks/compare_ccfit.py run fits.pkl concave.npz
     python benchmarks/ccfit_starts.py run concave --count fits.txt -- benchmarks/bench_generalisation.py --poses 200 ...
 
+``approach`` builds the default chair and runs its surface fit again from
+the cage, printing per iteration the deepest probe and the body segments
+(of the nearest body vertex) of the probes deeper than 5 mm.
 ``where`` builds the default chair and prints, for the cage and each
 start, how many of the fit's limit samples lie in the body (more than
 2 mm), how deep, grouped by the body segment of the nearest body vertex,
@@ -122,31 +126,71 @@ def _summary(count: str) -> str:
     return "; ".join(f"{t}: {fits[t]} fits, {iterations[t]} iterations" for t in sorted(fits))
 
 
-def where() -> None:
-    """The default chair's start, for the cage and each start."""
-    from scipy.spatial import cKDTree
-
+def _default_chair_fit():
+    """The inputs of the default chair's surface fit (our cage's, not the flat patch's): mesh, bodies, pressures, params."""
     from seatkit import pipeline
-    from seatkit.geometry.skin import SkinDistance
-    from seatkit.skeleton import SEGMENTS
-    from seatkit.subdivision import Cage, build_operators
     import seatkit.refine.ccfit as ccfit
 
     calls = []
     fit_cage = ccfit.fit_cage
 
     def keep(mesh, bodies, pressures, params=None):
-        calls.append((mesh, bodies))
+        calls.append((mesh, bodies, pressures, params))
         return fit_cage(mesh, bodies, pressures, params)
 
     ccfit.fit_cage = keep
-    pipeline.build({"template": "chair", "bodies": [{"model": "default-male", "pose": "upright-sitting"}]}, write=False, processes=False)
-    ccfit.fit_cage = fit_cage
-    mesh, bodies = next((m, b) for m, b in calls if m.meta.get("template") == "chair")
-    body = bodies[0]
-    skin = SkinDistance.of(body.vertices, body.faces)
+    try:
+        pipeline.build({"template": "chair", "bodies": [{"model": "default-male", "pose": "upright-sitting"}]}, write=False, processes=False)
+    finally:
+        ccfit.fit_cage = fit_cage
+    return next(call for call in calls if call[0].meta.get("template") == "chair")
+
+
+def _segment_of(body):
+    """The body segment of the nearest body vertex, for points."""
+    from scipy.spatial import cKDTree
+
     segment = np.argmax(body.weights, axis=1)
     tree = cKDTree(body.vertices)
+    return lambda points: segment[tree.query(points)[1]]
+
+
+def approach() -> None:
+    """The default chair's fit from the cage: per iteration, its deepest probe and the body segments of the probes deeper than 5 mm."""
+    import seatkit.refine.ccfit as ccfit
+    from seatkit.skeleton import SEGMENTS
+
+    mesh, bodies, pressures, params = _default_chair_fit()
+    segment_of = _segment_of(bodies[0])
+    step = [0]
+
+    def observe(**state):
+        step[0] += 1
+        depth, X = state["depth"], state["X"]
+        if state["depth_samples"] is None:  # the polish's probes (quad centres too)
+            return
+        deep = np.flatnonzero(depth > 0.005)
+        seg = segment_of(X[deep]) if deep.size else np.zeros(0, np.int64)
+        parts = ", ".join(f"{SEGMENTS[s]} {int((seg == s).sum())} (at most {depth[deep][seg == s].max() * 1000:.1f} mm)" for s in np.unique(seg))
+        print(f"iteration {step[0]:2d}: deepest probe {max(depth.max(), 0) * 1000:5.1f} mm; deeper than 5 mm: {parts or 'none'}")
+
+    ccfit._observe = observe
+    try:
+        ccfit.fit_cage(mesh, bodies, pressures, params)
+    finally:
+        ccfit._observe = None
+
+
+def where() -> None:
+    """The default chair's start, for the cage and each start."""
+    from seatkit.geometry.skin import SkinDistance
+    from seatkit.skeleton import SEGMENTS
+    from seatkit.subdivision import Cage, build_operators
+
+    mesh, bodies, _, _ = _default_chair_fit()
+    body = bodies[0]
+    skin = SkinDistance.of(body.vertices, body.faces)
+    segment_of = _segment_of(body)
     ops = build_operators(Cage.from_control_mesh(mesh), 3)
     P = np.asarray(mesh.vertices, dtype=np.float64)
     n = len(P)
@@ -162,8 +206,7 @@ def where() -> None:
         depth = skin.query(X)[0]
         inside = depth > 0.0
         deep = depth > 0.002
-        _, nearest = tree.query(X[deep])
-        seg = segment[nearest]
+        seg = segment_of(X[deep])
         moved = np.linalg.norm(Q - P, axis=1)[moving]
         print(
             f"{start}: control points moved median {np.median(moved) * 1000:.0f} mm, at most {moved.max() * 1000:.0f} mm; "
@@ -179,14 +222,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
     sub.add_parser("where", help="the default chair's start, for the cage and each start")
+    sub.add_parser("approach", help="the default chair's fit from the cage: where its probes are deep, per iteration")
     r = sub.add_parser("run", help="run a benchmark script with every surface fit starting from START: run START [--count FILE] -- SCRIPT [ARGS...]")
     r.add_argument("start", choices=STARTS)
     r.add_argument("--count", help="append one line per surface fit (template, iterations) to this file")
     argv = sys.argv[1:]
     cut = argv.index("--") if "--" in argv else len(argv)
     args = ap.parse_args(argv[:cut])
-    if args.cmd == "where":
-        where()
+    if args.cmd in ("where", "approach"):
+        where() if args.cmd == "where" else approach()
         return
     script = argv[cut + 1 :]
     if not script:
