@@ -128,22 +128,10 @@ def _summary(count: str) -> str:
 
 def _default_chair_fit():
     """The inputs of the default chair's surface fit (our cage's, not the flat patch's): mesh, bodies, pressures, params."""
-    from seatkit import pipeline
-    import seatkit.refine.ccfit as ccfit
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from ccfit_steps import capture
 
-    calls = []
-    fit_cage = ccfit.fit_cage
-
-    def keep(mesh, bodies, pressures, params=None):
-        calls.append((mesh, bodies, pressures, params))
-        return fit_cage(mesh, bodies, pressures, params)
-
-    ccfit.fit_cage = keep
-    try:
-        pipeline.build({"template": "chair", "bodies": [{"model": "default-male", "pose": "upright-sitting"}]}, write=False, processes=False)
-    finally:
-        ccfit.fit_cage = fit_cage
-    return next(call for call in calls if call[0].meta.get("template") == "chair")
+    return capture("chair", "default-male", "upright-sitting")
 
 
 def _segment_of(body):
