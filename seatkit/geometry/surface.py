@@ -245,6 +245,10 @@ def _body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | N
     return float(dist.max())
 
 
+#: Slack (m) of :func:`inside_furniture`'s filters, far above the rounding of a crossing's height and barycentrics.
+_MARGIN = 1e-6
+
+
 def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02) -> np.ndarray:
     """(k,) bool: points inside the furniture the surface closes with the floor (see :func:`body_depth_in_surface`).
 
@@ -293,8 +297,18 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     # (the seat under the thighs) is left out, which changes no parity
     lowest = np.full(int(max(key.max(initial=0), pkey.max(initial=0))) + 1, np.inf)
     np.minimum.at(lowest, pkey, start_points[:, 1])
-    above = np.take(np.maximum(np.maximum(corner[0][1], corner[1][1]), corner[2][1]), owner) > lowest[key]
-    key, owner = key[above], owner[above]
+    tri_top = np.maximum(np.maximum(corner[0][1], corner[1][1]), corner[2][1])
+    top = np.take(tri_top, owner)
+    above = top > lowest[key]
+    key, owner, top = key[above], owner[above], top[above]
+    # nor does a ray that starts above every triangle of its cell (the head
+    # over the seat): it crosses nothing, and its start is left out (the
+    # margins here and below are far above the rounding of a crossing's
+    # height and barycentrics, so no parity changes)
+    highest = np.full(len(lowest), -np.inf)
+    np.maximum.at(highest, key, top)
+    under = np.take(highest, pkey) + _MARGIN > start_points[:, 1]
+    up, start_points, pkey = up[under], start_points[under], pkey[under]
     order = np.argsort(key, kind="stable")
     key, owner = key[order], owner[order]
     start = np.searchsorted(key, pkey, side="left")
@@ -305,7 +319,15 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     pt = np.repeat(np.arange(up.size), n)
     j = np.arange(n.sum()) - np.repeat(np.cumsum(n) - n, n)
     tri = owner[np.repeat(start, n) + j]
-    qx, qy, qz = (np.take(start_points[:, i], pt) for i in range(3))
+    # of a cell's triangles, a ray can cross only one that reaches above its
+    # start and whose plan bounding box holds it: the others (most of the
+    # pairs) are left out before their corners are gathered
+    q = [np.take(np.ascontiguousarray(start_points[:, i]), pt) for i in range(3)]
+    keep = np.take(tri_top, tri) + _MARGIN > q[1]
+    for i, a in ((0, 0), (2, 1)):
+        keep &= (np.take(lo[a], tri) - _MARGIN <= q[i]) & (np.take(hi[a], tri) + _MARGIN >= q[i])
+    pt, tri = pt[keep], tri[keep]
+    qx, qy, qz = (x[keep] for x in q)
     # each gathered column contiguous
     (ax, ay, az), (bx, by, bz), (cx, cy, cz) = ([np.take(x, tri) for x in corner[c]] for c in range(3))
     # plan barycentrics of q in (a, b, c)
