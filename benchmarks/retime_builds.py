@@ -1,6 +1,6 @@
 """The slowest builds of a drawn-pose benchmark run against its median, each timed again, best of several.
 
-    python benchmarks/retime_builds.py gen.jsonl [--slowest 6] [--middle 6] [--rounds 3]
+    python benchmarks/retime_builds.py gen.jsonl [--slowest 6] [--middle 6] [--rounds 3] [--against PYTHON]
 
 One build's CPU time in ``bench_generalisation.py`` varies by up to 40 %
 from run to run on a shared 2-core machine, and the slowest of 398 builds
@@ -17,7 +17,12 @@ slowest build against a typical one without the neighbour's noise: the
 best (smallest) CPU time of each build's rounds, then the slowest of the
 slow group against the median of the middle group.
 
-It prints one line per build (its CPU times, best first) and the ratio.
+It prints one line per build (the CPU time of each round, and the best)
+and the ratio. ``--against`` names the Python of another version of
+seatkit (say a venv of the code before a change): every build is then run
+by both, one after the other in each round, and the ratio and each build's
+best CPU are given for both (the same builds, so their ratio per build is
+the change's).
 """
 
 from __future__ import annotations
@@ -83,6 +88,7 @@ def main() -> None:
     ap.add_argument("--slowest", type=int, default=6, help="the slowest builds timed again (default 6)")
     ap.add_argument("--middle", type=int, default=6, help="the builds nearest the median timed again (default 6)")
     ap.add_argument("--rounds", type=int, default=3, help="builds of each case (default 3)")
+    ap.add_argument("--against", metavar="PYTHON", help="the Python of another version of seatkit, run beside this one")
     ap.add_argument("--one", nargs=5, metavar=("FAMILY", "INDEX", "DRAW_SEED", "BODY", "SEED"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
@@ -99,29 +105,35 @@ def main() -> None:
     slow = by_cpu[: args.slowest]
     middle = sorted(by_cpu[args.slowest :], key=lambda c: abs(c["cpu"] - median))[: args.middle]
     chosen = [("slow", c) for c in slow] + [("middle", c) for c in middle]
-    times: dict[int, list[float]] = {i: [] for i in range(len(chosen))}
+    sides = {"this": sys.executable, **({"other": args.against} if args.against else {})}
+    times = {side: {i: [] for i in range(len(chosen))} for side in sides}
     for r in range(args.rounds):
         # the groups interleaved, so that a slower stretch of the machine falls on both
         order = [i for pair in zip(range(len(slow)), range(len(slow), len(chosen))) for i in pair]
         order += [i for i in range(len(chosen)) if i not in order]
         for i in order:
             c = chosen[i][1]
-            cmd = [sys.executable, __file__, "--one", c["family"], str(c["index"]), str(c["draw_seed"]), c["body"], str(c["seed"])]
-            out = subprocess.run(cmd, capture_output=True, text=True, check=True)
-            times[i].append(float(out.stdout.strip().splitlines()[-1]))
+            # the versions in turn, the first one alternating by round
+            for side in list(sides)[:: 1 if r % 2 == 0 else -1]:
+                cmd = [sides[side], __file__, "--one", c["family"], str(c["index"]), str(c["draw_seed"]), c["body"], str(c["seed"])]
+                out = subprocess.run(cmd, capture_output=True, text=True, check=True)
+                times[side][i].append(float(out.stdout.strip().splitlines()[-1]))
         print(f"round {r + 1} of {args.rounds} done", file=sys.stderr)
     print(f"{len(cases)} built cases in {args.results}; median CPU {median:.2f} s (one run each)")
-    print(f"{'group':7} {'case':34} {'in the run':>10}  {'best':>6}  rounds")
-    best = {}
-    for i, (group, c) in enumerate(chosen):
-        best[i] = min(times[i])
-        rounds = ", ".join(f"{t:.2f}" for t in times[i])
-        print(f"{group:7} {c['pose'] + ' ' + c['body']:34} {c['cpu']:9.2f}s  {best[i]:5.2f}s  ({rounds})")
-    slowest = max(range(len(slow)), key=lambda i: best[i])
-    typical = statistics.median(best[i] for i in range(len(slow), len(chosen)))
     print(f"one run each: slowest {by_cpu[0]['cpu']:.2f} s / median {median:.2f} s = {by_cpu[0]['cpu'] / median:.2f}x")
-    print(f"best of {args.rounds}: slowest {best[slowest]:.2f} s ({chosen[slowest][1]['pose']} {chosen[slowest][1]['body']}) / median of the middle group {typical:.2f} s = {best[slowest] / typical:.2f}x")
-
+    best = {side: {i: min(t) for i, t in times[side].items()} for side in sides}
+    for side in sides:
+        print(f"\n{side} ({sides[side]})")
+        print(f"{'group':7} {'case':34} {'in the run':>10}  {'best':>6}  rounds")
+        for i, (group, c) in enumerate(chosen):
+            rounds = ", ".join(f"{t:.2f}" for t in times[side][i])
+            print(f"{group:7} {c['pose'] + ' ' + c['body']:34} {c['cpu']:9.2f}s  {best[side][i]:5.2f}s  ({rounds})")
+        slowest = max(range(len(slow)), key=lambda i: best[side][i])
+        typical = statistics.median(best[side][i] for i in range(len(slow), len(chosen)))
+        print(f"best of {args.rounds}: slowest {best[side][slowest]:.2f} s ({chosen[slowest][1]['pose']} {chosen[slowest][1]['body']}) / median of the middle group {typical:.2f} s = {best[side][slowest] / typical:.2f}x")
+    if args.against:
+        ratios = [best["this"][i] / best["other"][i] for i in range(len(chosen))]
+        print("\nthis / other, best against best, per build: " + ", ".join(f"{x:.2f}" for x in ratios) + f"; median {statistics.median(ratios):.2f}x")
 
 if __name__ == "__main__":
     main()
