@@ -94,7 +94,6 @@ def test_crossing_faces_finds_what_every_pair_finds():
     assert found > 0  # the cages do cross the sphere
 
 
-
 def test_a_quad_crosses_the_body_whatever_the_rest_of_the_cage_and_a_moved_quad_is_tested_again():
     # the check keeps each quad's answer per body (a repair moves a few quads; the check runs again)
     body = _sphere_body(subdivisions=2)
@@ -110,6 +109,7 @@ def test_a_quad_crosses_the_body_whatever_the_rest_of_the_cage_and_a_moved_quad_
     for tolerance in (0.007, 0.0):
         np.testing.assert_array_equal(crossing_faces(moved, Q, body, tolerance), _brute_crossing(moved, Q, body, tolerance))
     np.testing.assert_array_equal(crossing_faces(V, Q, body, 0.007), whole)
+
 
 def test_self_intersections_match_every_pair():
     rng = np.random.default_rng(3)

@@ -41,7 +41,6 @@ import html
 import math
 import os
 from dataclasses import dataclass, field
-from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -236,8 +235,9 @@ class _Scene:
             if name == "body" and family == "body":
                 # framed on the bodies alone: the same raster for every scene of these bodies in this
                 # process (pressure.png, drawn ahead by a build's helper, and the parts it draws later)
-                draw = partial(_BODY_RASTERS.get, (self._body_key(), view), draw)
-            self._rasters[key] = draw()
+                self._rasters[key] = _BODY_RASTERS.get((self._body_key(), view), draw)
+            else:
+                self._rasters[key] = draw()
         return self._rasters[key]
 
     def _body_key(self) -> bytes:

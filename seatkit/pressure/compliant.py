@@ -68,6 +68,7 @@ from seatkit.constants import (
     TISSUE_YOUNGS_MODULUS_PA,
 )
 from seatkit.errors import InfeasibleSupportError, InputError, SolverError
+from seatkit.geometry.normals import kept_vertex_normals
 from seatkit.model import PressureField
 from seatkit.pressure.assembly import body_geometry, joint_loads, segment_gravity
 from seatkit.pressure.solve import project_to_cone
@@ -158,8 +159,8 @@ def bone_distance(body) -> np.ndarray:
 
 
 def _outward_normals(body) -> np.ndarray:
-    # the importance map's solve on the same body computed them (body_geometry keeps them)
-    return body_geometry(body.vertices, body.faces).normal
+    # read-only, computed once per process for the body's arrays (its importance solve asked first)
+    return kept_vertex_normals(body.vertices, body.faces)
 
 
 def contact_with_surface(body, surface, *, reach: float = CONTACT_REACH_M, query=None) -> SupportContact:
