@@ -18,10 +18,14 @@ Both penalties are 1 for a perfect plane and 0 at or beyond their limits.
 
 from __future__ import annotations
 
+import functools
+import hashlib
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
 
+from seatkit.cache import LRUCache
 from seatkit.geometry.closest import row_norms
 
 __all__ = [
@@ -172,6 +176,69 @@ class PlaneFitResult:
     supported: np.ndarray
 
 
+#: :func:`fit_support_plane`'s answers by their inputs: the template's starts
+#: of one random stream run the steps before the first optional step they
+#: drop alike (docs/templates.md, "The starts"), each asking for the same
+#: planes from the same stream state.
+_FITS = LRUCache(1024)
+
+
+def _remembered(fit):
+    """``fit`` (a function of arrays, numbers and a random ``rng``) answered once per inputs and stream state.
+
+    The key is a digest of every argument's bytes (arrays with their type
+    and shape) and of the stream's state; a repeated call gets a copy of
+    the first answer, and the stream is left in the state the first call
+    left it in, so the caller sees exactly what running ``fit`` again
+    would give it.
+    """
+    signature = inspect.signature(fit)
+
+    @functools.wraps(fit)
+    def remembered(*args, **kwargs):
+        bound = signature.bind(*args, **kwargs)
+        bound.apply_defaults()
+        rng = bound.arguments["rng"]
+        digest = hashlib.blake2b(digest_size=16)
+        for name, value in bound.arguments.items():
+            digest.update(name.encode())
+            _digest_value(digest, rng.bit_generator.state if name == "rng" else value)
+        key = digest.digest()
+        hit = _FITS.peek(key)
+        if hit is None:
+            result = fit(*args, **kwargs)
+            _FITS.get(key, lambda: (_copy_fit(result), rng.bit_generator.state))
+            return result
+        result, state = hit
+        rng.bit_generator.state = state
+        return _copy_fit(result)
+
+    return remembered
+
+
+def _digest_value(digest, value) -> None:
+    """Feed ``value`` (None, a number, an array, a dict or a tuple of them) to ``digest``, tagged with its kind."""
+    if value is None:
+        digest.update(b"N")
+    elif isinstance(value, dict):
+        digest.update(repr(value).encode())  # a random stream's state: ints and strings
+    elif isinstance(value, (tuple, list)):
+        digest.update(f"T{len(value)}".encode())
+        for v in value:
+            _digest_value(digest, v)
+    else:
+        a = np.ascontiguousarray(value)
+        digest.update(f"A{a.dtype.str}{a.shape}".encode())
+        digest.update(a.data)
+
+
+def _copy_fit(result: "PlaneFitResult") -> "PlaneFitResult":
+    """A copy of ``result`` that shares no mutable part with it."""
+    plane = result.plane
+    return PlaneFitResult(Plane(plane.point.copy(), plane.normal.copy(), plane.quality), result.candidates, dict(result.rejected), result.supported.copy())
+
+
+@_remembered
 def fit_support_plane(
     points: np.ndarray,
     importance: np.ndarray,
