@@ -16,6 +16,8 @@ body (no open3d: its import alone costs about 1.3 s).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
@@ -191,12 +193,20 @@ def _sample_triangles(points: np.ndarray, tris: np.ndarray, spacing: float) -> t
     samples, owner = [], []
     for k in np.unique(n):
         sel = np.flatnonzero(n == k)
-        i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
-        keep = i + j <= k
-        bary = np.stack([k - i[keep] - j[keep], i[keep], j[keep]], 1) / k  # (m, 3)
+        bary = _barycentric_grid(int(k))
         samples.append(np.einsum("mk,tkd->tmd", bary, P[sel]).reshape(-1, 3))
         owner.append(np.repeat(sel, len(bary)))
     return np.concatenate(samples), np.concatenate(owner)
+
+
+@functools.lru_cache(maxsize=64)
+def _barycentric_grid(k: int) -> np.ndarray:
+    """(m, 3) float64 barycentric weights of the points ``i / k, j / k`` (``i + j <= k``) of a triangle, in :func:`_sample_triangles`' order (read-only)."""
+    i, j = np.meshgrid(np.arange(k + 1), np.arange(k + 1), indexing="ij")
+    keep = i + j <= k
+    bary = np.stack([k - i[keep] - j[keep], i[keep], j[keep]], 1) / k
+    bary.flags.writeable = False
+    return bary
 
 
 def _cover_triangles(points: np.ndarray, tris: np.ndarray, spacing: float) -> tuple[np.ndarray, np.ndarray]:
@@ -264,8 +274,11 @@ def self_intersecting_faces(vertices: np.ndarray, quads: np.ndarray) -> np.ndarr
     # triangle pairs whose bounding spheres overlap
     # (every pair within twice the largest radius, each once, ordered by quad)
     i, j = _set_tree(centres).query_pairs(2.0 * float(radius.max()), output_type="ndarray").T.astype(np.int64)
-    i, j = np.where(owner[i] < owner[j], i, j), np.where(owner[i] < owner[j], j, i)
-    keep = (owner[i] < owner[j]) & (np.linalg.norm(centres[i] - centres[j], axis=1) <= radius[i] + radius[j])
+    oi, oj = owner[i], owner[j]
+    apart = np.flatnonzero(oi != oj)  # triangles of one quad are not compared
+    i, j, first = i[apart], j[apart], oi[apart] < oj[apart]
+    i, j = np.where(first, i, j), np.where(first, j, i)
+    keep = np.linalg.norm(centres[i] - centres[j], axis=1) <= radius[i] + radius[j]
     i, j = i[keep], j[keep]
     # quads sharing a vertex are neighbours, not intersections
     shared = (quads[owner[i]][:, :, None] == quads[owner[j]][:, None, :]).any((1, 2))

@@ -76,7 +76,7 @@ class ClearanceResult:
     worst: float
 
 
-def _within_reach(points: np.ndarray, samples: np.ndarray, reach: float) -> np.ndarray:
+def _within_reach(points: np.ndarray, samples: np.ndarray, reach: float, low: np.ndarray | None = None, high: np.ndarray | None = None) -> np.ndarray:
     """(k,) bool: a superset of the points within ``reach`` of some sample, from a grid of cells at least a quarter of ``reach`` wide.
 
     A point within ``reach`` of a sample is, on every axis, at most four
@@ -85,11 +85,14 @@ def _within_reach(points: np.ndarray, samples: np.ndarray, reach: float) -> np.n
     ``reach`` from every sample: a k-d tree query need not be asked about
     them (the far points of the body are most of its cost). Cells are
     wider when the samples span more than 100 quarter reaches (at most
-    about 110 cells a side).
+    about 110 cells a side). ``low`` and ``high`` are the samples' least
+    and greatest coordinates when the caller has them.
     """
-    h = max(reach / 4.0, float(np.ptp(samples, axis=0).max()) / 100.0)
-    origin = samples.min(0) - reach
-    shape = np.floor((samples.max(0) + reach - origin) / h).astype(np.int64) + 2
+    low = samples.min(0) if low is None else low
+    high = samples.max(0) if high is None else high
+    h = max(reach / 4.0, float((high - low).max()) / 100.0)
+    origin = low - reach
+    shape = np.floor((high + reach - origin) / h).astype(np.int64) + 2
     grid = np.zeros(shape, bool)
     cell = np.floor((samples - origin) / h).astype(np.int64)
     grid[cell[:, 0], cell[:, 1], cell[:, 2]] = True
@@ -149,9 +152,9 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
         reach = depth + _SPACING + 0.02
         k = min(_NEAREST, len(samples))
         if person not in cache:
-            lo, hi = samples.min(0) - depth, samples.max(0) + depth
-            cand = np.flatnonzero(((B >= lo) & (B <= hi)).all(1))
-            cand = cand[_within_reach(B[cand], samples, reach)]  # the others would not be found
+            low, high = samples.min(0), samples.max(0)
+            cand = np.flatnonzero(((B >= low - depth) & (B <= high + depth)).all(1))
+            cand = cand[_within_reach(B[cand], samples, reach, low, high)]  # the others would not be found
             d, nearest = stree.query(B[cand], k=k, distance_upper_bound=reach)
             d, nearest = d.reshape(len(cand), k), nearest.reshape(len(cand), k)
             found = np.isfinite(d[:, 0])
@@ -217,21 +220,45 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
     rhs = np.concatenate(rhs)
     r, c, v = np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
     # row . (phi_k n_T) per vertex and axis, times each move column's
-    # direction, summed over the axes in order. Dense: a few hundred rows by
-    # the moving vertices. A corner of a quad (four distinct corners) takes
-    # two shares, its triangle's and the centre's, whose sum does not depend
-    # on their order; shares of vertices that do not move are dropped
+    # direction, summed over the axes in order, kept sparse. A corner of a
+    # quad (four distinct corners) takes two shares, its triangle's and the
+    # centre's, summed in the order of their entries (as ``np.add.at`` into
+    # a zero matrix sums them); shares of vertices that do not move are dropped
     moved, column = np.unique(col_vertex, return_inverse=True)
     slot = np.full(len(V), -1)
     slot[moved] = np.arange(len(moved))
     keep = slot[c] >= 0
-    r, c, v = r[keep], slot[c[keep]], v[keep]
-    A = np.zeros((len(rhs), len(col_vertex)))
+    width = max(len(moved), 1)
+    key = r[keep] * width + slot[c[keep]]
+    v = v[keep]
+    order = np.argsort(key, kind="stable")
+    key, v = key[order], v[order]
+    first = np.ones(len(key), bool)
+    first[1:] = key[1:] != key[:-1]
+    group = np.cumsum(first) - 1
+    place = np.arange(len(key)) - np.flatnonzero(first)[group]
+    shares = np.zeros((int(first.sum()), 3))
+    for k in range(int(place.max()) + 1 if len(place) else 0):
+        at = place == k
+        shares[group[at]] += v[at]
+    key = key[first]
+    # every (row, vertex) to each of the vertex's columns (a vertex on the floor has two)
+    by_slot = np.argsort(column, kind="stable")
+    count = np.bincount(column, minlength=len(moved))
+    start = np.cumsum(count) - count
+    vertex = key % width
+    many = count[vertex]
+    entry = np.repeat(np.arange(len(key)), many)
+    to_col = by_slot[np.repeat(start[vertex], many) + np.arange(len(entry)) - np.repeat(np.cumsum(many) - many, many)]
+    to_row = key[entry] // width
+    value = np.zeros(len(entry))
     for axis in range(3):
-        P = np.zeros((len(rhs), len(moved)))
-        np.add.at(P, (r, c), v[:, axis])
-        A += P[:, column] * col_dir[:, axis]
-    return sp.csr_matrix(A), rhs, worst
+        value += shares[entry, axis] * col_dir[to_col, axis]
+    order = np.lexsort((to_col, to_row))
+    to_row, to_col, value = to_row[order], to_col[order], value[order]
+    nz = value != 0.0
+    A = sp.csr_matrix((value[nz], to_col[nz], np.concatenate([[0], np.cumsum(np.bincount(to_row[nz], minlength=len(rhs)))])), shape=(len(rhs), len(col_vertex)))
+    return A, rhs, worst
 
 
 def lift_off_bodies(
