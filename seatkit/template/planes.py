@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import inspect
 from dataclasses import dataclass
 
 import numpy as np
@@ -184,44 +183,43 @@ _FITS = LRUCache(1024)
 
 
 def _remembered(fit):
-    """``fit`` (a function of arrays, numbers and a random ``rng``) answered once per inputs and stream state.
+    """``fit`` (a function of arrays, numbers and a random stream ``rng``, given by keyword) answered once per inputs and stream state.
 
     The key is a digest of every argument's bytes (arrays with their type
-    and shape) and of the stream's state; a repeated call gets a copy of
-    the first answer, and the stream is left in the state the first call
-    left it in, so the caller sees exactly what running ``fit`` again
+    and shape), as given (an argument left to its default and the same value
+    given are two keys), and of the stream's state; a repeated call gets a
+    copy of the first answer, and the stream is left in the state the first
+    call left it in, so the caller sees exactly what running ``fit`` again
     would give it.
     """
-    signature = inspect.signature(fit)
 
     @functools.wraps(fit)
-    def remembered(*args, **kwargs):
-        bound = signature.bind(*args, **kwargs)
-        bound.apply_defaults()
-        rng = bound.arguments["rng"]
-        digest = hashlib.blake2b(digest_size=16)
-        for name, value in bound.arguments.items():
-            digest.update(name.encode())
-            _digest_value(digest, rng.bit_generator.state if name == "rng" else value)
+    def remembered(*args, rng, **kwargs):
+        state = rng.bit_generator.state
+        digest = hashlib.sha256(repr(state).encode())
+        for i, value in enumerate(args):
+            digest.update(f"|{i}=".encode())
+            _digest_value(digest, value)
+        for name in sorted(kwargs):
+            digest.update(f"|{name}=".encode())
+            _digest_value(digest, kwargs[name])
         key = digest.digest()
         hit = _FITS.peek(key)
         if hit is None:
-            result = fit(*args, **kwargs)
+            result = fit(*args, rng=rng, **kwargs)
             _FITS.get(key, lambda: (_copy_fit(result), rng.bit_generator.state))
             return result
-        result, state = hit
-        rng.bit_generator.state = state
+        result, after = hit
+        rng.bit_generator.state = after
         return _copy_fit(result)
 
     return remembered
 
 
 def _digest_value(digest, value) -> None:
-    """Feed ``value`` (None, a number, an array, a dict or a tuple of them) to ``digest``, tagged with its kind."""
+    """Feed ``value`` (None, a number, an array or a tuple of them) to ``digest``, tagged with its kind."""
     if value is None:
         digest.update(b"N")
-    elif isinstance(value, dict):
-        digest.update(repr(value).encode())  # a random stream's state: ints and strings
     elif isinstance(value, (tuple, list)):
         digest.update(f"T{len(value)}".encode())
         for v in value:
