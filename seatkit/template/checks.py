@@ -23,7 +23,7 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from seatkit.cache import IdentityCache
+from seatkit.cache import IdentityCache, content_key
 from seatkit.errors import PluginError, UnsupportedPoseError
 from seatkit.geometry.normals import kept_vertex_normals
 from seatkit.geometry.surface import SurfaceQuery, inside_furniture
@@ -857,6 +857,24 @@ def _cast_down(body: Body, down: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return memo[key]
 
 
+def _cast_along(body: Body, verts: np.ndarray, n: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`cast_parallel` along ``-n`` from the body vertices ``verts``, 2 mm in front of them, ``depth`` long (read-only).
+
+    A row's casts depend on the body, the vertices, the row's normal and
+    the depths alone; the template's starts of one random stream fit the
+    same rows until the first step they drop: kept per body, by their bytes.
+    """
+    memo = _cached(body, "cast_along", lambda b: {})
+    key = content_key(verts, n, depth)
+    if key not in memo:
+        if len(memo) > 256:
+            memo.clear()
+        t, tri = cast_parallel(body, body.vertices[verts] - 2e-3 * n, -n, depth)
+        t.flags.writeable = tri.flags.writeable = False
+        memo[key] = (t, tri)
+    return memo[key]
+
+
 def check_supportability(state, max_occluded_fraction: float, max_roll: float, joint_reach: float = 0.1) -> None:
     """Detect poses this topology cannot support (paper Secs. 5.1 and 6).
 
@@ -928,7 +946,7 @@ def check_supportability(state, max_occluded_fraction: float, max_roll: float, j
             verts = np.unique(np.concatenate([t[1] for t in tests if not t[3] and t[0].spec.row == r]))
             planes = [t[0].plane for t in tests if not t[3] and t[0].spec.row == r]
             depth = np.max([np.maximum(pl.signed_distance(body.vertices[verts]), 1e-6) for pl in planes], axis=0)
-            t_r, tri_r = cast_parallel(body, body.vertices[verts] - 2e-3 * n, -n, depth)
+            t_r, tri_r = _cast_along(body, verts, n, depth)
             row_cast[r] = (n, verts, t_r, tri_r)
         for face, imp, allowed, vertical in tests:
             if vertical:
