@@ -124,13 +124,14 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
     points, tris, owner = quad_triangles(V, quads)
     nq = len(quads)
     T = points[tris]
-    n_t = np.cross(T[:, 1] - T[:, 0], T[:, 2] - T[:, 0])
+    # first corners, edges and their dot products, once per triangle (gathered per pair below)
+    T0 = np.ascontiguousarray(T[:, 0])
+    E1, E2 = T[:, 1] - T0, T[:, 2] - T0
+    n_t = np.cross(E1, E2)
     area2 = np.linalg.norm(n_t, axis=1)
     good = area2 > 1e-10
     n_t = n_t / np.maximum(area2, 1e-12)[:, None]
     centres, radius = _triangle_spheres(points, tris)
-    # edges and their dot products, once per triangle (gathered per pair below)
-    E1, E2 = T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]
     D00, D01, D11 = np.einsum("ij,ij->i", E1, E1), np.einsum("ij,ij->i", E1, E2), np.einsum("ij,ij->i", E2, E2)
     rows, cols, vals, rhs = [], [], [], []
     worst = 0.0
@@ -175,7 +176,7 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
         bi, ti = np.broadcast_to(near[:, None], owners.shape)[fresh], owners[fresh]
         keep = good[ti]
         bi, ti = bi[keep], ti[keep]
-        a, n = T[ti, 0], n_t[ti]
+        a, n = T0[ti], n_t[ti]
         rel = B[bi] - a
         s = np.einsum("ij,ij->i", rel, n)
         sel = (s < depth) & (s > -depth)
