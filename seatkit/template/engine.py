@@ -221,10 +221,13 @@ class YamlTemplate:
         # same stream's refused start is that start again: refused alike
         # without its border, lift and checks (docs/templates.md, "The starts")
         alike = _AlikeStarts(bound)
+        # what a block derives from its body alone (the segment of each vertex, the vertices and centroids
+        # of segment sets) is the same in every start: made once, shared by the starts' blocks
+        facts = [(segment_of_vertex(b), {}, {}) for b in bodies]
         for attempt, (k, rng, dropped) in enumerate(plan):
             watch = alike.watch(k, rng, dropped)
             try:
-                got = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort, watch=watch)
+                got = self._attempt(bodies, pressures, p, bound, per_step, rng, seed, dropped, last_resort, watch=watch, facts=facts)
             except UnsupportedPoseError as e:
                 if getattr(e, "seed_independent", False):
                     raise
@@ -333,15 +336,18 @@ class YamlTemplate:
         """
         return self.fits(bodies, pressures, params=params, seed=seed, last_resort=True)
 
-    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset(), last_resort=False, *, watch=None) -> tuple | None:
+    def _attempt(self, bodies, pressures, p, bound, per_step, rng, seed, dropped=frozenset(), last_resort=False, *, watch=None, facts=None) -> tuple | None:
         """One run of the bound steps and the final check with one random stream.
 
         Returns the cage and its :class:`_Start` (what
         :func:`_hands_outside` and :func:`_walls_against` build on); None
         when ``watch`` (a :class:`_Watch`) finds, after an optional step,
-        that this start is a refused start again.
+        that this start is a refused start again. ``facts`` (per body: its
+        vertices' segments and the :class:`Block` caches of segment sets'
+        vertices and centroids) are shared with the other starts.
         """
-        state = FitState(self.spec, p, [self._block(i, b, pr) for i, (b, pr) in enumerate(zip(bodies, pressures))], rng, last_resort=last_resort)
+        blocks = [self._block(i, b, pr, None if facts is None else facts[i]) for i, (b, pr) in enumerate(zip(bodies, pressures))]
+        state = FitState(self.spec, p, blocks, rng, last_resort=last_resort)
         state.meta["template"] = self.name
         state.meta["seed"] = int(seed)
         state.meta["special_cases"] = []
@@ -363,18 +369,21 @@ class YamlTemplate:
         fixers = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and isinstance(step, WallsInsideHands)]
         return mesh, _Start(state, mesh, bodies, p, fixers, repairs)
 
-    def _block(self, person: int, body: Body, pressure: PressureField) -> Block:
+    def _block(self, person: int, body: Body, pressure: PressureField, facts: tuple | None = None) -> Block:
         faces = {key: FaceState(spec, spec.segments) for key, spec in self.spec.faces.items()}
+        segment, members, centroids = (segment_of_vertex(body), {}, {}) if facts is None else facts
         return Block(
             person=person,
             body=body,
             importance=np.asarray(pressure.importance, dtype=np.float64),
             normal_force=np.asarray(pressure.normal_force, dtype=np.float64),
             force=np.asarray(pressure.force, dtype=np.float64),
-            segment=segment_of_vertex(body),
+            segment=segment,
             faces=faces,
             rows=list(range(len(self.spec.rows))),
             n_columns=len(self.spec.columns),
+            members=members,
+            centroids=centroids,
         )
 
 
