@@ -847,33 +847,15 @@ def _parts(mesh: ControlMesh, faces) -> list:
 _NOT_OCCLUDING = set(NOT_HELD) | {SEGMENT_INDEX[a] for a in ("RightArm", "LeftArm")}
 
 
-def _cast_down(body: Body, down: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`cast_parallel` straight down to the ground from the body vertices ``down`` (ascending), 2 mm under them.
-
-    The casts depend on the body and the vertices alone, and the template's
-    starts ask for the same ones (the important vertices under seat-like
-    faces): kept per body, by the vertices.
-    """
-    memo = _cached(body, "cast_down", lambda b: {})
-    key = (down.dtype.str, down.tobytes())
-    if key not in memo:
-        if len(memo) > 256:
-            memo.clear()
-        up = np.array([0.0, 1.0, 0.0])
-        t, tri = cast_parallel(body, body.vertices[down] - 2e-3 * up, -up, np.maximum(body.vertices[down, 1], 1e-6))
-        t.flags.writeable = tri.flags.writeable = False
-        memo[key] = (t, tri)
-    return memo[key]
-
-
 def _cast_along(body: Body, verts: np.ndarray, n: np.ndarray, depth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """:func:`cast_parallel` along ``-n`` from the body vertices ``verts``, 2 mm in front of them, ``depth`` long (read-only).
 
-    A row's casts depend on the body, the vertices, the row's normal and
-    the depths alone; the template's starts of one random stream fit the
-    same rows until the first step they drop: kept per body, by their bytes.
+    The casts depend on the body, the vertices, the direction and the
+    depths alone, and the template's starts ask for the same ones (the
+    important vertices under seat-like faces; a row's, in the starts of one
+    random stream until the first step they drop): kept per body, by their bytes.
     """
-    memo = _cached(body, "cast_along", lambda b: {})
+    memo = _cached(body, "casts", lambda b: {})
     key = content_key(verts, n, depth)
     if key not in memo:
         if len(memo) > 256:
@@ -882,6 +864,11 @@ def _cast_along(body: Body, verts: np.ndarray, n: np.ndarray, depth: np.ndarray)
         t.flags.writeable = tri.flags.writeable = False
         memo[key] = (t, tri)
     return memo[key]
+
+
+def _cast_down(body: Body, down: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_cast_along` straight down to the ground from the body vertices ``down`` (ascending), 2 mm under them."""
+    return _cast_along(body, down, np.array([0.0, 1.0, 0.0]), np.maximum(body.vertices[down, 1], 1e-6))
 
 
 def check_supportability(state, max_occluded_fraction: float, max_roll: float, joint_reach: float = 0.1) -> None:
