@@ -98,7 +98,7 @@ from seatkit.errors import SolverError
 from seatkit.geometry.closest import row_norms
 from seatkit.geometry.normals import kept_vertex_normals
 from seatkit.geometry.skin import SkinDistance
-from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, inside_furniture, surface_depth_in_body
+from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, body_inside_furniture, inside_furniture, surface_depth_in_body
 from seatkit.model import Body, ControlMesh, PressureField, Surface
 from seatkit.pressure.contact import supported_vertices
 from seatkit.options import Option, defaults
@@ -642,23 +642,26 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
         # each control point moves along minus the surface normal at its own
         # limit point (the first limit points are the control points'), away
         # from the body: one unknown per control point
-        away = -levels[-1][1].limit_normals(P)[cols]
+        limits = [ops.limit_points(P) for _, ops, _, _ in levels]
+        normals = [ops.limit_normals(P, X) for (_, ops, _, _), X in zip(levels, limits)]
+        away = -normals[-1][cols]
         rows, needs = [], []
-        for lv, ops, spots, probes in levels:
-            X, N = ops.limit_points(P), ops.limit_normals(P)
+        for (lv, ops, spots, probes), X, N in zip(levels, limits, normals):
             Y = probes @ P
             NY = spots @ N
             NY /= np.maximum(row_norms(NY)[:, None], 1e-300)
             surface = Surface(X, N, ops.faces, lv)
             need = np.zeros(len(Y))
             # body vertices inside the furniture: their closest sample goes back past them
-            tree = cKDTree(X)
+            tree = None  # the samples' k-d tree, made when a vertex needs it
             for body in bodies:
-                held = body.vertices[inside_furniture(surface, body.vertices)]
-                if len(held):
-                    d, _ = SurfaceQuery(surface).query(held)
+                # (the final check of these control points found them already: kept by content)
+                inside, d = body_inside_furniture(surface, body)
+                if inside.size:
+                    held = np.take(body.vertices, inside, axis=0)
                     deep = d > settle
                     if deep.any():
+                        tree = cKDTree(X) if tree is None else tree
                         _, s = tree.query(held[deep])
                         np.maximum.at(need, s, d[deep] - settle)
             # probes inside a body: back out of it, along minus the normal as
@@ -762,17 +765,22 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
     probe, probe_moving = phases[0][0], phases[0][1]
     probe_normals = sample_probes[0]
 
-    # the last measurement: the final report's (of the best iterate) and the
-    # polish's first (from the best iterate) are often of control points
-    # measured already, with the same probes
-    last = []
+    # the last measurement, and the best iterate's: the final report's (of
+    # the best iterate) and the polish's first (from the best iterate) are
+    # often of control points measured already, with the same probes
+    last, kept = [], []
 
     def measure(P):
-        if last and last[0] is probe and np.array_equal(last[1], P):
-            return last[2]
+        for seen in (last, kept):
+            if seen and seen[0] is probe and np.array_equal(seen[1], P):
+                return seen[2]
         out = _measure(P)
         last[:] = [probe, P.copy(), out]
         return out
+
+    def keep_last():
+        """The last measurement is the best iterate's: kept for the final report."""
+        kept[:] = last
 
     def _measure(P):
         X = limit @ P
@@ -919,6 +927,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
     inside = guarded_inside(X, N)
     history = [mean]
     best = (P.copy(), mean, deepest(depth, inside))
+    keep_last()
     stall = 0
     iterations = 0
     step_scale = []  # per iteration: the share of the solved step the trust region let through
@@ -933,6 +942,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
             if deepest(depth, inside) <= p["max_penetration"]:
                 break
             best = (P.copy(), mean, deepest(depth, inside))
+            keep_last()
             history.append(mean)
             stall = 0
         since_deeper = 0
@@ -1043,6 +1053,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
             since_deeper = 0 if deeper_gain or ok else since_deeper + 1
             if (ok and (not best_ok or mean < best[1])) or (not best_ok and max_depth < best[2]):
                 best = (P.copy(), mean, max_depth)
+                keep_last()
             improving = history[-2] - mean > p["tolerance"]
             stall = 0 if improving else stall + 1
             if ok and stall >= 2:
@@ -1104,8 +1115,9 @@ def _final_depths(mesh: ControlMesh, bodies: Sequence[Body], level: int) -> dict
     # of the finer one (a vertex's limit position does not change with
     # refinement), so only its quad centres are added
     finest = surfaces[-1]
-    probes = [finest.vertices, finest.vertices[finest.faces].mean(axis=1)]
-    probes += [s.vertices[s.faces].mean(axis=1) for s in surfaces[:-1]]
+    # (np.take gathers rows several times faster than indexing does)
+    probes = [finest.vertices, np.take(finest.vertices, finest.faces, axis=0).mean(axis=1)]
+    probes += [np.take(s.vertices, s.faces, axis=0).mean(axis=1) for s in surfaces[:-1]]
     points = np.concatenate(probes)
     # a body vertex inside the furniture, at each level (a coarser
     # tessellation's chords can read deeper than the finer one's), beside
