@@ -267,6 +267,8 @@ def _body_inside_furniture(surface: Surface, body: Body, query: SurfaceQuery | N
 
 #: Slack (m) of :func:`inside_furniture`'s filters, far above the rounding of a crossing's height and barycentrics.
 _MARGIN = 1e-6
+#: Where :func:`inside_furniture`'s rays start, from each point (m): a hair off it in the plan.
+_RAY_OFFSET = np.array([1.2345e-9, 0.0, 2.3456e-9])
 
 
 def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02) -> np.ndarray:
@@ -299,9 +301,9 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     count = nx * nz
     owner = np.repeat(np.arange(len(tris)), count)
     k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    nx_o = np.take(nx, owner)
-    gx = np.take(c_lo[0], owner) + k % nx_o
-    gz = np.take(c_lo[1], owner) + k // nx_o
+    row, col = np.divmod(k, np.take(nx, owner))  # (one integer division for both)
+    gx = np.take(c_lo[0], owner) + col
+    gz = np.take(c_lo[1], owner) + row
     key = gz * width + gx
     # the body vertices above the floor, their cells, and the triangles there
     up = np.flatnonzero(p[:, 1] > 0.0)
@@ -309,7 +311,7 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     # far below any feature size), so that no ray runs exactly through a
     # vertex or an edge of the surface, where the parity could count a
     # crossing twice or not at all
-    start_points = p[up] + [1.2345e-9, 0.0, 2.3456e-9]
+    start_points = np.take(p, up, axis=0) + _RAY_OFFSET
     pc = np.floor((start_points[:, [0, 2]] - origin) / cell).astype(np.int64)
     pkey = pc[:, 1] * width + pc[:, 0]
     # a ray crosses only triangles above its start: a (triangle, cell) pair
