@@ -880,9 +880,10 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
             # (shallow probes keep the skin's nearest side: it is as good there)
             inside = np.flatnonzero((depth > 0.5 * p["clearance"]) & ~below)
             if inside.size:
-                Yn = probe_normals @ N
+                # (the normals of these probes alone: each row's sum is the same)
+                Yn = probe_normals[inside] @ N
                 Yn /= np.maximum(row_norms(Yn)[:, None], 1e-300)
-                back = -Yn[inside]
+                back = -Yn
                 # the way out, sampled along the ray at up to 2 depth + 2 cm
                 # (one batched query), the exit between the last sample inside
                 # and the first outside
