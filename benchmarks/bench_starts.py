@@ -57,9 +57,9 @@ def main() -> None:
     fits: list = []
     fit_once, push_out = ccfit._fit_once, ccfit.push_out
 
-    def logged_fit(mesh, bodies, pressures, params, *, guard=False, start_from=None):
+    def logged_fit(mesh, bodies, pressures, params, *, guard=False, start_from=None, **more):
         start = time.process_time()
-        out = fit_once(mesh, bodies, pressures, params, guard=guard, start_from=start_from)
+        out = fit_once(mesh, bodies, pressures, params, guard=guard, start_from=start_from, **more)
         report = out.meta["catmull-clark-fit"]
         final = report.get("final_depth") or {}
         fits.append({

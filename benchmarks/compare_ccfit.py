@@ -6,6 +6,7 @@ bodies:
 
     python benchmarks/compare_ccfit.py record fits.pkl     # every supported library pose x both default bodies
     python benchmarks/compare_ccfit.py record drawn.pkl --library 0 --drawn 8   # 8 drawn poses (seatkit.body.generator)
+    python benchmarks/compare_ccfit.py record cases.pkl --library 0 --case pose.yaml:default-male   # given poses, one body each
     python benchmarks/compare_ccfit.py run fits.pkl new.npz [--repeat 3] [--only NAME] [--cold]
     python benchmarks/compare_ccfit.py compare old.npz new.npz
 
@@ -33,13 +34,14 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
 BODIES = ("default-female", "default-male")
 
 
-def record(path: str, *, library: bool = True, drawn: int = 0, draw_seed: int = 0) -> None:
+def record(path: str, *, library: bool = True, drawn: int = 0, draw_seed: int = 0, cases: Sequence[str] = ()) -> None:
     from seatkit import pipeline
     from seatkit.errors import SeatkitError
     import seatkit.refine.ccfit as ccfit
@@ -60,17 +62,20 @@ def record(path: str, *, library: bool = True, drawn: int = 0, draw_seed: int = 
     for d in draw_poses(drawn, seed=draw_seed):  # the families in turn; their YAML read back bit for bit
         poses.append(str(folder / f"{d.name}.yaml"))
         Path(poses[-1]).write_text(pose_yaml(d))
-    for pose in poses:
-        for model in BODIES:
-            calls.clear()
-            recipe = {"template": "chair", "bodies": [{"model": model, "pose": pose}]}
-            try:
-                pipeline.build(recipe, write=False, processes=False)
-            except SeatkitError as e:
-                print(f"{model} {pose}: {str(e).splitlines()[0][:100]}", file=sys.stderr)
-            for call in calls:  # ours and the baseline's (on a thread: in either order)
-                fits.append({"name": f"{model}/{Path(pose).stem}/{call['mesh'].meta.get('template', '?')}", **call})
-            print(f"{model} {Path(pose).stem}: {len(calls)} fit(s)", file=sys.stderr)
+    runs = [(pose, model) for pose in poses for model in BODIES]
+    runs += [tuple(case.rsplit(":", 1)) for case in cases]  # a pose file and the one body it is built for
+    for pose, model in runs:
+        calls.clear()
+        recipe = {"template": "chair", "bodies": [{"model": model, "pose": pose}]}
+        try:
+            pipeline.build(recipe, write=False, processes=False)
+        except SeatkitError as e:
+            print(f"{model} {pose}: {str(e).splitlines()[0][:100]}", file=sys.stderr)
+        for call in calls:  # ours and the baseline's (on a thread: in either order), the design search's candidates
+            name = f"{model}/{Path(pose).stem}/{call['mesh'].meta.get('template', '?')}"
+            seen = sum(fit["name"].split("#")[0] == name for fit in fits)
+            fits.append({"name": f"{name}#{seen}" if seen else name, **call})
+        print(f"{model} {Path(pose).stem}: {len(calls)} fit(s)", file=sys.stderr)
     with open(path, "wb") as f:
         pickle.dump(fits, f)
 
@@ -175,7 +180,7 @@ def compare(a_path: str, b_path: str, tolerance: float, limit: float) -> int:
 def main() -> None:
     ap = argparse.ArgumentParser(
         description=__doc__.splitlines()[0],
-        epilog="record FITS [--library 0|1] [--drawn N] [--draw-seed S]; run FITS OUT [--repeat N] [--only NAME] [--cold]; "
+        epilog="record FITS [--library 0|1] [--drawn N] [--draw-seed S] [--case POSE:MODEL ...]; run FITS OUT [--repeat N] [--only NAME] [--cold]; "
         "compare A B [--tolerance M] [--limit M] (each command's --help says more)",
     )
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -184,6 +189,7 @@ def main() -> None:
     r.add_argument("--library", type=int, default=1, help="1: every supported library pose (default), 0: none")
     r.add_argument("--drawn", type=int, default=0, help="also this many drawn poses (seatkit.body.generator.draw_poses)")
     r.add_argument("--draw-seed", type=int, default=0)
+    r.add_argument("--case", action="append", default=[], metavar="POSE:MODEL", help="also this pose file built on this body (repeatable)")
     u = sub.add_parser("run")
     u.add_argument("fits")
     u.add_argument("out")
@@ -197,7 +203,7 @@ def main() -> None:
     c.add_argument("--limit", type=float, default=0.005, help="m, the surface_limit every fit must hold")
     args = ap.parse_args()
     if args.cmd == "record":
-        record(args.fits, library=bool(args.library), drawn=args.drawn, draw_seed=args.draw_seed)
+        record(args.fits, library=bool(args.library), drawn=args.drawn, draw_seed=args.draw_seed, cases=args.case)
     elif args.cmd == "run":
         run(args.fits, args.out, args.repeat, args.only, args.cold)
     else:

@@ -23,6 +23,13 @@ seatkit (say a venv of the code before a change): every build is then run
 by both, one after the other in each round, and the ratio and each build's
 best CPU are given for both (the same builds, so their ratio per build is
 the change's).
+
+    python benchmarks/retime_builds.py --case reclined-169:default-male --case default [--draw-seed 2026] --against PYTHON
+
+times the builds named instead (a drawn pose as FAMILY-INDEX:BODY, drawn
+with ``--draw-seed`` and built with seed 0; ``default``: the default
+chair), the same way, and prints each one's best CPU time per version and
+their ratio.
 """
 
 from __future__ import annotations
@@ -70,16 +77,50 @@ def _build_one(family: str, index: int, draw_seed: int, body: str, seed: int) ->
     folder = Path(tempfile.mkdtemp(prefix="retime-"))
 
     def once(fam, idx):
-        drawn = draw_pose(np.random.default_rng([draw_seed, idx]), fam, f"{fam}-{idx:03d}")
-        path = folder / f"{drawn.name}.yaml"
-        path.write_text(pose_yaml(drawn))
-        recipe = {"template": "chair", "seed": seed, "bodies": [{"model": body, "pose": str(path)}]}
+        if fam == "default":  # the default chair
+            recipe = {"template": "chair", "seed": seed}
+        else:
+            drawn = draw_pose(np.random.default_rng([draw_seed, idx]), fam, f"{fam}-{idx:03d}")
+            path = folder / f"{drawn.name}.yaml"
+            path.write_text(pose_yaml(drawn))
+            recipe = {"template": "chair", "seed": seed, "bodies": [{"model": body, "pose": str(path)}]}
         c0 = time.process_time()
         build(recipe, pm=pm, write=False, processes=False)
         return time.process_time() - c0
 
     once(*WARM_UP)
     return once(family, index)
+
+
+def _times(chosen: list[dict], sides: dict[str, str], rounds: int, order: list[int]) -> dict:
+    """CPU seconds of each chosen build, per side and round: every build in a fresh process, the versions in turn (the first one alternating by round)."""
+    times = {side: {i: [] for i in range(len(chosen))} for side in sides}
+    for r in range(rounds):
+        for i in order:
+            c = chosen[i]
+            for side in list(sides)[:: 1 if r % 2 == 0 else -1]:
+                cmd = [sides[side], __file__, "--one", c["family"], str(c["index"]), str(c["draw_seed"]), c["body"], str(c["seed"])]
+                out = subprocess.run(cmd, capture_output=True, text=True, check=True)
+                times[side][i].append(float(out.stdout.strip().splitlines()[-1]))
+        print(f"round {r + 1} of {rounds} done", file=sys.stderr)
+    return times
+
+
+def _retime_cases(args) -> None:
+    """The builds named by ``--case``, each version's best CPU time and their ratio."""
+    chosen = []
+    for case in args.case:
+        name, _, body = case.partition(":")
+        family, _, index = name.rpartition("-") if name != "default" else ("default", "", "0")
+        chosen.append({"pose": name, "family": family, "index": int(index), "draw_seed": args.draw_seed, "body": body or "default-male", "seed": 0})
+    sides = {"this": sys.executable, **({"other": args.against} if args.against else {})}
+    times = _times(chosen, sides, args.rounds, list(range(len(chosen))))
+    print(f"{'case':34} " + "  ".join(f"{side + ' best':>10}" for side in sides) + ("  this/other" if args.against else "") + "  rounds")
+    for i, c in enumerate(chosen):
+        best = {side: min(times[side][i]) for side in sides}
+        rounds = "; ".join(side + " " + ", ".join(f"{t:.2f}" for t in times[side][i]) for side in sides)
+        ratio = f"  {best['this'] / best['other']:10.2f}" if args.against else ""
+        print(f"{c['pose'] + ' ' + (c['body'] if c['family'] != 'default' else ''):34} " + "  ".join(f"{best[side]:9.2f}s" for side in sides) + ratio + f"  ({rounds})")
 
 
 def main() -> None:
@@ -89,14 +130,19 @@ def main() -> None:
     ap.add_argument("--middle", type=int, default=6, help="the builds nearest the median timed again (default 6)")
     ap.add_argument("--rounds", type=int, default=3, help="builds of each case (default 3)")
     ap.add_argument("--against", metavar="PYTHON", help="the Python of another version of seatkit, run beside this one")
+    ap.add_argument("--case", action="append", default=[], metavar="FAMILY-INDEX:BODY", help="time this build instead (repeatable; 'default': the default chair)")
+    ap.add_argument("--draw-seed", type=int, default=2026, help="the draw seed of the --case poses (default 2026)")
     ap.add_argument("--one", nargs=5, metavar=("FAMILY", "INDEX", "DRAW_SEED", "BODY", "SEED"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.one:
         family, index, draw_seed, body, seed = args.one
         print(json.dumps(_build_one(family, int(index), int(draw_seed), body, int(seed))))
         return
+    if args.case:
+        _retime_cases(args)
+        return
     if not args.results:
-        ap.error("a results file is needed")
+        ap.error("a results file or --case is needed")
     cases = _cases(args.results)
     if len(cases) < args.slowest + args.middle:
         sys.exit(f"{args.results}: {len(cases)} built cases, fewer than --slowest + --middle")
@@ -106,19 +152,10 @@ def main() -> None:
     middle = sorted(by_cpu[args.slowest :], key=lambda c: abs(c["cpu"] - median))[: args.middle]
     chosen = [("slow", c) for c in slow] + [("middle", c) for c in middle]
     sides = {"this": sys.executable, **({"other": args.against} if args.against else {})}
-    times = {side: {i: [] for i in range(len(chosen))} for side in sides}
-    for r in range(args.rounds):
-        # the groups interleaved, so that a slower stretch of the machine falls on both
-        order = [i for pair in zip(range(len(slow)), range(len(slow), len(chosen))) for i in pair]
-        order += [i for i in range(len(chosen)) if i not in order]
-        for i in order:
-            c = chosen[i][1]
-            # the versions in turn, the first one alternating by round
-            for side in list(sides)[:: 1 if r % 2 == 0 else -1]:
-                cmd = [sides[side], __file__, "--one", c["family"], str(c["index"]), str(c["draw_seed"]), c["body"], str(c["seed"])]
-                out = subprocess.run(cmd, capture_output=True, text=True, check=True)
-                times[side][i].append(float(out.stdout.strip().splitlines()[-1]))
-        print(f"round {r + 1} of {args.rounds} done", file=sys.stderr)
+    # the groups interleaved, so that a slower stretch of the machine falls on both
+    order = [i for pair in zip(range(len(slow)), range(len(slow), len(chosen))) for i in pair]
+    order += [i for i in range(len(chosen)) if i not in order]
+    times = _times([c for _, c in chosen], sides, args.rounds, order)
     print(f"{len(cases)} built cases in {args.results}; median CPU {median:.2f} s (one run each)")
     print(f"one run each: slowest {by_cpu[0]['cpu']:.2f} s / median {median:.2f} s = {by_cpu[0]['cpu'] / median:.2f}x")
     best = {side: {i: min(t) for i, t in times[side].items()} for side in sides}

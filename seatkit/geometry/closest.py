@@ -40,31 +40,51 @@ def closest_barycentric(d1, d2, d00, d01, d11) -> tuple[np.ndarray, np.ndarray, 
     ``ac . ac``. Coordinates on an edge or at a corner are exact zeros: a
     caller can tell the features apart by them.
     """
+    # flat arrays of one shape (written in place below, by flat index), that shape again at the end
+    shape = np.broadcast_shapes(*(np.shape(x) for x in (d1, d2, d00, d01, d11)))
+    d1, d2, d00, d01, d11 = (np.ravel(x) for x in np.broadcast_arrays(d1, d2, d00, d01, d11))
     d3, d4, d5, d6 = d1 - d00, d2 - d01, d1 - d01, d2 - d11
-    va = d3 * d6 - d5 * d4
-    vb = d5 * d2 - d1 * d6
-    vc = d1 * d4 - d3 * d2
-    denom = va + vb + vc
+    # (in place where a product or sum is only an intermediate: the same
+    # operations in the same order, fewer temporaries)
+    va = d3 * d6
+    va -= d5 * d4
+    vb = d5 * d2
+    vb -= d1 * d6
+    vc = d1 * d4
+    vc -= d3 * d2
+    denom = va + vb
+    denom += vc
     v = safe_ratio(vb, denom)
     w = safe_ratio(vc, denom)
-    u = 1.0 - v - w
+    u = 1.0 - v
+    u -= w
     # edge regions, then corners (later ones take precedence, as in Ericson's
     # order reversed). The denominators are squared edge lengths: a triangle
-    # with two coincident corners has a zero one, and its edge is a point
-    e_bc = (va <= 0) & ((d4 - d3) >= 0) & ((d5 - d6) >= 0)
-    t = safe_ratio(d4 - d3, (d4 - d3) + (d5 - d6))
-    u, v, w = np.where(e_bc, 0.0, u), np.where(e_bc, 1.0 - t, v), np.where(e_bc, t, w)
-    e_ac = (vb <= 0) & (d2 >= 0) & (d6 <= 0)
-    t = safe_ratio(d2, d2 - d6)
-    u, v, w = np.where(e_ac, 1.0 - t, u), np.where(e_ac, 0.0, v), np.where(e_ac, t, w)
-    e_ab = (vc <= 0) & (d1 >= 0) & (d3 <= 0)
-    t = safe_ratio(d1, d1 - d3)
-    u, v, w = np.where(e_ab, 1.0 - t, u), np.where(e_ab, t, v), np.where(e_ab, 0.0, w)
+    # with two coincident corners has a zero one, and its edge is a point.
+    # A region's parameter is computed only where the region holds
+    # (elementwise: the same values) and written there
+    d43, d56 = d4 - d3, d5 - d6
+    k = np.flatnonzero((va <= 0) & (d43 >= 0) & (d56 >= 0))  # edge bc
+    if k.size:
+        a = np.take(d43, k)
+        t = safe_ratio(a, a + np.take(d56, k))
+        np.put(u, k, 0.0), np.put(v, k, 1.0 - t), np.put(w, k, t)
+    k = np.flatnonzero((vb <= 0) & (d2 >= 0) & (d6 <= 0))  # edge ac
+    if k.size:
+        a = np.take(d2, k)
+        t = safe_ratio(a, a - np.take(d6, k))
+        np.put(u, k, 1.0 - t), np.put(v, k, 0.0), np.put(w, k, t)
+    k = np.flatnonzero((vc <= 0) & (d1 >= 0) & (d3 <= 0))  # edge ab
+    if k.size:
+        a = np.take(d1, k)
+        t = safe_ratio(a, a - np.take(d3, k))
+        np.put(u, k, 1.0 - t), np.put(v, k, t), np.put(w, k, 0.0)
     for corner, mask in ((2, (d6 >= 0) & (d5 <= d6)), (1, (d3 >= 0) & (d4 <= d3)), (0, (d1 <= 0) & (d2 <= 0))):
-        u = np.where(mask, 1.0 if corner == 0 else 0.0, u)
-        v = np.where(mask, 1.0 if corner == 1 else 0.0, v)
-        w = np.where(mask, 1.0 if corner == 2 else 0.0, w)
-    return u, v, w
+        k = np.flatnonzero(mask)
+        np.put(u, k, 1.0 if corner == 0 else 0.0)
+        np.put(v, k, 1.0 if corner == 1 else 0.0)
+        np.put(w, k, 1.0 if corner == 2 else 0.0)
+    return u.reshape(shape), v.reshape(shape), w.reshape(shape)
 
 
 def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -242,7 +242,7 @@ class SkinDistance:
         off = np.flatnonzero(~((x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1]) & (z >= lo[2]) & (z <= hi[2])))
         if off.size:
             q = np.take(points, off, axis=0)
-            out[off] = np.linalg.norm(np.maximum(lo - q, 0.0) + np.maximum(q - hi, 0.0), axis=1)
+            out[off] = row_norms(np.maximum(lo - q, 0.0) + np.maximum(q - hi, 0.0))
         within, cell = self._cells(points, origin, h, clear.shape)
         out[within] = np.maximum(out[within], np.take(clear, cell))
         return out
@@ -322,9 +322,27 @@ class SkinDistance:
         d2 = np.einsum("ni,ni->n", ac, ap)
         bary = closest_barycentric(d1, d2, d00, d01, d11)
         _, v, w = bary
-        # |ap - v ab - w ac|^2 without forming the points
-        d2sq = np.einsum("ni,ni->n", ap, ap) - 2.0 * (v * d1 + w * d2) + v * v * d00 + 2.0 * v * w * d01 + w * w * d11
-        d2sq = np.where(np.isfinite(d2sq), np.maximum(d2sq, 0.0), np.inf)
+        # |ap - v ab - w ac|^2 without forming the points:
+        # ap . ap - 2 (v d1 + w d2) + v v d00 + 2 v w d01 + w w d11, term by term in
+        # that order, in place (the same operations, fewer temporaries)
+        d2sq = np.einsum("ni,ni->n", ap, ap)
+        term = v * d1
+        term += w * d2
+        term *= 2.0
+        d2sq -= term
+        np.multiply(v, v, out=term)
+        term *= d00
+        d2sq += term
+        np.multiply(2.0, v, out=term)
+        term *= w
+        term *= d01
+        d2sq += term
+        np.multiply(w, w, out=term)
+        term *= d11
+        d2sq += term
+        odd = ~np.isfinite(d2sq)
+        np.maximum(d2sq, 0.0, out=d2sq)
+        d2sq[odd] = np.inf
         # the first pair of each point at its smallest distance
         start = np.cumsum(count) - count
         lowest = np.minimum.reduceat(d2sq, start)

@@ -22,7 +22,7 @@ from seatkit.geometry.closest import closest_point_on_triangles, row_norms, vert
 from seatkit.geometry.skin import SkinDistance
 from seatkit.model import Body, Surface
 
-__all__ = ["SurfaceQuery", "surface_depth_in_body", "body_depth_in_surface", "inside_furniture"]
+__all__ = ["SurfaceQuery", "surface_depth_in_body", "body_depth_in_surface", "body_inside_furniture", "inside_furniture"]
 
 
 class SurfaceQuery:
@@ -205,10 +205,12 @@ def surface_depth_in_body(surface: Surface, body: Body) -> float:
     return SkinDistance.of(body.vertices, body.faces).max_depth(points)
 
 
-#: :func:`body_depth_in_surface`'s answers, by the body's vertex array (its identity) and the
+#: :func:`body_inside_furniture`'s answers, by the body's vertex array (its identity) and the
 #: tessellation's contents: the surface fit's final check measures the designed
-#: surface at the exported level, and the evaluation asks the same of the same
-#: surface made again from the same control points.
+#: surface at the exported level, the evaluation asks the same of the same
+#: surface made again from the same control points, and the surface fit's
+#: last repair (``push_out``) starts where the final check of the same control
+#: points left off.
 _BODY_DEPTHS = IdentityCache(maxsize=16)
 
 
@@ -228,25 +230,45 @@ def body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | No
     Candidate triangles come from a grid of ``cell`` (m) over the floor
     plan; the point-in-triangle tests are exact in the plan. The answer is
     kept for the last few vertex arrays and tessellations in this process
-    (the surface's normals and ``query`` do not change it).
+    (the surface's normals and ``query`` do not change it):
+    :func:`body_inside_furniture`.
+    """
+    _, dist = body_inside_furniture(surface, body, query, cell=cell)
+    return float(dist.max()) if dist.size else 0.0
+
+
+def body_inside_furniture(surface: Surface, body: Body, query: SurfaceQuery | None = None, *, cell: float = 0.02) -> tuple[np.ndarray, np.ndarray]:
+    """The body vertices inside the furniture (indices, ascending) and their distances to the surface, m.
+
+    What :func:`body_depth_in_surface` reads its answer from, kept for the
+    last few vertex arrays and tessellations in this process (the arrays
+    are shared: not to be written to).
     """
     return _BODY_DEPTHS.get(
-        (body.vertices,), lambda: _body_depth_in_surface(surface, body, query, cell), tag=(content_key(surface.vertices, surface.faces), float(cell))
+        (body.vertices,), lambda: _body_inside_furniture(surface, body, query, cell), tag=(content_key(surface.vertices, surface.faces), float(cell))
     )
 
 
 def _body_depth_in_surface(surface: Surface, body: Body, query: SurfaceQuery | None, cell: float) -> float:
+    """:func:`body_depth_in_surface` measured anew (nothing kept)."""
+    _, dist = _body_inside_furniture(surface, body, query, cell)
+    return float(dist.max()) if dist.size else 0.0
+
+
+def _body_inside_furniture(surface: Surface, body: Body, query: SurfaceQuery | None, cell: float) -> tuple[np.ndarray, np.ndarray]:
     p = np.asarray(body.vertices, dtype=np.float64)
     inside = np.flatnonzero(inside_furniture(surface, p, cell=cell))
     if not inside.size:
-        return 0.0
+        return inside, np.zeros(0)
     query = query if query is not None else SurfaceQuery(surface)
     dist, _ = query.query(p[inside])
-    return float(dist.max())
+    return inside, dist
 
 
 #: Slack (m) of :func:`inside_furniture`'s filters, far above the rounding of a crossing's height and barycentrics.
 _MARGIN = 1e-6
+#: Where :func:`inside_furniture`'s rays start, from each point (m): a hair off it in the plan.
+_RAY_OFFSET = np.array([1.2345e-9, 0.0, 2.3456e-9])
 
 
 def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02) -> np.ndarray:
@@ -279,9 +301,9 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     count = nx * nz
     owner = np.repeat(np.arange(len(tris)), count)
     k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count)
-    nx_o = np.take(nx, owner)
-    gx = np.take(c_lo[0], owner) + k % nx_o
-    gz = np.take(c_lo[1], owner) + k // nx_o
+    row, col = np.divmod(k, np.take(nx, owner))  # (one integer division for both)
+    gx = np.take(c_lo[0], owner) + col
+    gz = np.take(c_lo[1], owner) + row
     key = gz * width + gx
     # the body vertices above the floor, their cells, and the triangles there
     up = np.flatnonzero(p[:, 1] > 0.0)
@@ -289,7 +311,7 @@ def inside_furniture(surface: Surface, points: np.ndarray, *, cell: float = 0.02
     # far below any feature size), so that no ray runs exactly through a
     # vertex or an edge of the surface, where the parity could count a
     # crossing twice or not at all
-    start_points = p[up] + [1.2345e-9, 0.0, 2.3456e-9]
+    start_points = np.take(p, up, axis=0) + _RAY_OFFSET
     pc = np.floor((start_points[:, [0, 2]] - origin) / cell).astype(np.int64)
     pkey = pc[:, 1] * width + pc[:, 0]
     # a ray crosses only triangles above its start: a (triangle, cell) pair

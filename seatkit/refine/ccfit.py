@@ -98,7 +98,7 @@ from seatkit.errors import SolverError
 from seatkit.geometry.closest import row_norms
 from seatkit.geometry.normals import kept_vertex_normals
 from seatkit.geometry.skin import SkinDistance
-from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, inside_furniture, surface_depth_in_body
+from seatkit.geometry.surface import SurfaceQuery, body_depth_in_surface, body_inside_furniture, inside_furniture, surface_depth_in_body
 from seatkit.model import Body, ControlMesh, PressureField, Surface
 from seatkit.pressure.contact import supported_vertices
 from seatkit.options import Option, defaults
@@ -371,8 +371,19 @@ def _boundary_samples(ops) -> np.ndarray:
     return out
 
 
+def _sample_tree(samples: np.ndarray) -> cKDTree:
+    """The k-d tree of a surface's samples that :func:`surface_distances` searches."""
+    return cKDTree(samples, balanced_tree=False, compact_nodes=False)  # much faster queries here
+
+
+def _correspondences(samples: np.ndarray, normals: np.ndarray, points: np.ndarray, boundary: np.ndarray) -> tuple:
+    """The samples' k-d tree and :func:`surface_distances` searched in it."""
+    tree = _sample_tree(samples)
+    return tree, surface_distances(samples, normals, points, boundary=boundary, tree=tree)
+
+
 def surface_distances(
-    samples: np.ndarray, normals: np.ndarray, points: np.ndarray, *, boundary: np.ndarray | None = None
+    samples: np.ndarray, normals: np.ndarray, points: np.ndarray, *, boundary: np.ndarray | None = None, tree: cKDTree | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Distance of points to a sampled surface, signed by the surface normal.
 
@@ -386,6 +397,9 @@ def surface_distances(
     boundary : (p,) bool, optional
         Samples on the surface boundary; a point whose closest sample is on
         the boundary and lies beyond it is not "inside".
+    tree : cKDTree, optional
+        The samples' k-d tree as :func:`_sample_tree` makes it, when the
+        caller has one already (not made again).
 
     Returns
     -------
@@ -397,7 +411,7 @@ def surface_distances(
         ``n . (point - sample)``: negative when the point lies behind the
         surface (inside the furniture).
     """
-    tree = cKDTree(samples, balanced_tree=False, compact_nodes=False)  # much faster queries here
+    tree = _sample_tree(samples) if tree is None else tree
     distance, closest = tree.query(points, workers=1)
     # (np.take gathers rows several times faster than indexing does)
     signed = np.einsum("kc,kc->k", np.take(normals, closest, axis=0), points - np.take(samples, closest, axis=0))
@@ -487,9 +501,10 @@ def _fit_cage(mesh, bodies, pressures, params) -> ControlMesh:
     guard = False
     closest = None
     stalled = False  # the last refit started from the closest fit and came no closer: the next starts from the cage
+    shared = {}  # what the rounds share (the problem, the cage's measurement): see _fit_once
     for round_ in range(_REPAIR_ROUNDS + 1):
         start_from = None if stalled else _refit_start(closest, guard, p["surface_limit"])
-        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target}, guard=guard, start_from=start_from)
+        out = _fit_once(mesh, bodies, pressures, {**params, "max_penetration": target}, guard=guard, start_from=start_from, shared=shared)
         report = out.meta["catmull-clark-fit"]
         final = report["final_depth"]
         if final is None or max(final.values()) <= p["surface_limit"]:
@@ -642,23 +657,26 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
         # each control point moves along minus the surface normal at its own
         # limit point (the first limit points are the control points'), away
         # from the body: one unknown per control point
-        away = -levels[-1][1].limit_normals(P)[cols]
+        limits = [ops.limit_points(P) for _, ops, _, _ in levels]
+        normals = [ops.limit_normals(P, X) for (_, ops, _, _), X in zip(levels, limits)]
+        away = -normals[-1][cols]
         rows, needs = [], []
-        for lv, ops, spots, probes in levels:
-            X, N = ops.limit_points(P), ops.limit_normals(P)
+        for (lv, ops, spots, probes), X, N in zip(levels, limits, normals):
             Y = probes @ P
             NY = spots @ N
             NY /= np.maximum(row_norms(NY)[:, None], 1e-300)
             surface = Surface(X, N, ops.faces, lv)
             need = np.zeros(len(Y))
             # body vertices inside the furniture: their closest sample goes back past them
-            tree = cKDTree(X)
+            tree = None  # the samples' k-d tree, made when a vertex needs it
             for body in bodies:
-                held = body.vertices[inside_furniture(surface, body.vertices)]
-                if len(held):
-                    d, _ = SurfaceQuery(surface).query(held)
+                # (the final check of these control points found them already: kept by content)
+                inside, d = body_inside_furniture(surface, body)
+                if inside.size:
+                    held = np.take(body.vertices, inside, axis=0)
                     deep = d > settle
                     if deep.any():
+                        tree = cKDTree(X) if tree is None else tree
                         _, s = tree.query(held[deep])
                         np.maximum.at(need, s, d[deep] - settle)
             # probes inside a body: back out of it, along minus the normal as
@@ -695,11 +713,15 @@ def _push_out(mesh: ControlMesh, bodies: Sequence[Body], p: Mapping[str, Any]) -
     return None
 
 
-def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_from: np.ndarray | None = None) -> ControlMesh:
+def _fit_problem(mesh, bodies, pressures, p) -> tuple:
+    """What a fit of ``mesh`` to the bodies asks, whatever its probe target: its targets, operators, probes and the fixed parts of its normal equations.
+
+    The same for every round of one fit (:func:`_fit_cage`: the rounds
+    differ in their probe target, ``max_penetration``, and guard): made once
+    there. See :func:`_fit_once` for what each part is.
+    """
     from seatkit.subdivision import Cage, build_operators
 
-    start = time.perf_counter()
-    p = refiner_params("catmull-clark-fit", CCFIT_OPTIONS, params)
     targets = supported_targets(mesh, bodies, pressures, threshold=p["importance_threshold"])
     cage = Cage.from_control_mesh(mesh)
     ops = build_operators(cage, p["level"])
@@ -735,15 +757,6 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
     # the soles rest on the floor (y = 0): a target offset below it would pull
     # the surface under the ground
     b[:, 1] = np.maximum(b[:, 1], 0.0)
-    k_sup = len(b)
-    # the guarded body vertices: every vertex the fit does not pull to (see _fit_cage)
-    if guard:
-        everything = np.concatenate([bd.vertices for bd in bodies])
-        pulled = np.zeros(len(everything), bool)
-        pulled[owner_offset[targets.body] + targets.vertex] = True
-        guarded = everything[~pulled]
-    else:
-        guarded = np.zeros((0, 3))
     w_base = targets.weights
     w_sum = float(w_base.sum())
     w_pen = p["penetration_weight"] * float(np.mean(w_base))
@@ -759,26 +772,93 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
         (limit, limit_moving, p["max_iterations"]),
         (with_centres, (with_centres @ select).tocsr(), p["polish_iterations"]),
     )
+    # The normal equations of one step, unknowns stacked by coordinate
+    # (x of the m moving points, then y, then z). Targets sharing a limit
+    # sample are summed first (their rows differ only in the right-hand
+    # side); small cages (up to 150 moving points: a chair has about 70, a
+    # bench for two about 110) are assembled and solved densely, 1.3-1.5x
+    # faster than sparse products of this size; larger ones stay sparse (a
+    # bench for six, 260 moving points: 2.6 s sparse, 4.9 s dense).
+    P0_m = select.T @ p0
+    fair_rhs = fair @ P0_m
+    fixed_X = limit @ (p0 - select @ P0_m)  # the fixed control points' share of every sample
+    probe_fixed = [ph[0] @ (p0 - select @ P0_m) for ph in phases]
+    dense_step = 3 * m <= 450
+    limit_rows = probe_rows = None  # dense steps only: the rows of the moving control points (the probes' on first use)
+    if dense_step:
+        limit_rows = limit_moving.toarray()
+        probe_rows = [None, None]
+        base = np.kron(np.eye(3), (fair + damp).toarray())
+    else:
+        base = sp.block_diag([fair + damp] * 3, format="csr")
+    base_rhs = np.concatenate([fair_rhs[:, d] for d in range(3)])
+    return (
+        targets, ops, on_boundary, limit, p0, n, cols, m, select, fair, skins, owner_offset, target_n, b,
+        w_base, w_sum, w_pen, sample_probes, phases, fixed_X, probe_fixed, dense_step, limit_rows, probe_rows, base, base_rhs,
+    )
+
+
+def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_from: np.ndarray | None = None, shared: dict | None = None) -> ControlMesh:
+    """One fit (see :func:`_fit_cage`).
+
+    ``shared`` is a dict the rounds of one fit pass (the same cage, bodies
+    and parameters but the probe target): the first round keeps there what
+    does not depend on the probe target or the guard (the problem,
+    :func:`_fit_problem`, and the measurement of the cage itself), and the
+    later ones read it.
+    """
+    start = time.perf_counter()
+    p = refiner_params("catmull-clark-fit", CCFIT_OPTIONS, params)
+    if shared is not None:
+        # rounds whose parameters differ in more than the probe target share nothing
+        shared = shared.setdefault(repr(sorted((k, v) for k, v in p.items() if k != "max_penetration")), {})
+    problem = shared.get("problem") if shared is not None else None
+    if problem is None:
+        problem = _fit_problem(mesh, bodies, pressures, p)
+        if shared is not None:
+            shared["problem"] = problem
+    (
+        targets, ops, on_boundary, limit, p0, n, cols, m, select, fair, skins, owner_offset, target_n, b,
+        w_base, w_sum, w_pen, sample_probes, phases, fixed_X, probe_fixed, dense_step, limit_rows, probe_rows, base, base_rhs,
+    ) = problem
+    k_sup = len(b)
+    # the guarded body vertices: every vertex the fit does not pull to (see _fit_cage)
+    if guard:
+        everything = np.concatenate([bd.vertices for bd in bodies])
+        pulled = np.zeros(len(everything), bool)
+        pulled[owner_offset[targets.body] + targets.vertex] = True
+        guarded = everything[~pulled]
+    else:
+        guarded = np.zeros((0, 3))
     probe, probe_moving = phases[0][0], phases[0][1]
     probe_normals = sample_probes[0]
 
-    # the last measurement: the final report's (of the best iterate) and the
-    # polish's first (from the best iterate) are often of control points
-    # measured already, with the same probes
-    last = []
+    # the last measurement, the best iterate's and the cage's: the final
+    # report's (of the best iterate) and the polish's first (from the best
+    # iterate) are often of control points measured already, with the same
+    # probes, and every round of a fit measures the cage first
+    last, kept = [], []
+    last_tree = []  # the samples of the last measurement and their k-d tree (the guarded vertices search it too)
+    cage_measured = shared.setdefault("cage", []) if shared is not None else []
 
     def measure(P):
-        if last and last[0] is probe and np.array_equal(last[1], P):
-            return last[2]
+        for seen in (last, kept, cage_measured):
+            if seen and seen[0] is probe and np.array_equal(seen[1], P):
+                last[:] = seen
+                return seen[2]
         out = _measure(P)
         last[:] = [probe, P.copy(), out]
         return out
+
+    def keep_last():
+        """The last measurement is the best iterate's: kept for the final report."""
+        kept[:] = last
 
     def _measure(P):
         X = limit @ P
         N = ops.limit_normals(P, X)
         # the correspondences, beside the probes' depths where a side thread runs (seatkit.side)
-        correspondences = beside(surface_distances, X, N, b, boundary=on_boundary)
+        correspondences = beside(_correspondences, X, N, b, on_boundary)
         Y = X if probe is limit else probe @ P
         # depth > 0: probe inside a body. Only probes that can be nearer the
         # skin than the clearance are asked: the others take no part in the
@@ -800,9 +880,10 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
             # (shallow probes keep the skin's nearest side: it is as good there)
             inside = np.flatnonzero((depth > 0.5 * p["clearance"]) & ~below)
             if inside.size:
-                Yn = probe_normals @ N
+                # (the normals of these probes alone: each row's sum is the same)
+                Yn = probe_normals[inside] @ N
                 Yn /= np.maximum(row_norms(Yn)[:, None], 1e-300)
-                back = -Yn[inside]
+                back = -Yn
                 # the way out, sampled along the ray at up to 2 depth + 2 cm
                 # (one batched query), the exit between the last sample inside
                 # and the first outside
@@ -826,29 +907,11 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
                 k = inside[short]
                 foot[k] = Y[k] + t[short, None] * back[short]
                 out[k] = back[short]
-        closest, dist, _ = correspondences()
+        tree, (closest, dist, _) = correspondences()
+        last_tree[:] = [X, tree]
         mean = float(np.sum(w_base * dist) / w_sum)
         return X, N, closest, dist, mean, (foot, out, below), depth
 
-    # The normal equations of one step, unknowns stacked by coordinate
-    # (x of the m moving points, then y, then z). Targets sharing a limit
-    # sample are summed first (their rows differ only in the right-hand
-    # side); small cages (up to 150 moving points: a chair has about 70, a
-    # bench for two about 110) are assembled and solved densely, 1.3-1.5x
-    # faster than sparse products of this size; larger ones stay sparse (a
-    # bench for six, 260 moving points: 2.6 s sparse, 4.9 s dense).
-    P0_m = select.T @ p0
-    fair_rhs = fair @ P0_m
-    fixed_X = limit @ (p0 - select @ P0_m)  # the fixed control points' share of every sample
-    probe_fixed = [ph[0] @ (p0 - select @ P0_m) for ph in phases]
-    dense_step = 3 * m <= 450
-    if dense_step:
-        limit_rows = limit_moving.toarray()
-        probe_rows = [None, None]
-        base = np.kron(np.eye(3), (fair + damp).toarray())
-    else:
-        base = sp.block_diag([fair + damp] * 3, format="csr")
-    base_rhs = np.concatenate([fair_rhs[:, d] for d in range(3)])
     mu = p["point_to_point"]
 
     def solve_step(P, N, closest, w, pen, phase):
@@ -885,7 +948,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
                 rhs += QQ.T @ (np.sqrt(wp2) * goal)
             rhs += base_rhs + (p["damping"] / n) * P_m.T.ravel()
             return np.linalg.solve(A, rhs)
-        Ls = limit_moving[samples]
+        Ls = phases[0][1][samples]  # the limit samples' rows, of the moving control points
         R = sp.diags(np.sqrt(W)) @ Ls
         RR = sp.hstack([sp.diags(n_s[:, d]) @ R for d in range(3)]).tocsr()
         A = RR.T @ RR + sp.block_diag([mu * (R.T @ R)] * 3) + base
@@ -903,7 +966,9 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
         held = guarded[inside_furniture(Surface(X, N, ops.faces, p["level"]), guarded)] if len(guarded) else guarded
         if not len(held):
             return held, np.zeros(0, np.int64), np.zeros(0)
-        c_hit, g_dist, _ = surface_distances(X, N, held)
+        # (in the k-d tree the measurement of these samples made, when it was the last one)
+        tree = last_tree[1] if last_tree and last_tree[0] is X else None
+        c_hit, g_dist, _ = surface_distances(X, N, held, tree=tree)
         return held, c_hit, g_dist
 
     def deepest(depth, inside):
@@ -912,6 +977,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
 
     P = p0.copy()
     X, N, closest, dist, mean, near, depth = measure(P)
+    cage_measured[:] = last
     before = {"mean_distance": mean, "max_penetration": float(max(depth.max(), 0.0))}
     if start_from is not None:  # a refit: from an earlier fit's control points, still faired towards the cage's
         P = np.array(start_from, dtype=np.float64)
@@ -919,6 +985,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
     inside = guarded_inside(X, N)
     history = [mean]
     best = (P.copy(), mean, deepest(depth, inside))
+    keep_last()
     stall = 0
     iterations = 0
     step_scale = []  # per iteration: the share of the solved step the trust region let through
@@ -933,6 +1000,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
             if deepest(depth, inside) <= p["max_penetration"]:
                 break
             best = (P.copy(), mean, deepest(depth, inside))
+            keep_last()
             history.append(mean)
             stall = 0
         since_deeper = 0
@@ -1043,6 +1111,7 @@ def _fit_once(mesh, bodies, pressures, params, *, guard: bool = False, start_fro
             since_deeper = 0 if deeper_gain or ok else since_deeper + 1
             if (ok and (not best_ok or mean < best[1])) or (not best_ok and max_depth < best[2]):
                 best = (P.copy(), mean, max_depth)
+                keep_last()
             improving = history[-2] - mean > p["tolerance"]
             stall = 0 if improving else stall + 1
             if ok and stall >= 2:
@@ -1104,8 +1173,9 @@ def _final_depths(mesh: ControlMesh, bodies: Sequence[Body], level: int) -> dict
     # of the finer one (a vertex's limit position does not change with
     # refinement), so only its quad centres are added
     finest = surfaces[-1]
-    probes = [finest.vertices, finest.vertices[finest.faces].mean(axis=1)]
-    probes += [s.vertices[s.faces].mean(axis=1) for s in surfaces[:-1]]
+    # (np.take gathers rows several times faster than indexing does)
+    probes = [finest.vertices, np.take(finest.vertices, finest.faces, axis=0).mean(axis=1)]
+    probes += [np.take(s.vertices, s.faces, axis=0).mean(axis=1) for s in surfaces[:-1]]
     points = np.concatenate(probes)
     # a body vertex inside the furniture, at each level (a coarser
     # tessellation's chords can read deeper than the finer one's), beside
