@@ -91,6 +91,36 @@ def test_ransac_finds_the_supporting_plane_of_a_box_bottom():
     np.testing.assert_array_equal(res.plane.normal, res2.plane.normal)
 
 
+def test_a_plane_fit_from_the_same_stream_state_gives_the_same_answer_and_leaves_the_stream_alike():
+    rng = np.random.default_rng(3)
+    pts = rng.uniform([-0.2, 0.3, -0.1], [0.2, 0.4, 0.1], size=(1500, 3))
+    imp = rng.uniform(0.0, 1.0, len(pts))
+    kw = dict(iterations=150, support_distance=0.01, max_penetration=0.002, body_side=pts.mean(0), bone=np.array([1.0, 0, 0]), lambda_r=0.5)
+    first = np.random.default_rng(7)
+    a = fit_support_plane(pts, imp, rng=first, **kw)
+    after, next_draw = first.bit_generator.state, first.random()
+    again = np.random.default_rng(7)
+    b = fit_support_plane(pts, imp, rng=again, **kw)
+    # the stream is where the first fit left it: the starts that follow draw the same numbers
+    assert again.bit_generator.state == after and again.random() == next_draw
+    np.testing.assert_array_equal(a.plane.normal, b.plane.normal)
+    np.testing.assert_array_equal(a.plane.point, b.plane.point)
+    np.testing.assert_array_equal(a.supported, b.supported)
+    assert (a.plane.quality, a.candidates, a.rejected) == (b.plane.quality, b.candidates, b.rejected)
+    # each caller owns its answer: changing one changes no later fit
+    b.plane.normal[:] = 0.0
+    b.supported[:] = False
+    b.rejected.clear()
+    c = fit_support_plane(pts, imp, rng=np.random.default_rng(7), **kw)
+    np.testing.assert_array_equal(c.plane.normal, a.plane.normal)
+    np.testing.assert_array_equal(c.supported, a.supported)
+    assert c.rejected == a.rejected
+    # another stream state, another fit's stream
+    other = np.random.default_rng(8)
+    fit_support_plane(pts, imp, rng=other, **kw)
+    assert other.bit_generator.state != after
+
+
 def test_minimal_rectangle_of_a_rotated_rectangle():
     a = np.radians(30)
     R = np.array([[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]])

@@ -195,8 +195,8 @@ def _remembered(fit):
 
     @functools.wraps(fit)
     def remembered(*args, rng, **kwargs):
-        state = rng.bit_generator.state
-        digest = hashlib.sha256(repr(state).encode())
+        digest = hashlib.sha256()
+        _digest_value(digest, rng.bit_generator.state)
         for i, value in enumerate(args):
             digest.update(f"|{i}=".encode())
             _digest_value(digest, value)
@@ -217,9 +217,16 @@ def _remembered(fit):
 
 
 def _digest_value(digest, value) -> None:
-    """Feed ``value`` (None, a number, an array or a tuple of them) to ``digest``, tagged with its kind."""
+    """Feed ``value`` (None, a string, a number, an array, or a tuple or dict of them) to ``digest``, tagged with its kind."""
     if value is None:
         digest.update(b"N")
+    elif isinstance(value, (str, int)):  # a Python int may be wider than 64 bits (a stream's state)
+        digest.update(f"{type(value).__name__}{value!r};".encode())
+    elif isinstance(value, dict):
+        digest.update(f"D{len(value)}".encode())
+        for key in sorted(value):
+            digest.update(f"|{key}=".encode())
+            _digest_value(digest, value[key])
     elif isinstance(value, (tuple, list)):
         digest.update(f"T{len(value)}".encode())
         for v in value:
