@@ -7,6 +7,7 @@ bodies:
     python benchmarks/compare_ccfit.py record fits.pkl     # every supported library pose x both default bodies
     python benchmarks/compare_ccfit.py record drawn.pkl --library 0 --drawn 8   # 8 drawn poses (seatkit.body.generator)
     python benchmarks/compare_ccfit.py record cases.pkl --library 0 --case pose.yaml:default-male   # given poses, one body each
+    python benchmarks/compare_ccfit.py record cases.pkl --library 0 --draw-seed 2026 --case seated-048:default-male   # a drawn pose
     python benchmarks/compare_ccfit.py run fits.pkl new.npz [--repeat 3] [--only NAME] [--cold]
     python benchmarks/compare_ccfit.py compare old.npz new.npz
 
@@ -55,7 +56,7 @@ def record(path: str, *, library: bool = True, drawn: int = 0, draw_seed: int = 
 
     ccfit.fit_cage = keep
     fits = []
-    from seatkit.body.generator import draw_poses, pose_yaml
+    from seatkit.body.generator import draw_pose, draw_poses, pose_yaml
 
     folder = Path(tempfile.mkdtemp(prefix="compare-ccfit-"))
     poses = _poses() if library else []
@@ -63,7 +64,14 @@ def record(path: str, *, library: bool = True, drawn: int = 0, draw_seed: int = 
         poses.append(str(folder / f"{d.name}.yaml"))
         Path(poses[-1]).write_text(pose_yaml(d))
     runs = [(pose, model) for pose in poses for model in BODIES]
-    runs += [tuple(case.rsplit(":", 1)) for case in cases]  # a pose file and the one body it is built for
+    for case in cases:  # a pose file, or a drawn pose FAMILY-INDEX, and the one body it is built for
+        pose, model = case.rsplit(":", 1)
+        if not Path(pose).is_file():
+            family, index = pose.rsplit("-", 1)
+            one = draw_pose(np.random.default_rng([draw_seed, int(index)]), family, pose)
+            pose = str(folder / f"{pose}.yaml")
+            Path(pose).write_text(pose_yaml(one))
+        runs.append((pose, model))
     for pose, model in runs:
         calls.clear()
         recipe = {"template": "chair", "bodies": [{"model": model, "pose": pose}]}
@@ -189,7 +197,7 @@ def main() -> None:
     r.add_argument("--library", type=int, default=1, help="1: every supported library pose (default), 0: none")
     r.add_argument("--drawn", type=int, default=0, help="also this many drawn poses (seatkit.body.generator.draw_poses)")
     r.add_argument("--draw-seed", type=int, default=0)
-    r.add_argument("--case", action="append", default=[], metavar="POSE:MODEL", help="also this pose file built on this body (repeatable)")
+    r.add_argument("--case", action="append", default=[], metavar="POSE:MODEL", help="also this pose built on this body (repeatable): a pose file, or FAMILY-INDEX drawn with --draw-seed as draw_pose(default_rng([seed, index]), family) draws it")
     u = sub.add_parser("run")
     u.add_argument("fits")
     u.add_argument("out")

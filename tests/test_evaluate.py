@@ -206,3 +206,8 @@ def test_body_depth_in_surface_kept_is_the_depth_measured_anew():
     # lowered by 5 cm: fewer points inside, and less deep; its own answer, not the kept one
     lower = Surface(verts - [0.0, 0.05, 0.0], sheet.normals, quads, 3)
     assert body_depth_in_surface(lower, body) == surface_module._body_depth_in_surface(lower, body, None, 0.02) < first
+    # the vertices inside and their distances, kept with it: those of the parity test and the surface's closest points
+    inside, dist = surface_module.body_inside_furniture(again, body)
+    np.testing.assert_array_equal(inside, np.flatnonzero(surface_module.inside_furniture(sheet, body.vertices)))
+    np.testing.assert_array_equal(dist, surface_module.SurfaceQuery(sheet).query(body.vertices[inside])[0])
+    assert dist.max() == first

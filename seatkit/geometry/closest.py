@@ -40,9 +40,11 @@ def closest_barycentric(d1, d2, d00, d01, d11) -> tuple[np.ndarray, np.ndarray, 
     ``ac . ac``. Coordinates on an edge or at a corner are exact zeros: a
     caller can tell the features apart by them.
     """
-    # flat arrays of one shape (written in place below, by flat index), that shape again at the end
-    shape = np.broadcast_shapes(*(np.shape(x) for x in (d1, d2, d00, d01, d11)))
-    d1, d2, d00, d01, d11 = (np.ravel(x) for x in np.broadcast_arrays(d1, d2, d00, d01, d11))
+    shape = np.broadcast_shapes(np.shape(d1), np.shape(d2), np.shape(d00), np.shape(d01), np.shape(d11))
+    if not shape:  # one point and triangle: as arrays of one (written in place below, by flat index)
+        u, v, w = closest_barycentric(*(np.reshape(x, 1) for x in (d1, d2, d00, d01, d11)))
+        return u.reshape(()), v.reshape(()), w.reshape(())
+    d1, d2 = np.broadcast_to(d1, shape), np.broadcast_to(d2, shape)  # (read by flat index below)
     d3, d4, d5, d6 = d1 - d00, d2 - d01, d1 - d01, d2 - d11
     # (in place where a product or sum is only an intermediate: the same
     # operations in the same order, fewer temporaries)
@@ -64,17 +66,26 @@ def closest_barycentric(d1, d2, d00, d01, d11) -> tuple[np.ndarray, np.ndarray, 
     # A region's parameter is computed only where the region holds
     # (elementwise: the same values) and written there
     d43, d56 = d4 - d3, d5 - d6
-    k = np.flatnonzero((va <= 0) & (d43 >= 0) & (d56 >= 0))  # edge bc
+    region = va <= 0
+    region &= d43 >= 0
+    region &= d56 >= 0
+    k = np.flatnonzero(region)  # edge bc
     if k.size:
         a = np.take(d43, k)
         t = safe_ratio(a, a + np.take(d56, k))
         np.put(u, k, 0.0), np.put(v, k, 1.0 - t), np.put(w, k, t)
-    k = np.flatnonzero((vb <= 0) & (d2 >= 0) & (d6 <= 0))  # edge ac
+    np.less_equal(vb, 0, out=region)
+    region &= d2 >= 0
+    region &= d6 <= 0
+    k = np.flatnonzero(region)  # edge ac
     if k.size:
         a = np.take(d2, k)
         t = safe_ratio(a, a - np.take(d6, k))
         np.put(u, k, 1.0 - t), np.put(v, k, 0.0), np.put(w, k, t)
-    k = np.flatnonzero((vc <= 0) & (d1 >= 0) & (d3 <= 0))  # edge ab
+    np.less_equal(vc, 0, out=region)
+    region &= d1 >= 0
+    region &= d3 <= 0
+    k = np.flatnonzero(region)  # edge ab
     if k.size:
         a = np.take(d1, k)
         t = safe_ratio(a, a - np.take(d3, k))
@@ -84,7 +95,7 @@ def closest_barycentric(d1, d2, d00, d01, d11) -> tuple[np.ndarray, np.ndarray, 
         np.put(u, k, 1.0 if corner == 0 else 0.0)
         np.put(v, k, 1.0 if corner == 1 else 0.0)
         np.put(w, k, 1.0 if corner == 2 else 0.0)
-    return u.reshape(shape), v.reshape(shape), w.reshape(shape)
+    return u, v, w
 
 
 def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
