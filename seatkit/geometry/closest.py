@@ -69,33 +69,34 @@ def closest_barycentric(d1, d2, d00, d01, d11) -> tuple[np.ndarray, np.ndarray, 
     region = va <= 0
     region &= d43 >= 0
     region &= d56 >= 0
-    k = np.flatnonzero(region)  # edge bc
-    if k.size:
-        a = np.take(d43, k)
-        t = safe_ratio(a, a + np.take(d56, k))
-        np.put(u, k, 0.0), np.put(v, k, 1.0 - t), np.put(w, k, t)
+    k, t = _edge_parameter(region, d43, d56, 1.0)  # edge bc: d43 / (d43 + d56)
+    np.put(u, k, 0.0), np.put(v, k, 1.0 - t), np.put(w, k, t)
     np.less_equal(vb, 0, out=region)
     region &= d2 >= 0
     region &= d6 <= 0
-    k = np.flatnonzero(region)  # edge ac
-    if k.size:
-        a = np.take(d2, k)
-        t = safe_ratio(a, a - np.take(d6, k))
-        np.put(u, k, 1.0 - t), np.put(v, k, 0.0), np.put(w, k, t)
+    k, t = _edge_parameter(region, d2, d6, -1.0)  # edge ac: d2 / (d2 - d6)
+    np.put(u, k, 1.0 - t), np.put(v, k, 0.0), np.put(w, k, t)
     np.less_equal(vc, 0, out=region)
     region &= d1 >= 0
     region &= d3 <= 0
-    k = np.flatnonzero(region)  # edge ab
-    if k.size:
-        a = np.take(d1, k)
-        t = safe_ratio(a, a - np.take(d3, k))
-        np.put(u, k, 1.0 - t), np.put(v, k, t), np.put(w, k, 0.0)
+    k, t = _edge_parameter(region, d1, d3, -1.0)  # edge ab: d1 / (d1 - d3)
+    np.put(u, k, 1.0 - t), np.put(v, k, t), np.put(w, k, 0.0)
     for corner, mask in ((2, (d6 >= 0) & (d5 <= d6)), (1, (d3 >= 0) & (d4 <= d3)), (0, (d1 <= 0) & (d2 <= 0))):
         k = np.flatnonzero(mask)
         np.put(u, k, 1.0 if corner == 0 else 0.0)
         np.put(v, k, 1.0 if corner == 1 else 0.0)
         np.put(w, k, 1.0 if corner == 2 else 0.0)
     return u, v, w
+
+
+def _edge_parameter(region: np.ndarray, num: np.ndarray, other: np.ndarray, sign: float) -> tuple[np.ndarray, np.ndarray]:
+    """Where ``region`` holds (flat indices), and there ``num / (num + sign * other)`` (0 where that is 0/0 or x/0).
+
+    ``sign`` is 1 or -1: ``num + -1 * other`` is ``num - other`` to the bit.
+    """
+    k = np.flatnonzero(region)
+    a = np.take(num, k)
+    return k, safe_ratio(a, a + sign * np.take(other, k))
 
 
 def closest_point_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
