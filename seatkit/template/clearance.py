@@ -223,8 +223,8 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
     # row . (phi_k n_T) per vertex and axis, times each move column's
     # direction, summed over the axes in order, kept sparse. A corner of a
     # quad (four distinct corners) takes two shares, its triangle's and the
-    # centre's, summed in the order of their entries (as ``np.add.at`` into
-    # a zero matrix sums them); shares of vertices that do not move are dropped
+    # centre's, summed in the order of their entries; shares of vertices
+    # that do not move are dropped
     moved, column = np.unique(col_vertex, return_inverse=True)
     slot = np.full(len(V), -1)
     slot[moved] = np.arange(len(moved))
@@ -236,12 +236,8 @@ def _constraints(V, quads, col_vertex, col_dir, bodies, normals, *, target, dept
     key, v = key[order], v[order]
     first = np.ones(len(key), bool)
     first[1:] = key[1:] != key[:-1]
-    group = np.cumsum(first) - 1
-    place = np.arange(len(key)) - np.flatnonzero(first)[group]
     shares = np.zeros((int(first.sum()), 3))
-    for k in range(int(place.max()) + 1 if len(place) else 0):
-        at = place == k
-        shares[group[at]] += v[at]
+    np.add.at(shares, np.cumsum(first) - 1, v)  # each (row, vertex)'s shares, summed in the order of their entries
     key = key[first]
     # every (row, vertex) to each of the vertex's columns (a vertex on the floor has two)
     by_slot = np.argsort(column, kind="stable")
