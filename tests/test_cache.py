@@ -8,7 +8,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from seatkit.cache import IdentityCache, LRUCache, content_key
+from seatkit.cache import IdentityCache, LRUCache, content_key, value_key
 
 
 def test_lru_keeps_the_recent_and_drops_the_least_recently_used():
@@ -133,3 +133,18 @@ def test_content_key_is_the_same_for_the_same_contents_only():
     assert content_key(a.reshape(3, 4), faces) != content_key(a, faces)  # the same bytes, another shape
     assert content_key(a.astype(np.float32), faces) != content_key(a, faces)
     assert content_key(faces, a) != content_key(a, faces)  # in order
+
+
+def test_value_key_tells_apart_what_a_function_of_such_arguments_could_tell_apart():
+    a = np.arange(6, dtype=np.float64)
+    state = np.random.default_rng(5).bit_generator.state  # a dict holding integers wider than 64 bits
+    args = (a, 0.01, None, "plane", {"x": 1, "y": (2, 3)}, state)
+    assert value_key(*args) == value_key(a.copy(), 0.01, None, "plane", {"y": (2, 3), "x": 1}, np.random.default_rng(5).bit_generator.state)
+    assert value_key(np.random.default_rng(6).bit_generator.state) != value_key(state)
+    assert value_key(1) != value_key("1") != value_key(np.int64(1))  # an int, a string, an array of one
+    assert value_key(1.0) != value_key(np.float32(1.0))
+    assert value_key((1, 2)) != value_key(1, 2) != value_key((1,), 2)  # nesting counts
+    assert value_key(None, 0) != value_key(0, None)  # in order
+    b = a.copy()
+    b[5] = np.nextafter(b[5], np.inf)
+    assert value_key(b) != value_key(a) and value_key(a.reshape(2, 3)) != value_key(a)

@@ -19,12 +19,11 @@ Both penalties are 1 for a perfect plane and 0 at or beyond their limits.
 from __future__ import annotations
 
 import functools
-import hashlib
 from dataclasses import dataclass
 
 import numpy as np
 
-from seatkit.cache import LRUCache
+from seatkit.cache import LRUCache, value_key
 from seatkit.geometry.closest import row_norms
 
 __all__ = [
@@ -195,15 +194,7 @@ def _remembered(fit):
 
     @functools.wraps(fit)
     def remembered(*args, rng, **kwargs):
-        digest = hashlib.sha256()
-        _digest_value(digest, rng.bit_generator.state)
-        for i, value in enumerate(args):
-            digest.update(f"|{i}=".encode())
-            _digest_value(digest, value)
-        for name in sorted(kwargs):
-            digest.update(f"|{name}=".encode())
-            _digest_value(digest, kwargs[name])
-        key = digest.digest()
+        key = value_key(rng.bit_generator.state, args, kwargs)
         hit = _FITS.peek(key)
         if hit is None:
             result = fit(*args, rng=rng, **kwargs)
@@ -214,27 +205,6 @@ def _remembered(fit):
         return _copy_fit(result)
 
     return remembered
-
-
-def _digest_value(digest, value) -> None:
-    """Feed ``value`` (None, a string, a number, an array, or a tuple or dict of them) to ``digest``, tagged with its kind."""
-    if value is None:
-        digest.update(b"N")
-    elif isinstance(value, (str, int)):  # a Python int may be wider than 64 bits (a stream's state)
-        digest.update(f"{type(value).__name__}{value!r};".encode())
-    elif isinstance(value, dict):
-        digest.update(f"D{len(value)}".encode())
-        for key in sorted(value):
-            digest.update(f"|{key}=".encode())
-            _digest_value(digest, value[key])
-    elif isinstance(value, (tuple, list)):
-        digest.update(f"T{len(value)}".encode())
-        for v in value:
-            _digest_value(digest, v)
-    else:
-        a = np.ascontiguousarray(value)
-        digest.update(f"A{a.dtype.str}{a.shape}".encode())
-        digest.update(a.data)
 
 
 def _copy_fit(result: "PlaneFitResult") -> "PlaneFitResult":
