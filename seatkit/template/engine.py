@@ -46,6 +46,11 @@ _FALLBACK = 0x5EA7
 _REPAIR_ROUNDS = 2
 
 
+def _body_facts(bodies) -> list[tuple]:
+    """Per body, what a :class:`Block` derives from the body alone: its vertices' segments and empty caches of segment sets' vertices and centroids (shared by every start's blocks)."""
+    return [(segment_of_vertex(b), {}, {}) for b in bodies]
+
+
 class YamlTemplate:
     """A support template declared in YAML.
 
@@ -223,7 +228,7 @@ class YamlTemplate:
         alike = _AlikeStarts(bound)
         # what a block derives from its body alone (the segment of each vertex, the vertices and centroids
         # of segment sets) is the same in every start: made once, shared by the starts' blocks
-        facts = [(segment_of_vertex(b), {}, {}) for b in bodies]
+        facts = _body_facts(bodies)
         for attempt, (k, rng, dropped) in enumerate(plan):
             watch = alike.watch(k, rng, dropped)
             try:
@@ -346,7 +351,8 @@ class YamlTemplate:
         vertices' segments and the :class:`Block` caches of segment sets'
         vertices and centroids) are shared with the other starts.
         """
-        blocks = [self._block(i, b, pr, None if facts is None else facts[i]) for i, (b, pr) in enumerate(zip(bodies, pressures))]
+        facts = _body_facts(bodies) if facts is None else facts
+        blocks = [self._block(i, b, pr, facts[i]) for i, (b, pr) in enumerate(zip(bodies, pressures))]
         state = FitState(self.spec, p, blocks, rng, last_resort=last_resort)
         state.meta["template"] = self.name
         state.meta["seed"] = int(seed)
@@ -369,9 +375,9 @@ class YamlTemplate:
         fixers = [(step, dict(per_step.get(i, options))) for i, (step, options) in enumerate(bound) if i not in dropped and isinstance(step, WallsInsideHands)]
         return mesh, _Start(state, mesh, bodies, p, fixers, repairs)
 
-    def _block(self, person: int, body: Body, pressure: PressureField, facts: tuple | None = None) -> Block:
+    def _block(self, person: int, body: Body, pressure: PressureField, facts: tuple) -> Block:
         faces = {key: FaceState(spec, spec.segments) for key, spec in self.spec.faces.items()}
-        segment, members, centroids = (segment_of_vertex(body), {}, {}) if facts is None else facts
+        segment, members, centroids = facts
         return Block(
             person=person,
             body=body,
