@@ -12,6 +12,17 @@ baseline's fit, the flat patch's, is one of them). Prints one line per case and,
 rejected candidate costs", gives what it measured:
 
     python benchmarks/bench_starts.py seated-104@default-male reclined-025@default-female
+
+``--cases-from gen.jsonl`` takes every case a run of
+``bench_generalisation.py`` built (its drawn poses); ``--summary`` then
+prints, over all the cases, how the guarded refits from a fit ended (within
+the surface fit's 5 mm limit or not) beside the depths of the fits they
+answer, and how many builds took their first cage from a start after
+refused ones. ``--summarise out.jsonl`` prints that summary of a
+``--results`` file without building (several runs on parts of the cases
+can append to one file):
+
+    python benchmarks/bench_starts.py --cases-from gen.jsonl --results starts.jsonl --summary
 """
 
 from __future__ import annotations
@@ -25,9 +36,19 @@ from pathlib import Path
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("cases", nargs="+", help="FAMILY-INDEX@BODY, e.g. seated-104@default-male")
+    ap.add_argument("cases", nargs="*", help="FAMILY-INDEX@BODY, e.g. seated-104@default-male")
+    ap.add_argument("--cases-from", type=Path, help="also every case a bench_generalisation.py --results file built")
     ap.add_argument("--results", type=Path, help="append one JSON line per case here")
+    ap.add_argument("--summary", action="store_true", help="print the summary of every case at the end")
+    ap.add_argument("--summarise", type=Path, metavar="RESULTS", help="print the summary of a --results file and build nothing")
     args = ap.parse_args()
+    if args.summarise:
+        summarise([json.loads(line) for line in args.summarise.read_text().splitlines() if line.strip()])
+        return
+    cases = list(args.cases) + (built_cases(args.cases_from) if args.cases_from else [])
+    if not cases:
+        ap.error("name at least one case, or --cases-from a results file")
+    rows = []
 
     from seatkit.body.generator import draw_case, pose_yaml
     from seatkit.errors import SeatkitError, UnsupportedPoseError
@@ -64,7 +85,7 @@ def main() -> None:
         final = report.get("final_depth") or {}
         fits.append({
             "kind": "fit", "guard": guard, "from_fit": start_from is not None, "iterations": report["iterations"], "cpu_s": time.process_time() - start,
-            "depth_m": max(final.values()) if final else None, "probe_depth_m": report["after"]["max_penetration"],
+            "depth_m": max(final.values()) if final else None, "body_in_surface_m": final.get("body_in_surface"), "probe_depth_m": report["after"]["max_penetration"],
             "depth_history_m": [round(d, 5) for d in report.get("depth_history", ())],
         })
         return out
@@ -77,7 +98,7 @@ def main() -> None:
 
     ccfit._fit_once, ccfit.push_out = logged_fit, logged_push
     with tempfile.TemporaryDirectory() as tmp:
-        for case in args.cases:
+        for case in cases:
             drawn, body = draw_case(case)
             path = Path(tmp) / f"{drawn.name}.yaml"
             path.write_text(pose_yaml(drawn))
@@ -103,9 +124,55 @@ def main() -> None:
                 f"{len(pushes)} push-outs ({sum(f['cpu_s'] for f in pushes):.1f} s)",
                 flush=True,
             )
+            rows.append(row)
             if args.results:
                 with args.results.open("a") as fh:
                     fh.write(json.dumps(row) + "\n")
+    if args.summary:
+        summarise(rows)
+
+
+def built_cases(path: Path) -> list[str]:
+    """``FAMILY-INDEX@BODY`` of every drawn case a bench_generalisation.py results file built."""
+    out = []
+    for line in path.read_text().splitlines():
+        record = json.loads(line) if line.strip() else {}
+        result = record.get("result") or {}
+        if record.get("kind") == "case" and (result.get("build") or {}).get("ok") and "pose" in result:
+            out.append(f"{result['pose']}@{result['body']}")
+    return out
+
+
+def summarise(rows: list, limit: float = 0.005) -> None:
+    """The guarded refits from a fit (within ``limit`` or not, and the fits they answer) and the refused starts before the first cage."""
+    import re
+
+    refits = {True: [], False: []}  # within the limit: [(answered fit, refit)]
+    for row in rows:
+        fits = [f for f in row["fits"] if f["kind"] == "fit"]
+        for before, refit in zip(fits, fits[1:]):
+            if refit["guard"] and refit["from_fit"] and refit["depth_m"] is not None:
+                refits[refit["depth_m"] <= limit].append((before, refit))
+    print(f"guarded refits from a fit: {sum(map(len, refits.values()))}; within {limit * 1000:g} mm: {len(refits[True])}, over: {len(refits[False])}")
+    for ok, pairs in refits.items():
+        if pairs:
+            inside = [b["body_in_surface_m"] * 1000 for b, _ in pairs if b.get("body_in_surface_m") is not None]
+            probes = [b["probe_depth_m"] * 1000 for b, _ in pairs]
+            print(
+                f"  {'within' if ok else 'over'}: the fits they answer: a body vertex {min(inside):.1f}-{max(inside):.1f} mm inside the furniture, "
+                f"probes {min(probes):.1f}-{max(probes):.1f} mm in the body; the refits' iterations {min(r['iterations'] for _, r in pairs)}-{max(r['iterations'] for _, r in pairs)}"
+            )
+    late = same = 0
+    for row in rows:
+        ordinary = [st for st in row["starts"] if not st["last_resort"]]
+        first = next((i for i, st in enumerate(ordinary) if st["valid"]), None)
+        if not first:
+            continue
+        late += 1
+        reasons = {re.sub(r"^person \d+ \([^)]*\): ", "", st["reason"]) for st in ordinary[:first] if not st["reason"].startswith("alike")}
+        refused = sum(not st["reason"].startswith("alike") for st in ordinary[:first])
+        same += refused >= 2 and len(reasons) == 1
+    print(f"builds: {len(rows)}; first cage after refused starts: {late}, after two or more refusals all with the same reason: {same}")
 
 
 if __name__ == "__main__":
