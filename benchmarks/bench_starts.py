@@ -169,9 +169,9 @@ def summarise(rows: list, limit: float = 0.005) -> None:
         if not first:
             continue
         late += 1
-        reasons = {re.sub(r"^person \d+ \([^)]*\): ", "", st["reason"]) for st in ordinary[:first] if not st["reason"].startswith("alike")}
-        refused = sum(not st["reason"].startswith("alike") for st in ordinary[:first])
-        same += refused >= 2 and len(reasons) == 1
+        # the refusals run to their end (not recognised as a refused start again), without the person's name
+        reasons = [re.sub(r"^person \d+ \([^)]*\): ", "", st["reason"]) for st in ordinary[:first] if not st["reason"].startswith("alike")]
+        same += len(reasons) >= 2 and len(set(reasons)) == 1
     print(f"builds: {len(rows)}; first cage after refused starts: {late}, after two or more refusals all with the same reason: {same}")
 
 
