@@ -50,7 +50,7 @@ class Origin(enum.Enum):
 
     START = "start"  #: one of the template's starts, in its order (``fits``)
     PUSHED_OUT = "pushed-out"  #: a rejected design with its spots over the limit pushed away from the body
-    WALLS_INSIDE = "walls-inside"  #: the template's rejected first cage, walls inside the hands it encloses
+    WALLS_INSIDE = "walls-inside"  #: the template's first cage with walls inside the hands it encloses (refined before that cage)
     WALLS_AGAINST = "walls-against"  #: a rejected design's start again, walls inside the hands its surface encloses
     LAST_RESORT = "last-resort"  #: the template's last-resort cages
 
@@ -197,29 +197,29 @@ def bind(template, bodies, pressures, *, params, seed, first: Iterator[ControlMe
     walls = isinstance(template, OffersWallsAgainst)
     last = isinstance(template, OffersLastResort)
     cages = _until_refused(first)
-    taken: list[ControlMesh] = []  # a start's cage the walls-inside source took from ``cages``: the start source's next
+    plain: list[ControlMesh] = []  # a first cage that encloses a hand, offered after its walled cage: the walls-inside source's
 
     def starts(tried):
         while True:
-            cage = taken.pop() if taken else next(cages, None)
+            cage = next(cages, None)
             if cage is None:
                 return
+            if not tried and cage.meta.get("fit_attempts", {}).get("walled_next"):
+                # the template's next cage is this first one with walls inside the hands it encloses
+                # (OffersStarts.fits): the walled cage first, the first cage itself in the walls-inside source's turn
+                walled = next(cages, None)
+                if walled is not None:
+                    plain.append(cage)
+                    cage = walled
             yield Candidate(cage, Origin.WALLS_INSIDE if _walled(cage) else Origin.START, _start(cage))
 
     def walls_inside(tried):
-        # the template offers its first cage with walls inside the hands it encloses as its next cage
-        # (OffersStarts.fits); asked once that first cage is rejected, only when it says it encloses a hand
+        # the first cage of a pair whose walled cage came first (starts): in the first round, once that one is rejected
         while not tried:
-            yield None  # the first cage is not refined yet (the search stops once one is accepted)
-        if tried[0].candidate.origin is not Origin.START or not tried[0].candidate.cage.meta.get("fit_attempts", {}).get("encloses_hands"):
-            return
-        cage = next(cages, None)
-        if cage is None:
-            return
-        if not _walled(cage):
-            taken.append(cage)  # walls did not help: the next start's cage, kept for the start source
-            return
-        yield Candidate(cage, Origin.WALLS_INSIDE, _start(cage))
+            yield None  # the first candidate is not refined yet (the search stops once one is accepted)
+        if plain:
+            cage = plain.pop()
+            yield Candidate(cage, Origin.START, _start(cage))
 
     def pushed_out(tried):
         from seatkit.refine.ccfit import push_out

@@ -496,10 +496,10 @@ def test_hands_hanging_under_the_thighs_flank_get_walls_inside_them(rigs, chair,
 
     The seed's first cage passes every check with the hands 50 and 25 mm
     inside the furniture (under the border's side walls, which flare out to
-    the ground rectangle): the surface fit refused it, and the three cages
-    of the next starts too. The template's next cage is now the first one
-    with walls inside the hands (the clearance step's
-    ``repair_enclosure``): it passes the checks and encloses nothing.
+    the ground rectangle). The template's next cage is that one with walls
+    inside the hands (the clearance step's ``repair_enclosure``): it passes
+    the checks and encloses nothing, and the design search refines it
+    first.
     """
     b = pose_rig(rigs[body], draw_pose(np.random.default_rng([2026, index]), family).pose)
     p = solve_pressure(b)
@@ -508,13 +508,13 @@ def test_hands_hanging_under_the_thighs_flank_get_walls_inside_them(rigs, chair,
     first, walled = next(cages), next(cages)
     assert max(f["depth_m"] for f in enclosed_parts(first, [b], tolerance)) > 0.02
     assert "enclosed" not in first.meta and "walls_inside" not in first.meta["fit_attempts"]
-    assert first.meta["fit_attempts"]["encloses_hands"]  # what the design search asks before it asks for the walled cage
+    assert first.meta["fit_attempts"]["encloses_hands"] and first.meta["fit_attempts"]["walled_next"]  # the design search refines the walled cage first
     assert walled.meta["fit_attempts"]["attempt"] == 1 and walled.meta["fit_attempts"]["walls_inside"]
     assert walled.meta["enclosed"]["before"]["depth_m"] > 0.02 and walled.meta["enclosed"]["after"]["depth_m"] == 0.0
     assert any(r.get("walls_inside") for r in walled.meta["repairs"])
     assert not any(f["vertices"] for f in enclosed_parts(walled, [b], tolerance))
     check_cage(walled, [b], tolerance=tolerance)
-    # the first cage is what it was: the walls are only the next offer
+    # the first cage is what it was: the walls are the next offer
     np.testing.assert_array_equal(first.vertices, chair.fit([b], [p], seed=0).vertices)
 
 

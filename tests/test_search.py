@@ -62,7 +62,8 @@ class _Template:
 
     def fits(self, bodies, pressures, *, params=None, seed=0):
         for i, (name, depth) in enumerate(self.starts, 1):
-            yield _Cage(name, depth, {"fit_attempts": {"attempt": i, **({"encloses_hands": self.walled is not None} if i == 1 else {})}})
+            walled_next = self.walled is not None and self.walled[0] is not None
+            yield _Cage(name, depth, {"fit_attempts": {"attempt": i, **({"encloses_hands": self.walled is not None, "walled_next": walled_next} if i == 1 else {})}})
             if i == 1 and self.walled is not None and self.walled[0] is not None:
                 yield _Cage(self.walled[0], self.walled[1], {"fit_attempts": {"attempt": 1, "walls_inside": True}})
 
@@ -139,14 +140,24 @@ def test_the_sources_take_turns_in_their_declared_order():
     assert cage.name == "y" and refined.meta["search"]["winner"] == {"origin": "last-resort", "start": 2, "candidate": 6}
 
 
-def test_a_first_cage_enclosing_a_hand_is_answered_by_its_walled_cage_before_other_starts_and_last_resort_cages():
-    """The template's first cage with walls inside the hands it encloses comes in the first round, after a push-out, before walls against it and the last-resort cages."""
+def test_a_first_cage_enclosing_a_hand_is_refined_after_its_walled_cage():
+    """The template's first cage with walls inside the hands it encloses is the first candidate; an accepted one is the design, the first cage is never refined."""
     fit = _Fit()
     last = lambda: [_Cage("z", 1.0, {"fit_attempts": {"attempt": 1}})]  # noqa: E731
-    outcome = _search(_Template([("a", 9.0), ("b", 1.0)], walls=lambda cage: _Cage(cage.name + "+walls", 1.0), last=last, walled=("a|", 2.0)), fit)
+    outcome = _search(_Template([("a", 1.0), ("b", 1.0)], walls=lambda cage: _Cage(cage.name + "+walls", 1.0), last=last, walled=("a|", 2.0)), fit)
     cage, refined = outcome.design()
-    assert fit.seen == ["a", "a|"] and cage.name == "a|"
-    assert refined.meta["search"]["winner"] == {"origin": "walls-inside", "start": 1, "candidate": 2}
+    assert fit.seen == ["a|"] and cage.name == "a|"
+    assert refined.meta["search"]["winner"] == {"origin": "walls-inside", "start": 1, "candidate": 1}
+
+
+def test_a_rejected_walled_cage_is_followed_by_its_first_cage_before_walls_against_it_and_last_resort_cages():
+    """The first cage comes in the first round, after the walled cage's push-out, before walls against it and the last-resort cages."""
+    fit = _Fit()
+    last = lambda: [_Cage("z", 1.0, {"fit_attempts": {"attempt": 1}})]  # noqa: E731
+    outcome = _search(_Template([("a", 2.0), ("b", 1.0)], walls=lambda cage: _Cage(cage.name + "+walls", 1.0), last=last, walled=("a|", 9.0)), fit)
+    cage, refined = outcome.design()
+    assert fit.seen == ["a|", "a"] and cage.name == "a"
+    assert refined.meta["search"]["winner"] == {"origin": "start", "start": 1, "candidate": 2}
 
 
 def test_when_walls_do_not_help_the_next_start_is_kept_for_its_turn():
@@ -159,20 +170,20 @@ def test_when_walls_do_not_help_the_next_start_is_kept_for_its_turn():
 
 
 def test_a_push_out_answers_each_rejected_design_before_the_next_source(monkeypatch):
-    """The first cage's push-out fails, its walled cage is rejected and pushed out within the limit: the design, before any last-resort cage."""
+    """The walled cage's push-out fails, the first cage is rejected and pushed out within the limit: the design, before any last-resort cage."""
     pushed = []
 
     def push_out(mesh, bodies):
         pushed.append(mesh.name)
-        return _fitted(dataclasses.replace(mesh, name=mesh.name + "+pushed"), 4.0) if mesh.name == "a|+fit" else None
+        return _fitted(dataclasses.replace(mesh, name=mesh.name + "+pushed"), 4.0) if mesh.name == "a+fit" else None
 
     monkeypatch.setattr("seatkit.refine.ccfit.push_out", push_out)
     fit = _Fit()
     last = lambda: [_Cage("z", 1.0, {"fit_attempts": {"attempt": 1}})]  # noqa: E731
-    outcome = _search(_Template([("a", 9.0), ("b", 1.0)], last=last, walled=("a|", 7.0)), fit)
+    outcome = _search(_Template([("a", 7.0), ("b", 1.0)], last=last, walled=("a|", 9.0)), fit)
     cage, refined = outcome.design()
-    assert pushed == ["a+fit", "a|+fit"] and fit.seen == ["a", "a|"]
-    assert refined.name == "a|+fit+pushed+fit" and refined.meta["search"]["winner"] == {"origin": "pushed-out", "start": 1, "candidate": 3}
+    assert pushed == ["a|+fit", "a+fit"] and fit.seen == ["a|", "a"]
+    assert refined.name == "a+fit+pushed+fit" and refined.meta["search"]["winner"] == {"origin": "pushed-out", "start": 1, "candidate": 3}
 
 
 def test_a_cage_two_sources_derive_alike_is_refined_once():

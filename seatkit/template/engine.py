@@ -183,9 +183,11 @@ class YamlTemplate:
         cage is :meth:`fit`'s; the design search asks for the next only when
         the one before is rejected (:mod:`seatkit.search`). When the first cage encloses a hand, the next is the same
         cage with walls inside the hand, if that one is valid and encloses
-        less (docs/templates.md, "Walls inside the hands"); the first cage's
+        less (docs/templates.md, "Walls inside the hands"), built before the
+        first cage is offered: the first cage's
         ``meta["fit_attempts"]["encloses_hands"]`` says whether it encloses
-        one the steps could wall. Raises the
+        one the steps could wall, and ``walled_next`` whether the walled
+        cage follows (the design search refines that one first). Raises the
         first start's refusal when no start gives a valid cage, and a
         refusal of the pose rule at once.
 
@@ -253,18 +255,19 @@ class YamlTemplate:
                 mesh.meta["fit_attempts"]["last_resort"] = True
             if first is not None:
                 mesh.meta["fit_attempts"]["first_refusal"] = str(first)
+            walled = None
             if not found:
-                # whether the next cage may be this one with walls inside the hands it encloses: the design
-                # search offers that before another start's (seatkit.search, ``walls-inside``)
+                # the first cage with walls inside the hands it encloses, if any (docs/templates.md, "Walls
+                # inside the hands"): the next cage, before the next start's; the first cage says whether it
+                # follows (``walled_next``), and the design search refines it first (seatkit.search)
                 mesh.meta["fit_attempts"]["encloses_hands"] = _encloses_hands(*start)
+                walled = _hands_outside(*start) if mesh.meta["fit_attempts"]["encloses_hands"] else None
+                if walled is not None:
+                    walled.meta["fit_attempts"] = {**walled.meta["fit_attempts"], "walls_inside": True}
+                mesh.meta["fit_attempts"]["walled_next"] = walled is not None
             yield mesh
-            if not found:
-                # the refiners refused the first cage: the same with walls inside the hands it encloses, if any
-                # (docs/templates.md, "Walls inside the hands"), before the next start's
-                mesh = _hands_outside(*start)
-                if mesh is not None:
-                    mesh.meta["fit_attempts"] = {**mesh.meta["fit_attempts"], "walls_inside": True}
-                    yield mesh
+            if walled is not None:
+                yield walled
             found = True
         if not found:
             first.diagnostics["fit_attempts"] = len(plan)
