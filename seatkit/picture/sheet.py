@@ -152,7 +152,7 @@ def sheet(title: str, panels, *, colorbar=None, table=None, table_head=("ours", 
     grid_w, grid_h = columns * panel_w, n_rows * (panel_h + caption_h)
     width = grid_w + (colorbar.width if colorbar is not None else 0)
     # wide enough for the longest title line (one or two panels under a long title)
-    width = max(width, 20 + math.ceil(max(ImageDraw.Draw(Image.new("RGB", (1, 1))).textlength(line, font=font(17)) for line in lines)))
+    width = max(width, 20 + math.ceil(max(font(17).getlength(line) for line in lines)))
     height = title_h + grid_h + table_h
     if colorbar is not None:
         height = max(height, title_h + caption_h + colorbar.height)

@@ -260,8 +260,9 @@ class YamlTemplate:
                 # the first cage with walls inside the hands it encloses, if any (docs/templates.md, "Walls
                 # inside the hands"): the next cage, before the next start's; the first cage says whether it
                 # follows (``walled_next``), and the design search refines it first (seatkit.search)
-                mesh.meta["fit_attempts"]["encloses_hands"] = _encloses_hands(*start)
-                walled = _hands_outside(*start) if mesh.meta["fit_attempts"]["encloses_hands"] else None
+                found = _enclosed_hands(*start)
+                mesh.meta["fit_attempts"]["encloses_hands"] = bool(found)
+                walled = _hands_outside(*start, found=found) if found else None
                 if walled is not None:
                     walled.meta["fit_attempts"] = {**walled.meta["fit_attempts"], "walls_inside": True}
                 mesh.meta["fit_attempts"]["walled_next"] = walled is not None
@@ -600,13 +601,14 @@ def _checked_cage(state: FitState, bodies, p: dict, repairs: list) -> ControlMes
     raise AssertionError("unreachable")
 
 
-def _encloses_hands(state: FitState, mesh: ControlMesh, bodies, p: dict, fixers: list, repairs: list) -> bool:
-    """The cage ``mesh`` encloses a part it does not hold that a step could put walls inside: :func:`_hands_outside` has something to try."""
-    return bool(fixers) and any(f["vertices"] for f in enclosed_parts(mesh, bodies, p["max_penetration"] + 1e-3))
+def _enclosed_hands(state: FitState, mesh: ControlMesh, bodies, p: dict, fixers: list, repairs: list) -> list:
+    """What the cage ``mesh`` encloses of the parts it does not hold (:func:`seatkit.template.checks.enclosed_parts`), when a step could put walls inside it; else []."""
+    found = enclosed_parts(mesh, bodies, p["max_penetration"] + 1e-3) if fixers else []
+    return found if any(f["vertices"] for f in found) else []
 
 
-def _hands_outside(state: FitState, mesh: ControlMesh, bodies, p: dict, fixers: list, repairs: list) -> ControlMesh | None:
-    """The cage ``mesh`` that passed the checks, with walls inside the hands it encloses; None when there are none or it gives no better cage.
+def _hands_outside(state: FitState, mesh: ControlMesh, bodies, p: dict, fixers: list, repairs: list, *, found: list) -> ControlMesh | None:
+    """The cage ``mesh`` that passed the checks, with walls inside the hands it encloses (``found``, :func:`_enclosed_hands`); None when it gives no better cage.
 
     The body parts the cage does not hold (a hand, a forearm) that lie more
     than ``max_penetration`` + 1 mm inside the furniture its limit surface
@@ -619,9 +621,6 @@ def _hands_outside(state: FitState, mesh: ControlMesh, bodies, p: dict, fixers: 
     itself is left as it is (the state works on a copy of its ``meta``).
     """
     tolerance = p["max_penetration"] + 1e-3
-    found = enclosed_parts(mesh, bodies, tolerance)
-    if not any(f["vertices"] for f in found) or not fixers:
-        return None
     state.meta = copy.deepcopy(mesh.meta)
     before = max(f["depth_m"] for f in found)
     if not any(step.repair_enclosure(state, [f["vertices"] for f in found], options=o) for step, o in fixers):
